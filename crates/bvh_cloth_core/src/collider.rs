@@ -1,0 +1,99 @@
+//! A rigid collider: a mesh voxelised into spheres, arranged in an LBVH, placed in the world by
+//! a pose (paper section 2.4.1). Moving a collider only changes its pose: no rebuild.
+
+use glam::{Affine3A, Quat, Vec3};
+
+use crate::error::ColliderError;
+use crate::lbvh::Lbvh;
+use crate::voxel_spheres::{MeshRef, voxel_spheres};
+
+/// Where a collider is in the world: rotation, uniform scale, translation.
+///
+/// Only uniform scale is supported, because it maps spheres to spheres; a caller with a
+/// non-uniform scale should bake it into the mesh.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct ColliderPose {
+    /// World position of the collider's local origin.
+    pub translation: Vec3,
+    /// World orientation.
+    pub rotation: Quat,
+    /// Uniform scale, local to world. Must be positive.
+    pub scale: f32,
+}
+
+impl Default for ColliderPose {
+    fn default() -> Self {
+        Self { translation: Vec3::ZERO, rotation: Quat::IDENTITY, scale: 1.0 }
+    }
+}
+
+impl ColliderPose {
+    /// The local-to-world transform.
+    pub fn to_affine(&self) -> Affine3A {
+        Affine3A::from_scale_rotation_translation(Vec3::splat(self.scale), self.rotation, self.translation)
+    }
+
+    /// Whether the pose can be used: finite, with a positive scale and a non-degenerate rotation.
+    pub fn is_valid(&self) -> bool {
+        self.translation.is_finite()
+            && self.rotation.is_finite()
+            && self.rotation.length_squared() > 0.5
+            && self.scale.is_finite()
+            && self.scale > 0.0
+    }
+}
+
+/// A collider built from a triangle mesh.
+#[derive(Clone, Debug)]
+pub struct Collider {
+    /// The sphere tree, in the collider's local frame.
+    pub lbvh: Lbvh,
+    /// The voxel resolution `n` it was built with.
+    pub resolution: u32,
+    /// Extra thickness in world units added to every sphere (the cloth's thickness).
+    pub margin: f32,
+    /// Where the collider is.
+    pub pose: ColliderPose,
+}
+
+impl Collider {
+    /// Voxelises `mesh` at resolution `n` (an `n x n x n` grid over its AABB) and builds the
+    /// LBVH over the spheres. The pose starts at identity and the margin at zero.
+    pub fn from_mesh(mesh: MeshRef<'_>, n: u32) -> Result<Self, ColliderError> {
+        let voxels = voxel_spheres(mesh, n)?;
+        Ok(Self {
+            lbvh: Lbvh::build(&voxels.spheres),
+            resolution: n,
+            margin: 0.0,
+            pose: ColliderPose::default(),
+        })
+    }
+
+    /// Sets the extra thickness (world units).
+    pub fn with_margin(mut self, margin: f32) -> Self {
+        self.margin = margin;
+        self
+    }
+
+    /// Sets the pose.
+    pub fn with_pose(mut self, pose: ColliderPose) -> Self {
+        self.pose = pose;
+        self
+    }
+
+    /// Number of leaf spheres.
+    pub fn sphere_count(&self) -> usize {
+        self.lbvh.leaf_count()
+    }
+
+    /// Whether the world-space point `p` lies inside any sphere grown by the margin.
+    pub fn contains(&self, p: Vec3) -> bool {
+        let frame = crate::collision::ColliderFrame::new(self);
+        let mut inside = false;
+        if let Some(frame) = frame {
+            let local = frame.to_local(p);
+            self.lbvh.for_each_containing(local, frame.margin_local, |_, _| inside = true);
+        }
+        inside
+    }
+}

@@ -1,0 +1,163 @@
+//! Typed errors for everything a user can hand the core.
+
+use core::fmt;
+
+/// Why a cloth could not be built from its parameters.
+#[derive(Clone, Debug, PartialEq)]
+pub enum ClothError {
+    /// The particle grid needs at least 2 rows and 2 columns.
+    GridTooSmall {
+        /// Requested rows.
+        rows: u32,
+        /// Requested columns.
+        cols: u32,
+    },
+    /// The particle grid is larger than the core accepts.
+    GridTooLarge {
+        /// Requested rows.
+        rows: u32,
+        /// Requested columns.
+        cols: u32,
+        /// Largest particle count accepted.
+        max_particles: u32,
+    },
+    /// A parameter must be finite and strictly positive.
+    NotPositive {
+        /// Name of the offending field.
+        field: &'static str,
+        /// The value that was given.
+        value: f32,
+    },
+    /// A parameter must be finite and not negative.
+    Negative {
+        /// Name of the offending field.
+        field: &'static str,
+        /// The value that was given.
+        value: f32,
+    },
+    /// A vector parameter has a NaN or infinite component.
+    NotFinite {
+        /// Name of the offending field.
+        field: &'static str,
+    },
+    /// `looper` (substeps per tick) must be at least 1.
+    ZeroLooper,
+    /// A pinned particle index lies outside the grid.
+    PinOutOfRange {
+        /// The offending index.
+        index: u32,
+        /// Number of particles in the grid.
+        particles: u32,
+    },
+}
+
+impl fmt::Display for ClothError {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        match self {
+            Self::GridTooSmall { rows, cols } => write!(
+                f,
+                "cloth grid of {rows}x{cols} is too small: it needs at least 2 rows and 2 columns"
+            ),
+            Self::GridTooLarge { rows, cols, max_particles } => write!(
+                f,
+                "cloth grid of {rows}x{cols} is too large: at most {max_particles} particles are supported"
+            ),
+            Self::NotPositive { field, value } => {
+                write!(f, "cloth parameter `{field}` must be finite and > 0, got {value}")
+            }
+            Self::Negative { field, value } => {
+                write!(f, "cloth parameter `{field}` must be finite and >= 0, got {value}")
+            }
+            Self::NotFinite { field } => {
+                write!(f, "cloth parameter `{field}` has a NaN or infinite component")
+            }
+            Self::ZeroLooper => write!(f, "cloth parameter `looper` must be at least 1"),
+            Self::PinOutOfRange { index, particles } => write!(
+                f,
+                "pinned particle {index} is outside the grid of {particles} particles"
+            ),
+        }
+    }
+}
+
+impl std::error::Error for ClothError {}
+
+/// Why a collider could not be built from a triangle mesh.
+#[derive(Clone, Debug, PartialEq)]
+pub enum ColliderError {
+    /// The mesh has no vertex positions.
+    EmptyMesh,
+    /// The mesh has no triangle that references a vertex.
+    NoTriangles,
+    /// The index list is not a whole number of triangles.
+    IndicesNotTriangles {
+        /// Length of the index list.
+        len: usize,
+    },
+    /// A vertex position is NaN or infinite.
+    NonFiniteVertex {
+        /// Index of the first such vertex.
+        vertex: usize,
+    },
+    /// A vertex coordinate is so large that squared distances would overflow `f32`.
+    VertexTooFar {
+        /// Index of the first such vertex.
+        vertex: usize,
+        /// The largest coordinate magnitude accepted.
+        limit: f32,
+    },
+    /// A triangle references a vertex that does not exist.
+    IndexOutOfRange {
+        /// Position of the bad entry in the index list.
+        position: usize,
+        /// The index found there.
+        index: u32,
+        /// Number of vertices in the mesh.
+        vertices: usize,
+    },
+    /// Every referenced vertex sits at the same point: there is no volume or area to voxelise.
+    ZeroExtent,
+    /// The voxel resolution `n` must be at least 1.
+    ZeroResolution,
+    /// The voxel resolution is larger than the core accepts.
+    ResolutionTooHigh {
+        /// The requested resolution.
+        n: u32,
+        /// The largest accepted resolution.
+        max: u32,
+    },
+}
+
+impl fmt::Display for ColliderError {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        match self {
+            Self::EmptyMesh => write!(f, "collider mesh has no vertex positions"),
+            Self::NoTriangles => write!(f, "collider mesh has no triangles"),
+            Self::IndicesNotTriangles { len } => write!(
+                f,
+                "collider mesh has {len} indices, which is not a whole number of triangles"
+            ),
+            Self::NonFiniteVertex { vertex } => {
+                write!(f, "collider mesh vertex {vertex} has a NaN or infinite coordinate")
+            }
+            Self::VertexTooFar { vertex, limit } => write!(
+                f,
+                "collider mesh vertex {vertex} lies further than {limit:e} from the origin"
+            ),
+            Self::IndexOutOfRange { position, index, vertices } => write!(
+                f,
+                "collider mesh index {position} points at vertex {index}, but the mesh has {vertices} vertices"
+            ),
+            Self::ZeroExtent => write!(
+                f,
+                "collider mesh has zero extent: all of its vertices are at one point"
+            ),
+            Self::ZeroResolution => write!(f, "collider voxel resolution `n` must be at least 1"),
+            Self::ResolutionTooHigh { n, max } => {
+                write!(f, "collider voxel resolution n = {n} is above the maximum of {max}")
+            }
+        }
+    }
+}
+
+impl std::error::Error for ColliderError {}

@@ -1,0 +1,210 @@
+//! Morton-code linear BVH over sphere leaves (paper section 2.4.2, after Karras 2012,
+//! "Maximizing parallelism in the construction of BVHs, octrees, and k-d trees").
+//!
+//! Leaves are spheres sorted by the Morton code of their centres; inner nodes are AABBs. Every
+//! one of the `N - 1` inner nodes finds its key range and split on its own, so the build is
+//! data-parallel (rayon here, one GPU thread per node on a device). Inner node 0 is the root.
+//!
+//! The node and sphere arrays are `#[repr(C)]` Pod: the GPU backend uploads them unchanged.
+
+use bytemuck::{Pod, Zeroable};
+use glam::Vec3;
+use rayon::prelude::*;
+
+use crate::morton::morton_code;
+
+/// A child reference with this bit set names a leaf (a sphere index); without it, an inner node.
+pub const LEAF_BIT: u32 = 1 << 31;
+
+/// Above this many leaves the inner nodes are built on the rayon pool.
+const PARALLEL_BUILD_MIN_LEAVES: usize = 4096;
+
+/// A bounding sphere: a leaf of the BVH. Layout: 16 bytes, `vec4<f32>` in WGSL.
+#[repr(C)]
+#[derive(Clone, Copy, Debug, Default, PartialEq, Pod, Zeroable)]
+pub struct Sphere {
+    /// Centre in the collider's local frame.
+    pub center: [f32; 3],
+    /// Radius (local units).
+    pub radius: f32,
+}
+
+impl Sphere {
+    /// A sphere from its centre and radius.
+    pub fn new(center: Vec3, radius: f32) -> Self {
+        Self { center: center.to_array(), radius }
+    }
+
+    /// The centre as a vector.
+    pub fn centre(&self) -> Vec3 {
+        Vec3::from(self.center)
+    }
+}
+
+/// An inner node of the BVH: an AABB and two child references (see [`LEAF_BIT`]).
+/// Layout: 32 bytes, two `vec4`-sized halves in WGSL.
+#[repr(C)]
+#[derive(Clone, Copy, Debug, Default, PartialEq, Pod, Zeroable)]
+pub struct BvhNode {
+    /// Minimum corner of the box bounding every sphere below this node.
+    pub aabb_min: [f32; 3],
+    /// Left child: an inner node index, or `LEAF_BIT | sphere index`.
+    pub left: u32,
+    /// Maximum corner of the box.
+    pub aabb_max: [f32; 3],
+    /// Right child, encoded like `left`.
+    pub right: u32,
+}
+
+/// A built LBVH: `N` sphere leaves in Morton order and `N - 1` inner nodes.
+#[derive(Clone, Debug, Default)]
+pub struct Lbvh {
+    /// Inner nodes; index 0 is the root. Empty when there is a single leaf.
+    pub nodes: Vec<BvhNode>,
+    /// Leaves, sorted by Morton code (ties by their input order).
+    pub spheres: Vec<Sphere>,
+    /// Number of inner levels on the longest root-to-leaf path (0 for a single leaf).
+    pub depth: u32,
+}
+
+/// Length of the longest common prefix of keys `i` and `j`, where equal Morton codes are made
+/// distinct by appending the index (Karras section 4); -1 when `j` is outside the array.
+fn common_prefix(codes: &[u32], i: i64, j: i64) -> i32 {
+    if j < 0 || j >= codes.len() as i64 {
+        return -1;
+    }
+    let (a, b) = (codes[i as usize], codes[j as usize]);
+    if a == b {
+        32 + ((i as u32) ^ (j as u32)).leading_zeros() as i32
+    } else {
+        (a ^ b).leading_zeros() as i32
+    }
+}
+
+/// Builds inner node `i` from the sorted codes: its key range, its split and its children.
+fn build_inner_node(codes: &[u32], i: usize) -> BvhNode {
+    let i = i as i64;
+    let d: i64 = if common_prefix(codes, i, i + 1) - common_prefix(codes, i, i - 1) >= 0 { 1 } else { -1 };
+    // Upper bound on the range length, then binary search for its far end.
+    let delta_min = common_prefix(codes, i, i - d);
+    let mut l_max: i64 = 2;
+    while common_prefix(codes, i, i + l_max * d) > delta_min {
+        l_max *= 2;
+    }
+    let mut l: i64 = 0;
+    let mut t = l_max / 2;
+    while t >= 1 {
+        if common_prefix(codes, i, i + (l + t) * d) > delta_min {
+            l += t;
+        }
+        t /= 2;
+    }
+    let j = i + l * d;
+    // Binary search for the split: the last key sharing more than the range's common prefix.
+    let delta_node = common_prefix(codes, i, j);
+    let mut s: i64 = 0;
+    let mut t = l;
+    loop {
+        t = (t + 1) / 2;
+        if common_prefix(codes, i, i + (s + t) * d) > delta_node {
+            s += t;
+        }
+        if t <= 1 {
+            break;
+        }
+    }
+    let gamma = i + s * d + d.min(0);
+    let (first, last) = (i.min(j), i.max(j));
+    let left = if first == gamma { LEAF_BIT | gamma as u32 } else { gamma as u32 };
+    let right = if last == gamma + 1 { LEAF_BIT | (gamma + 1) as u32 } else { (gamma + 1) as u32 };
+    BvhNode { left, right, ..Default::default() }
+}
+
+impl Lbvh {
+    /// Builds the tree over `spheres`, whose Morton codes are taken inside the box of their
+    /// centres. An empty input gives an empty tree; one sphere gives no inner node.
+    pub fn build(spheres: &[Sphere]) -> Self {
+        if spheres.is_empty() {
+            return Self::default();
+        }
+        let (lo, hi) = spheres.iter().fold((Vec3::INFINITY, Vec3::NEG_INFINITY), |(lo, hi), s| {
+            (lo.min(s.centre()), hi.max(s.centre()))
+        });
+        let mut keyed: Vec<(u32, u32)> = spheres
+            .iter()
+            .enumerate()
+            .map(|(i, s)| (morton_code(s.centre(), lo, hi), i as u32))
+            .collect();
+        // Sorting the (code, index) pairs orders equal codes by input index.
+        keyed.sort_unstable();
+        let codes: Vec<u32> = keyed.iter().map(|&(c, _)| c).collect();
+        let sorted: Vec<Sphere> = keyed.iter().map(|&(_, i)| spheres[i as usize]).collect();
+
+        let inner = sorted.len() - 1;
+        let mut nodes: Vec<BvhNode> = if sorted.len() >= PARALLEL_BUILD_MIN_LEAVES {
+            (0..inner).into_par_iter().map(|i| build_inner_node(&codes, i)).collect()
+        } else {
+            (0..inner).map(|i| build_inner_node(&codes, i)).collect()
+        };
+        let depth = fit_bounds(&mut nodes, &sorted);
+        Self { nodes, spheres: sorted, depth }
+    }
+
+    /// The reference to start a traversal from: inner node 0, or the only leaf.
+    pub fn root(&self) -> u32 {
+        if self.nodes.is_empty() { LEAF_BIT } else { 0 }
+    }
+
+    /// Number of leaves.
+    pub fn leaf_count(&self) -> usize {
+        self.spheres.len()
+    }
+
+    /// The box around every sphere, or `None` for an empty tree.
+    pub fn bounds(&self) -> Option<(Vec3, Vec3)> {
+        match (self.nodes.first(), self.spheres.first()) {
+            (Some(root), _) => Some((Vec3::from(root.aabb_min), Vec3::from(root.aabb_max))),
+            (None, Some(s)) => Some((s.centre() - s.radius, s.centre() + s.radius)),
+            (None, None) => None,
+        }
+    }
+}
+
+/// Fits every inner node's AABB to the spheres below it, bottom-up, and returns the depth.
+/// A post-order walk with an explicit stack: O(N), no recursion, far cheaper than the build.
+fn fit_bounds(nodes: &mut [BvhNode], spheres: &[Sphere]) -> u32 {
+    if nodes.is_empty() {
+        return 0;
+    }
+    let child_box = |nodes: &[BvhNode], child: u32| -> (Vec3, Vec3) {
+        if child & LEAF_BIT != 0 {
+            let s = spheres[(child & !LEAF_BIT) as usize];
+            (s.centre() - s.radius, s.centre() + s.radius)
+        } else {
+            let n = &nodes[child as usize];
+            (Vec3::from(n.aabb_min), Vec3::from(n.aabb_max))
+        }
+    };
+    let mut max_depth = 0u32;
+    // (node, depth, children done?)
+    let mut stack: Vec<(u32, u32, bool)> = vec![(0, 1, false)];
+    while let Some((node, depth, done)) = stack.pop() {
+        let BvhNode { left, right, .. } = nodes[node as usize];
+        if done {
+            let (lmin, lmax) = child_box(nodes, left);
+            let (rmin, rmax) = child_box(nodes, right);
+            let n = &mut nodes[node as usize];
+            n.aabb_min = lmin.min(rmin).to_array();
+            n.aabb_max = lmax.max(rmax).to_array();
+            continue;
+        }
+        max_depth = max_depth.max(depth);
+        stack.push((node, depth, true));
+        for child in [left, right] {
+            if child & LEAF_BIT == 0 {
+                stack.push((child, depth + 1, false));
+            }
+        }
+    }
+    max_depth
+}

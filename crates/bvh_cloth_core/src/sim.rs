@@ -1,0 +1,376 @@
+//! The CPU stepper: a whole cloth advanced by RK4 or semi-implicit Euler, with collision
+//! response fused into the last stage of every substep (paper Fig. 1).
+//!
+//! This is the reference the GPU kernels are checked against and a real backend for machines
+//! without compute shaders. Rows are processed in parallel with rayon; every particle's result
+//! depends only on the previous stage's buffers, never on which thread ran it, so a step is
+//! bit-identical whatever the number of threads.
+
+use glam::{Affine3A, Vec3};
+use rayon::prelude::*;
+
+use crate::collider::Collider;
+use crate::collision::ColliderFrame;
+use crate::error::ClothError;
+use crate::forces::{ForceModel, LANES};
+use crate::grid::{ClothGrid, STENCIL};
+use crate::params::{ClothParams, Integrator};
+
+/// Rows handed to one rayon task at least, so small cloths are not split into tiny jobs.
+const MIN_ROWS_PER_TASK: usize = 8;
+
+/// A simulated cloth.
+#[derive(Clone, Debug)]
+pub struct ClothSim {
+    params: ClothParams,
+    grid: ClothGrid,
+    /// Current state, row layout (see [`crate::forces`]).
+    state: Vec<f32>,
+    /// Stage buffers: intermediate states and the running RK4 slope sum.
+    stage_a: Vec<f32>,
+    stage_b: Vec<f32>,
+    slope_sum: Vec<f32>,
+    /// 1 for a free particle, 0 for a pinned one.
+    free: Vec<f32>,
+    pins: Vec<u32>,
+}
+
+/// What one stage of the integrator does with the slope `k = f(src)` of each particle.
+#[derive(Clone, Copy, Debug)]
+enum Stage {
+    /// RK4 stages 1–3: `slope_sum (=|+=) weight k`, `out = base + coef h k`.
+    Intermediate { first: bool, weight: f32, coef: f32 },
+    /// RK4 stage 4: `out = base + h/6 (slope_sum + k)`, then collision.
+    Rk4Final,
+    /// Semi-implicit Euler: `v' = v + h a`, `x' = x + h v'`, then collision.
+    Euler,
+}
+
+impl ClothSim {
+    /// Builds a cloth at rest: the flat grid placed in the world by `pose`, with `pins` (row-major
+    /// particle indices) held in place.
+    pub fn new(params: ClothParams, pose: Affine3A, pins: &[u32]) -> Result<Self, ClothError> {
+        params.validate()?;
+        if !pose.is_finite() {
+            return Err(ClothError::NotFinite { field: "pose" });
+        }
+        let grid = ClothGrid { rows: params.rows as usize, cols: params.cols as usize, spacing: params.spacing() };
+        let n = grid.len();
+        let mut free = vec![1.0f32; n];
+        for &i in pins {
+            let slot = free
+                .get_mut(i as usize)
+                .ok_or(ClothError::PinOutOfRange { index: i, particles: n as u32 })?;
+            *slot = 0.0;
+        }
+        let mut pins = pins.to_vec();
+        pins.sort_unstable();
+        pins.dedup();
+        let mut sim = Self {
+            params,
+            grid,
+            state: vec![0.0; n * LANES],
+            stage_a: vec![0.0; n * LANES],
+            stage_b: vec![0.0; n * LANES],
+            slope_sum: vec![0.0; n * LANES],
+            free,
+            pins,
+        };
+        sim.reset(pose);
+        Ok(sim)
+    }
+
+    /// Puts every particle back at its rest position under `pose`, at rest.
+    pub fn reset(&mut self, pose: Affine3A) {
+        for (i, p) in self.grid.rest_positions(&pose).into_iter().enumerate() {
+            self.set_position(i, p);
+            self.set_velocity(i, Vec3::ZERO);
+        }
+    }
+
+    /// The parameters.
+    pub fn params(&self) -> &ClothParams {
+        &self.params
+    }
+
+    /// Replaces the parameters that can change without rebuilding the grid (everything except
+    /// `rows`, `cols` and `size`). Returns an error, and keeps the old parameters, when the new
+    /// ones are invalid or change the grid's shape.
+    pub fn set_params(&mut self, params: ClothParams) -> Result<(), ClothError> {
+        params.validate()?;
+        if (params.rows, params.cols) != (self.params.rows, self.params.cols) || params.size != self.params.size {
+            return Err(ClothError::NotFinite { field: "rows/cols/size (grid shape changes need a new cloth)" });
+        }
+        self.params = params;
+        Ok(())
+    }
+
+    /// The grid's shape.
+    pub fn grid(&self) -> &ClothGrid {
+        &self.grid
+    }
+
+    /// Number of particles.
+    pub fn len(&self) -> usize {
+        self.grid.len()
+    }
+
+    /// Whether the cloth has no particle (never true: a cloth has at least 2 x 2).
+    pub fn is_empty(&self) -> bool {
+        self.grid.is_empty()
+    }
+
+    /// The pinned particle indices, sorted.
+    pub fn pins(&self) -> &[u32] {
+        &self.pins
+    }
+
+    /// Whether particle `i` is pinned.
+    pub fn is_pinned(&self, i: usize) -> bool {
+        self.free[i] == 0.0
+    }
+
+    #[inline]
+    fn lane(&self, i: usize) -> (usize, usize) {
+        let cols = self.grid.cols;
+        let (r, c) = (i / cols, i % cols);
+        (r * LANES * cols + c, cols)
+    }
+
+    /// Position of particle `i`.
+    pub fn position(&self, i: usize) -> Vec3 {
+        let (o, s) = self.lane(i);
+        Vec3::new(self.state[o], self.state[o + s], self.state[o + 2 * s])
+    }
+
+    /// Velocity of particle `i`.
+    pub fn velocity(&self, i: usize) -> Vec3 {
+        let (o, s) = self.lane(i);
+        Vec3::new(self.state[o + 3 * s], self.state[o + 4 * s], self.state[o + 5 * s])
+    }
+
+    /// Moves particle `i` (for pinned particles, this is how pins follow their anchor).
+    pub fn set_position(&mut self, i: usize, p: Vec3) {
+        let (o, s) = self.lane(i);
+        self.state[o] = p.x;
+        self.state[o + s] = p.y;
+        self.state[o + 2 * s] = p.z;
+    }
+
+    /// Sets the velocity of particle `i`.
+    pub fn set_velocity(&mut self, i: usize, v: Vec3) {
+        let (o, s) = self.lane(i);
+        self.state[o + 3 * s] = v.x;
+        self.state[o + 4 * s] = v.y;
+        self.state[o + 5 * s] = v.z;
+    }
+
+    /// All positions, row-major.
+    pub fn positions(&self) -> Vec<Vec3> {
+        (0..self.len()).map(|i| self.position(i)).collect()
+    }
+
+    /// All velocities, row-major.
+    pub fn velocities(&self) -> Vec<Vec3> {
+        (0..self.len()).map(|i| self.velocity(i)).collect()
+    }
+
+    /// Writes all positions into `out` (row-major), e.g. straight into a mesh attribute.
+    pub fn write_positions(&self, out: &mut [[f32; 3]]) {
+        for (i, o) in out.iter_mut().enumerate().take(self.len()) {
+            *o = self.position(i).to_array();
+        }
+    }
+
+    /// Whether every position and velocity is finite.
+    pub fn is_finite(&self) -> bool {
+        self.state.iter().all(|v| v.is_finite())
+    }
+
+    /// Total mechanical energy in joules: kinetic + spring potential − work of the uniform
+    /// acceleration (gravity and external force, taken from the origin).
+    pub fn energy(&self) -> f64 {
+        let m = f64::from(self.params.particle_mass());
+        let model = ForceModel::new(&self.params, &self.grid);
+        let g = model.uniform_accel.as_dvec3();
+        let (rows, cols) = (self.grid.rows as i64, self.grid.cols as i64);
+        let mut e = 0.0f64;
+        for i in 0..self.len() {
+            let (p, v) = (self.position(i).as_dvec3(), self.velocity(i).as_dvec3());
+            e += 0.5 * m * v.length_squared() - m * g.dot(p);
+            let (r, c) = ((i as i64) / cols, (i as i64) % cols);
+            for s in STENCIL {
+                let (rr, cc) = (r + i64::from(s.dr), c + i64::from(s.dc));
+                if rr < 0 || cc < 0 || rr >= rows || cc >= cols {
+                    continue;
+                }
+                let kind = s.kind as usize;
+                let q = self.position((rr * cols + cc) as usize).as_dvec3();
+                let stretch = (q - p).length() - f64::from(model.rest[kind]);
+                // Each spring is seen from both ends: count half.
+                e += 0.25 * m * f64::from(model.k_over_m[kind]) * stretch * stretch;
+            }
+        }
+        e
+    }
+
+    /// Advances one tick of `dt` seconds: `looper` substeps of `dt / looper`, each followed by
+    /// collision against every collider.
+    pub fn tick(&mut self, dt: f32, colliders: &[Collider]) {
+        if !(dt.is_finite() && dt > 0.0) {
+            return;
+        }
+        let h = dt / self.params.looper as f32;
+        for _ in 0..self.params.looper {
+            self.substep(h, colliders);
+        }
+    }
+
+    /// Advances one substep of `h` seconds (integration, then collision).
+    pub fn substep(&mut self, h: f32, colliders: &[Collider]) {
+        let frames: Vec<ColliderFrame<'_>> = colliders.iter().filter_map(ColliderFrame::new).collect();
+        let model = ForceModel::new(&self.params, &self.grid);
+        match self.params.integrator {
+            Integrator::Rk4 => {
+                let stages = [
+                    Stage::Intermediate { first: true, weight: 1.0, coef: 0.5 },
+                    Stage::Intermediate { first: false, weight: 2.0, coef: 0.5 },
+                    Stage::Intermediate { first: false, weight: 2.0, coef: 1.0 },
+                ];
+                // y -> a -> b -> a, then the final stage reads a and writes b.
+                self.run_stage(&model, h, &frames, stages[0], Src::State, Dst::A);
+                self.run_stage(&model, h, &frames, stages[1], Src::A, Dst::B);
+                self.run_stage(&model, h, &frames, stages[2], Src::B, Dst::A);
+                self.run_stage(&model, h, &frames, Stage::Rk4Final, Src::A, Dst::B);
+                core::mem::swap(&mut self.state, &mut self.stage_b);
+            }
+            Integrator::SemiImplicitEuler => {
+                self.run_stage(&model, h, &frames, Stage::Euler, Src::State, Dst::A);
+                core::mem::swap(&mut self.state, &mut self.stage_a);
+            }
+        }
+    }
+
+    fn run_stage(&mut self, model: &ForceModel, h: f32, frames: &[ColliderFrame<'_>], stage: Stage, src: Src, dst: Dst) {
+        let grid = self.grid;
+        let cols = grid.cols;
+        let w = LANES * cols;
+        let Self { state, stage_a, stage_b, slope_sum, free, .. } = self;
+        let (src, out): (&[f32], &mut [f32]) = match (src, dst) {
+            (Src::State, Dst::A) => (state, stage_a),
+            (Src::A, Dst::B) => (stage_a, stage_b),
+            (Src::B, Dst::A) => (stage_b, stage_a),
+            _ => unreachable!("stage buffers are used in a fixed order"),
+        };
+        let base: &[f32] = state;
+        let free: &[f32] = free;
+        let min_len = MIN_ROWS_PER_TASK.max(1);
+        out.par_chunks_mut(w)
+            .zip(slope_sum.par_chunks_mut(w))
+            .enumerate()
+            .with_min_len(min_len)
+            .for_each_init(
+                || vec![0.0f32; 3 * cols],
+                |acc, (r, (out_row, sum_row))| {
+                    model.row_acceleration(&grid, src, free, r, acc);
+                    let src_row = &src[r * w..(r + 1) * w];
+                    let base_row = &base[r * w..(r + 1) * w];
+                    let free_row = &free[r * cols..(r + 1) * cols];
+                    integrate_row(stage, h, cols, src_row, base_row, free_row, acc, sum_row, out_row);
+                    if matches!(stage, Stage::Rk4Final | Stage::Euler) && !frames.is_empty() {
+                        collide_row(frames, cols, base_row, free_row, out_row);
+                    }
+                },
+            );
+    }
+}
+
+#[derive(Clone, Copy)]
+enum Src {
+    State,
+    A,
+    B,
+}
+
+#[derive(Clone, Copy)]
+enum Dst {
+    A,
+    B,
+}
+
+/// Applies one integrator stage to a row. `acc` holds `[ax | ay | az]` of `src`.
+#[allow(clippy::too_many_arguments)]
+fn integrate_row(
+    stage: Stage,
+    h: f32,
+    cols: usize,
+    src: &[f32],
+    base: &[f32],
+    free: &[f32],
+    acc: &[f32],
+    sum: &mut [f32],
+    out: &mut [f32],
+) {
+    // Slope of lane l (0..6) at column i: velocity (masked) for positions, acceleration for
+    // velocities.
+    let slope = |l: usize, i: usize| -> f32 { if l < 3 { src[(l + 3) * cols + i] * free[i] } else { acc[(l - 3) * cols + i] } };
+    match stage {
+        Stage::Intermediate { first, weight, coef } => {
+            let ch = coef * h;
+            for l in 0..LANES {
+                let o = l * cols;
+                for i in 0..cols {
+                    let k = slope(l, i);
+                    sum[o + i] = if first { k } else { sum[o + i] + weight * k };
+                    out[o + i] = base[o + i] + ch * k;
+                }
+            }
+        }
+        Stage::Rk4Final => {
+            let h6 = h / 6.0;
+            for l in 0..LANES {
+                let o = l * cols;
+                for i in 0..cols {
+                    out[o + i] = base[o + i] + h6 * (sum[o + i] + slope(l, i));
+                }
+            }
+        }
+        Stage::Euler => {
+            for l in 3..LANES {
+                let o = l * cols;
+                for i in 0..cols {
+                    out[o + i] = base[o + i] + h * acc[(l - 3) * cols + i];
+                }
+            }
+            for l in 0..3 {
+                let o = l * cols;
+                for i in 0..cols {
+                    out[o + i] = base[o + i] + h * out[(l + 3) * cols + i] * free[i];
+                }
+            }
+        }
+    }
+}
+
+/// Collision response for every free particle of a row, from its position before the substep
+/// (`base`) to after it (`out`).
+fn collide_row(frames: &[ColliderFrame<'_>], cols: usize, base: &[f32], free: &[f32], out: &mut [f32]) {
+    let get = |buf: &[f32], i: usize, l: usize| Vec3::new(buf[l * cols + i], buf[(l + 1) * cols + i], buf[(l + 2) * cols + i]);
+    for i in 0..cols {
+        if free[i] == 0.0 {
+            continue;
+        }
+        let prev = get(base, i, 0);
+        let mut p = get(out, i, 0);
+        let mut v = get(out, i, 3);
+        let mut hit = false;
+        for frame in frames {
+            hit |= frame.resolve(prev, &mut p, &mut v);
+        }
+        if hit {
+            for (l, value) in [p.x, p.y, p.z, v.x, v.y, v.z].into_iter().enumerate() {
+                out[l * cols + i] = value;
+            }
+        }
+    }
+}

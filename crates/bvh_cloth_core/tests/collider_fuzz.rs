@@ -1,0 +1,92 @@
+//! Property test: arbitrary meshes never make the collider builder panic, and on success every
+//! vertex lies inside the sphere of its voxel and the tree is sound.
+
+use bvh_cloth_core::voxel_spheres::{MeshRef, voxel_spheres};
+use bvh_cloth_core::{Collider, ColliderError, Vec3};
+use proptest::prelude::*;
+
+/// Any float at all: NaN, infinities, 1e30, subnormals.
+fn hostile_coordinate() -> impl Strategy<Value = f32> {
+    prop_oneof![
+        prop::num::f32::ANY,
+        Just(1.0e30f32),
+        Just(-1.0e17f32),
+        Just(f32::NAN),
+        Just(f32::INFINITY),
+        Just(0.0f32),
+    ]
+}
+
+/// Vertex positions: a clean cloud (sometimes on a grid, so vertices and whole triangles
+/// coincide), and now and then one hostile coordinate planted in it.
+fn positions() -> impl Strategy<Value = Vec<[f32; 3]>> {
+    let clean = prop_oneof![
+        3 => -10.0f32..10.0,
+        1 => (-3i32..3).prop_map(|v| v as f32),
+    ];
+    (prop::collection::vec([clean.clone(), clean.clone(), clean], 0..60), prop::option::weighted(0.25, (any::<prop::sample::Index>(), 0usize..3, hostile_coordinate())))
+        .prop_map(|(mut positions, corruption)| {
+            if let (Some((slot, axis, value)), false) = (corruption, positions.is_empty()) {
+                let vertex = slot.index(positions.len());
+                positions[vertex][axis] = value;
+            }
+            positions
+        })
+}
+
+fn mesh() -> impl Strategy<Value = (Vec<[f32; 3]>, Option<Vec<u32>>)> {
+    positions().prop_flat_map(|positions| {
+        // Indices in range, now and then one past the end; absent for a triangle soup.
+        let n = positions.len() as u32;
+        let triangles = prop::collection::vec([0..n.max(1), 0..n.max(1), 0..n.max(1)], 0..30);
+        let flaw = prop::option::weighted(0.15, (any::<bool>(), any::<prop::sample::Index>()));
+        let indices = (triangles, flaw).prop_map(move |(triangles, flaw)| {
+            let mut idx: Vec<u32> = triangles.into_iter().flatten().collect();
+            match (flaw, idx.is_empty()) {
+                // One index past the end.
+                (Some((true, slot)), false) => {
+                    let position = slot.index(idx.len());
+                    idx[position] = n;
+                }
+                // A partial triangle.
+                (Some((false, _)), false) => {
+                    idx.pop();
+                }
+                _ => {}
+            }
+            idx
+        });
+        (Just(positions), prop::option::weighted(0.8, indices))
+    })
+}
+
+proptest! {
+    #![proptest_config(ProptestConfig { cases: 2000, ..ProptestConfig::default() })]
+
+    #[test]
+    fn arbitrary_meshes_build_or_fail_cleanly((positions, indices) in mesh(), n in 0u32..40) {
+        let mesh = MeshRef { positions: &positions, indices: indices.as_deref() };
+        match voxel_spheres(mesh, n) {
+            Ok(voxels) => {
+                let used: Vec<usize> = match &indices {
+                    Some(idx) => idx.iter().map(|&i| i as usize).collect(),
+                    None => (0..positions.len()).collect(),
+                };
+                for i in used {
+                    let p = Vec3::from(positions[i]);
+                    let s = voxels.sphere_of(p).expect("a vertex's voxel has a sphere");
+                    prop_assert!(p.distance(s.centre()) <= s.radius, "vertex {} outside its sphere", i);
+                }
+                let collider = Collider::from_mesh(mesh, n).unwrap();
+                prop_assert_eq!(collider.lbvh.spheres.len(), voxels.spheres.len());
+                prop_assert_eq!(collider.lbvh.nodes.len(), voxels.spheres.len() - 1);
+            }
+            Err(e) => {
+                // Every error says what is wrong.
+                prop_assert!(!e.to_string().is_empty());
+                prop_assert!(Collider::from_mesh(mesh, n).is_err());
+                let _: ColliderError = e;
+            }
+        }
+    }
+}

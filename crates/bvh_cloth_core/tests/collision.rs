@@ -1,0 +1,104 @@
+//! Collision response on analytic cases (paper section 2.4.4 plus the cases it leaves open).
+
+mod common;
+
+use bvh_cloth_core::{ColliderPose, Quat, Sphere, Vec3};
+use bvh_cloth_core::collision::ColliderFrame;
+use common::sphere_collider;
+
+const EPS: f32 = 1.0e-5;
+
+fn unit_ball() -> bvh_cloth_core::Collider {
+    sphere_collider(&[Sphere::new(Vec3::ZERO, 1.0)])
+}
+
+fn resolve(c: &bvh_cloth_core::Collider, prev: Vec3, p: Vec3, v: Vec3) -> (bool, Vec3, Vec3) {
+    let frame = ColliderFrame::new(c).unwrap();
+    let (mut p, mut v) = (p, v);
+    let hit = frame.resolve(prev, &mut p, &mut v);
+    (hit, p, v)
+}
+
+#[test]
+fn flying_into_a_sphere_stops_at_the_entry_point() {
+    let (hit, p, v) = resolve(&unit_ball(), Vec3::new(0.0, 2.0, 0.0), Vec3::new(0.0, 0.5, 0.0), Vec3::new(1.0, -3.0, 0.0));
+    assert!(hit);
+    assert!(p.distance(Vec3::Y) < EPS, "{p}");
+    assert!(v.distance(Vec3::X) < EPS, "only the tangential velocity is kept: {v}");
+}
+
+#[test]
+fn oblique_entry_lies_on_the_segment() {
+    let prev = Vec3::new(-2.0, 0.5, 0.0);
+    let end = Vec3::new(0.0, 0.5, 0.0);
+    let (hit, p, v) = resolve(&unit_ball(), prev, end, Vec3::new(3.0, 0.0, 0.0));
+    assert!(hit);
+    let expected = Vec3::new(-(0.75f32).sqrt(), 0.5, 0.0);
+    assert!(p.distance(expected) < EPS, "{p}");
+    assert!(v.dot(expected).abs() < EPS, "normal velocity removed: {v}");
+    assert!((v.length() - 1.5).abs() < 1e-4, "tangential part kept: {v}");
+}
+
+#[test]
+fn starting_inside_pushes_out_along_the_normal() {
+    let (hit, p, _) = resolve(&unit_ball(), Vec3::new(0.1, 0.2, 0.0), Vec3::new(0.3, 0.4, 0.0), Vec3::ZERO);
+    assert!(hit);
+    assert!(p.distance(Vec3::new(0.6, 0.8, 0.0)) < EPS, "{p}");
+}
+
+#[test]
+fn zero_velocity_inside_and_at_the_centre() {
+    let ball = unit_ball();
+    let (hit, p, v) = resolve(&ball, Vec3::new(0.0, 0.0, 0.5), Vec3::new(0.0, 0.0, 0.5), Vec3::ZERO);
+    assert!(hit && p.distance(Vec3::Z) < EPS && v == Vec3::ZERO);
+    let (hit, p, _) = resolve(&ball, Vec3::ZERO, Vec3::ZERO, Vec3::ZERO);
+    assert!(hit && p.distance(Vec3::Y) < EPS, "the centre falls back to +Y: {p}");
+}
+
+#[test]
+fn grazing_and_resting_particles() {
+    let ball = unit_ball();
+    // A path that dips just under the surface is caught near its end, on the surface.
+    let prev = Vec3::new(-0.5, 0.9, 0.0);
+    let end = Vec3::new(0.0, 0.9999, 0.0);
+    let (hit, p, _) = resolve(&ball, prev, end, Vec3::X);
+    assert!(hit);
+    assert!((p.length() - 1.0).abs() < EPS && p.x < 0.0 && p.x > -0.5, "{p}");
+    // A path that stays outside is untouched.
+    let (hit, ..) = resolve(&ball, Vec3::new(-1.0, 1.01, 0.0), Vec3::new(1.0, 1.01, 0.0), Vec3::X);
+    assert!(!hit);
+    // A particle at rest on the surface stays at rest.
+    let (hit, p, v) = resolve(&ball, Vec3::Y, Vec3::Y, Vec3::ZERO);
+    assert!(!hit && p == Vec3::Y && v == Vec3::ZERO);
+}
+
+#[test]
+fn overlapping_spheres_stop_at_the_first_one_entered() {
+    // Two overlapping balls along x; a path from the left ends inside both.
+    let c = sphere_collider(&[Sphere::new(Vec3::ZERO, 1.0), Sphere::new(Vec3::new(1.0, 0.0, 0.0), 1.0)]);
+    let (hit, p, _) = resolve(&c, Vec3::new(-3.0, 0.0, 0.0), Vec3::new(0.5, 0.0, 0.0), Vec3::X);
+    assert!(hit);
+    assert!(p.distance(Vec3::new(-1.0, 0.0, 0.0)) < EPS, "{p}");
+    // A path into a big ball whose entry point lies inside a small ball stops at the small one.
+    let c = sphere_collider(&[Sphere::new(Vec3::new(0.0, 0.1, 0.0), 0.3), Sphere::new(Vec3::new(0.0, -2.0, 0.0), 2.0)]);
+    let (hit, p, _) = resolve(&c, Vec3::new(0.0, 2.0, 0.0), Vec3::new(0.0, -0.5, 0.0), Vec3::NEG_Y);
+    assert!(hit);
+    assert!(p.distance(Vec3::new(0.0, 0.4, 0.0)) < EPS, "{p}");
+}
+
+#[test]
+fn margin_and_pose_are_applied() {
+    let pose = ColliderPose {
+        translation: Vec3::new(5.0, 1.0, -2.0),
+        rotation: Quat::from_rotation_z(0.7),
+        scale: 2.0,
+    };
+    let c = unit_ball().with_pose(pose).with_margin(0.1);
+    // World radius 2 * 1 + 0.1 around the translation.
+    let centre = pose.translation;
+    let (hit, p, _) = resolve(&c, centre + Vec3::new(0.0, 5.0, 0.0), centre + Vec3::new(0.0, 1.0, 0.0), Vec3::NEG_Y);
+    assert!(hit);
+    assert!(p.distance(centre + Vec3::new(0.0, 2.1, 0.0)) < 1e-4, "{p}");
+    assert!(!c.contains(centre + Vec3::new(2.11, 0.0, 0.0)));
+    assert!(c.contains(centre + Vec3::new(2.09, 0.0, 0.0)));
+}

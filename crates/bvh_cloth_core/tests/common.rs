@@ -1,0 +1,61 @@
+//! Shared fixtures for the core's integration tests.
+#![allow(missing_docs)]
+#![allow(dead_code)]
+
+use bvh_cloth_core::{Collider, Lbvh, Sphere, Vec3};
+
+/// A small deterministic xorshift generator, so tests need no RNG crate and never flake.
+pub struct Rng(u64);
+
+impl Rng {
+    pub fn new(seed: u64) -> Self {
+        Self(seed.wrapping_mul(0x9E37_79B9_7F4A_7C15) | 1)
+    }
+
+    pub fn next_u64(&mut self) -> u64 {
+        let mut x = self.0;
+        x ^= x << 13;
+        x ^= x >> 7;
+        x ^= x << 17;
+        self.0 = x;
+        x
+    }
+
+    /// Uniform in `[lo, hi)`.
+    pub fn range(&mut self, lo: f32, hi: f32) -> f32 {
+        let unit = (self.next_u64() >> 40) as f32 / (1u64 << 24) as f32;
+        lo + (hi - lo) * unit
+    }
+
+    pub fn vec3(&mut self, lo: f32, hi: f32) -> Vec3 {
+        Vec3::new(self.range(lo, hi), self.range(lo, hi), self.range(lo, hi))
+    }
+}
+
+/// A UV sphere mesh of radius `r` around `centre`.
+pub fn uv_sphere(centre: Vec3, r: f32, stacks: u32, slices: u32) -> (Vec<[f32; 3]>, Vec<u32>) {
+    let mut positions = Vec::new();
+    for i in 0..=stacks {
+        let theta = core::f32::consts::PI * i as f32 / stacks as f32;
+        for j in 0..slices {
+            let phi = core::f32::consts::TAU * j as f32 / slices as f32;
+            let p = centre + r * Vec3::new(theta.sin() * phi.cos(), theta.cos(), theta.sin() * phi.sin());
+            positions.push(p.to_array());
+        }
+    }
+    let mut indices = Vec::new();
+    for i in 0..stacks {
+        for j in 0..slices {
+            let a = i * slices + j;
+            let b = i * slices + (j + 1) % slices;
+            let (c, d) = (a + slices, b + slices);
+            indices.extend_from_slice(&[a, c, b, b, c, d]);
+        }
+    }
+    (positions, indices)
+}
+
+/// A collider made of the given spheres directly (no voxelisation).
+pub fn sphere_collider(spheres: &[Sphere]) -> Collider {
+    Collider { lbvh: Lbvh::build(spheres), resolution: 1, margin: 0.0, pose: Default::default() }
+}
