@@ -1,6 +1,8 @@
 //! A rigid collider: a mesh voxelised into spheres, arranged in an LBVH, placed in the world by
 //! a pose (paper section 2.4.1). Moving a collider only changes its pose: no rebuild.
 
+use std::sync::Arc;
+
 use glam::{Affine3A, Quat, Vec3};
 
 use crate::error::ColliderError;
@@ -46,25 +48,30 @@ impl ColliderPose {
 /// A collider built from a triangle mesh.
 #[derive(Clone, Debug)]
 pub struct Collider {
-    /// The sphere tree, in the collider's local frame.
-    pub lbvh: Lbvh,
+    /// The sphere tree, in the collider's local frame. Shared, so that a collider is cheap to
+    /// clone with a new pose every frame.
+    pub lbvh: Arc<Lbvh>,
     /// The voxel resolution `n` it was built with.
     pub resolution: u32,
     /// Extra thickness in world units added to every sphere (the cloth's thickness).
     pub margin: f32,
+    /// Coulomb friction coefficient of the surface (see [`crate::collision`]); 0, the paper's
+    /// response, keeps the whole tangential velocity.
+    pub friction: f32,
     /// Where the collider is.
     pub pose: ColliderPose,
 }
 
 impl Collider {
     /// Voxelises `mesh` at resolution `n` (an `n x n x n` grid over its AABB) and builds the
-    /// LBVH over the spheres. The pose starts at identity and the margin at zero.
+    /// LBVH over the spheres. The pose starts at identity, the margin and the friction at zero.
     pub fn from_mesh(mesh: MeshRef<'_>, n: u32) -> Result<Self, ColliderError> {
         let voxels = voxel_spheres(mesh, n)?;
         Ok(Self {
-            lbvh: Lbvh::build(&voxels.spheres),
+            lbvh: Arc::new(Lbvh::build(&voxels.spheres)),
             resolution: n,
             margin: 0.0,
+            friction: 0.0,
             pose: ColliderPose::default(),
         })
     }
@@ -72,6 +79,12 @@ impl Collider {
     /// Sets the extra thickness (world units).
     pub fn with_margin(mut self, margin: f32) -> Self {
         self.margin = margin;
+        self
+    }
+
+    /// Sets the friction coefficient.
+    pub fn with_friction(mut self, friction: f32) -> Self {
+        self.friction = friction;
         self
     }
 

@@ -7,6 +7,12 @@
 //! * **Previous position already inside** (the collider moved onto the particle, or the particle
 //!   was left inside last time): there is no entry point, so the particle is pushed out along
 //!   the sphere's normal through its current position.
+//! * **Previous position on the surface** (within [`CONTACT_BAND`] of it: a particle resting or
+//!   sliding in contact, which the last response put exactly there): handled like "inside".
+//!   The segment's entry point would be the previous position itself, so a particle pressed
+//!   against a sphere could never slide along it, while the tangential velocity it keeps would
+//!   build up unseen and fling it off when the contact ends. Projecting the end point instead
+//!   lets it slide, so its position and velocity agree.
 //! * **Several overlapping spheres**: among the spheres that contain the particle, the one the
 //!   segment enters first wins. The particle moves to that entry point, and the test repeats
 //!   on the shortened segment (at most [`MAX_PASSES`] times), so when that entry point lies
@@ -21,12 +27,23 @@
 //! * **At a sphere's centre**: the normal is undefined; the previous position's direction is
 //!   used, then world up.
 //!
+//! The paper keeps the whole tangential velocity, so its cloth is frictionless and slides off
+//! any rounded collider. A collider may add Coulomb friction with coefficient `mu`: each contact
+//! takes `mu` times the normal speed it removes off the tangential speed, never past zero, so a
+//! resting particle stays put on any slope below `atan(mu)`. With `mu = 0` the response is the
+//! paper's.
+//!
 //! The test runs in the collider's local frame, so a moving collider needs no rebuild.
 
 use glam::{Affine3A, Quat, Vec3};
 
 use crate::collider::Collider;
 use crate::lbvh::{Lbvh, Sphere};
+
+/// Relative distance above a sphere's surface within which a previous position counts as in
+/// contact (see the module docs). Far above f32 rounding of a projected point (about 1e-7),
+/// far below a substep's travel at any speed worth resolving.
+pub const CONTACT_BAND: f32 = 1.0e-4;
 
 /// How many times one particle is resolved against one collider per substep.
 pub const MAX_PASSES: usize = 4;
@@ -42,6 +59,8 @@ pub struct ColliderFrame<'a> {
     rotation: Quat,
     /// The margin divided by the collider's scale.
     pub margin_local: f32,
+    /// The friction coefficient (0 when the collider's is negative or not finite).
+    pub friction: f32,
 }
 
 impl<'a> ColliderFrame<'a> {
@@ -52,13 +71,14 @@ impl<'a> ColliderFrame<'a> {
             return None;
         }
         let local_to_world = pose.to_affine();
-        let margin = if collider.margin.is_finite() { collider.margin.max(0.0) } else { 0.0 };
+        let usable = |v: f32| if v.is_finite() { v.max(0.0) } else { 0.0 };
         Some(Self {
             lbvh: &collider.lbvh,
             world_to_local: local_to_world.inverse(),
             local_to_world,
             rotation: pose.rotation.normalize(),
-            margin_local: margin / pose.scale,
+            margin_local: usable(collider.margin) / pose.scale,
+            friction: usable(collider.friction),
         })
     }
 
@@ -81,13 +101,28 @@ impl<'a> ColliderFrame<'a> {
             };
             p = moved;
             hit = true;
-            let n = self.rotation * normal;
-            *velocity -= velocity.dot(n) * n;
+            *velocity = self.contact_velocity(*velocity, self.rotation * normal);
         }
         if hit {
             *position = self.local_to_world.transform_point3(p);
         }
         hit
+    }
+}
+
+impl ColliderFrame<'_> {
+    /// The velocity after a contact with outward normal `n`: the normal part removed, and the
+    /// tangential part slowed by friction when the particle was moving into the surface.
+    #[inline]
+    fn contact_velocity(&self, velocity: Vec3, n: Vec3) -> Vec3 {
+        let vn = velocity.dot(n);
+        let tangential = velocity - vn * n;
+        if vn >= 0.0 || self.friction == 0.0 {
+            return tangential;
+        }
+        let speed = tangential.length();
+        let slowdown = self.friction * -vn;
+        if speed > slowdown { tangential * (1.0 - slowdown / speed) } else { Vec3::ZERO }
     }
 }
 
@@ -113,12 +148,14 @@ fn outward_normal(p: Vec3, prev: Vec3, c: Vec3) -> Vec3 {
 pub fn respond(lbvh: &Lbvh, prev: Vec3, p: Vec3, margin: f32) -> Option<(Vec3, Vec3)> {
     // Earliest entry along the segment among spheres `prev` is outside of...
     let mut entry: Option<(f32, Sphere)> = None;
-    // ...and, failing that, the deepest penetration among spheres `prev` is inside of.
+    // ...and, failing that, the deepest penetration among spheres `prev` is inside of (or in
+    // contact with).
     let mut deepest: Option<(f32, Sphere)> = None;
     let moving = p.distance_squared(prev) > 0.0;
     lbvh.for_each_containing(p, margin, |_, s| {
         let (c, r) = (s.centre(), s.radius + margin);
-        if moving && prev.distance_squared(c) >= r * r {
+        let contact = r * (1.0 + CONTACT_BAND);
+        if moving && prev.distance_squared(c) >= contact * contact {
             let t = entry_parameter(prev, p, c, r);
             if entry.is_none_or(|(best, _)| t < best) {
                 entry = Some((t, *s));

@@ -42,6 +42,8 @@ pub enum ClothError {
     },
     /// `looper` (substeps per tick) must be at least 1.
     ZeroLooper,
+    /// `rows`, `cols` or `size` changed on a running cloth: that needs a new cloth.
+    ShapeChanged,
     /// A pinned particle index lies outside the grid.
     PinOutOfRange {
         /// The offending index.
@@ -54,14 +56,12 @@ pub enum ClothError {
 impl fmt::Display for ClothError {
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
         match self {
-            Self::GridTooSmall { rows, cols } => write!(
-                f,
-                "cloth grid of {rows}x{cols} is too small: it needs at least 2 rows and 2 columns"
-            ),
-            Self::GridTooLarge { rows, cols, max_particles } => write!(
-                f,
-                "cloth grid of {rows}x{cols} is too large: at most {max_particles} particles are supported"
-            ),
+            Self::GridTooSmall { rows, cols } => {
+                write!(f, "cloth grid of {rows}x{cols} is too small: it needs at least 2 rows and 2 columns")
+            }
+            Self::GridTooLarge { rows, cols, max_particles } => {
+                write!(f, "cloth grid of {rows}x{cols} is too large: at most {max_particles} particles are supported")
+            }
             Self::NotPositive { field, value } => {
                 write!(f, "cloth parameter `{field}` must be finite and > 0, got {value}")
             }
@@ -72,10 +72,12 @@ impl fmt::Display for ClothError {
                 write!(f, "cloth parameter `{field}` has a NaN or infinite component")
             }
             Self::ZeroLooper => write!(f, "cloth parameter `looper` must be at least 1"),
-            Self::PinOutOfRange { index, particles } => write!(
-                f,
-                "pinned particle {index} is outside the grid of {particles} particles"
-            ),
+            Self::ShapeChanged => {
+                write!(f, "cloth `rows`, `cols` or `size` changed: the grid must be rebuilt, not updated")
+            }
+            Self::PinOutOfRange { index, particles } => {
+                write!(f, "pinned particle {index} is outside the grid of {particles} particles")
+            }
         }
     }
 }
@@ -133,25 +135,20 @@ impl fmt::Display for ColliderError {
         match self {
             Self::EmptyMesh => write!(f, "collider mesh has no vertex positions"),
             Self::NoTriangles => write!(f, "collider mesh has no triangles"),
-            Self::IndicesNotTriangles { len } => write!(
-                f,
-                "collider mesh has {len} indices, which is not a whole number of triangles"
-            ),
+            Self::IndicesNotTriangles { len } => {
+                write!(f, "collider mesh has {len} indices, which is not a whole number of triangles")
+            }
             Self::NonFiniteVertex { vertex } => {
                 write!(f, "collider mesh vertex {vertex} has a NaN or infinite coordinate")
             }
-            Self::VertexTooFar { vertex, limit } => write!(
-                f,
-                "collider mesh vertex {vertex} lies further than {limit:e} from the origin"
-            ),
+            Self::VertexTooFar { vertex, limit } => {
+                write!(f, "collider mesh vertex {vertex} lies further than {limit:e} from the origin")
+            }
             Self::IndexOutOfRange { position, index, vertices } => write!(
                 f,
                 "collider mesh index {position} points at vertex {index}, but the mesh has {vertices} vertices"
             ),
-            Self::ZeroExtent => write!(
-                f,
-                "collider mesh has zero extent: all of its vertices are at one point"
-            ),
+            Self::ZeroExtent => write!(f, "collider mesh has zero extent: all of its vertices are at one point"),
             Self::ZeroResolution => write!(f, "collider voxel resolution `n` must be at least 1"),
             Self::ResolutionTooHigh { n, max } => {
                 write!(f, "collider voxel resolution n = {n} is above the maximum of {max}")

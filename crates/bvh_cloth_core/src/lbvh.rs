@@ -74,11 +74,7 @@ fn common_prefix(codes: &[u32], i: i64, j: i64) -> i32 {
         return -1;
     }
     let (a, b) = (codes[i as usize], codes[j as usize]);
-    if a == b {
-        32 + ((i as u32) ^ (j as u32)).leading_zeros() as i32
-    } else {
-        (a ^ b).leading_zeros() as i32
-    }
+    if a == b { 32 + ((i as u32) ^ (j as u32)).leading_zeros() as i32 } else { (a ^ b).leading_zeros() as i32 }
 }
 
 /// Builds inner node `i` from the sorted codes: its key range, its split and its children.
@@ -127,14 +123,11 @@ impl Lbvh {
         if spheres.is_empty() {
             return Self::default();
         }
-        let (lo, hi) = spheres.iter().fold((Vec3::INFINITY, Vec3::NEG_INFINITY), |(lo, hi), s| {
-            (lo.min(s.centre()), hi.max(s.centre()))
-        });
-        let mut keyed: Vec<(u32, u32)> = spheres
+        let (lo, hi) = spheres
             .iter()
-            .enumerate()
-            .map(|(i, s)| (morton_code(s.centre(), lo, hi), i as u32))
-            .collect();
+            .fold((Vec3::INFINITY, Vec3::NEG_INFINITY), |(lo, hi), s| (lo.min(s.centre()), hi.max(s.centre())));
+        let mut keyed: Vec<(u32, u32)> =
+            spheres.iter().enumerate().map(|(i, s)| (morton_code(s.centre(), lo, hi), i as u32)).collect();
         // Sorting the (code, index) pairs orders equal codes by input index.
         keyed.sort_unstable();
         let codes: Vec<u32> = keyed.iter().map(|&(c, _)| c).collect();

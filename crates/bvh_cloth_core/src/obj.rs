@@ -51,7 +51,8 @@ pub fn parse_obj(text: &str) -> Result<ObjMesh, ObjError> {
             Some("v") => {
                 let mut p = [0.0f32; 3];
                 for c in &mut p {
-                    *c = parts.next().and_then(|s| s.parse().ok()).ok_or_else(|| err("a vertex needs three numbers"))?;
+                    *c =
+                        parts.next().and_then(|s| s.parse().ok()).ok_or_else(|| err("a vertex needs three numbers"))?;
                 }
                 mesh.positions.push(p);
             }

@@ -7,6 +7,11 @@ use crate::error::ClothError;
 /// Largest particle count a single cloth may have (4096 x 4096).
 pub const MAX_PARTICLES: u32 = 1 << 24;
 
+/// Most substeps one tick may take when the stability guard raises `looper` (see
+/// [`ClothParams::max_stable_substep`]). Beyond it the springs are too stiff for the tick rate
+/// to be worth simulating explicitly.
+pub const MAX_SUBSTEPS_PER_TICK: u32 = 256;
+
 /// Which time integrator advances the cloth (paper section 2.2).
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Hash)]
 pub enum Integrator {
@@ -104,6 +109,37 @@ impl ClothParams {
         self.size / (self.cols.max(2) - 1) as f32
     }
 
+    /// The longest substep, in seconds, for which the integrator stays stable.
+    ///
+    /// The fastest mode of the spring grid has `w² <= 4 (k_structural + k_shear + k_bending) / m`:
+    /// each stencil spring adds at most `2 k (d·u)²` to the stiffness along a direction `u`, and
+    /// over each kind's four neighbours `(d·u)²` sums to 2 whatever `u` is (a Gershgorin bound;
+    /// the grid's real top mode, the checkerboard, reaches `6 k / m` with the default scales).
+    /// Damping adds its rate to that. RK4 is stable up to `h w = 2√2` on the imaginary axis and
+    /// semi-implicit Euler up to `h w = 2`; 10 % is kept in hand.
+    pub fn max_stable_substep(&self) -> f32 {
+        let s = self.stiffness;
+        let k_sum = self.spring_k * (s.structural + s.shear + s.bending);
+        let omega = (4.0 * k_sum / self.particle_mass()).sqrt() + self.damping;
+        let limit = match self.integrator {
+            Integrator::Rk4 => 2.0 * core::f32::consts::SQRT_2,
+            Integrator::SemiImplicitEuler => 2.0,
+        };
+        if omega > 0.0 { 0.9 * limit / omega } else { f32::INFINITY }
+    }
+
+    /// Substeps one tick of `dt` seconds takes: `looper`, or more when a substep of
+    /// `dt / looper` would be longer than [`Self::max_stable_substep`], up to
+    /// [`MAX_SUBSTEPS_PER_TICK`].
+    pub fn substeps(&self, dt: f32) -> u32 {
+        let needed = (dt / self.max_stable_substep()).ceil();
+        if needed.is_finite() && needed > self.looper as f32 {
+            (needed as u32).min(MAX_SUBSTEPS_PER_TICK).max(self.looper)
+        } else {
+            self.looper
+        }
+    }
+
     /// Checks that a cloth can be built and stepped with these parameters.
     pub fn validate(&self) -> Result<(), ClothError> {
         let (rows, cols) = (self.rows, self.cols);
@@ -132,19 +168,11 @@ impl ClothParams {
 }
 
 fn positive(field: &'static str, value: f32) -> Result<(), ClothError> {
-    if value.is_finite() && value > 0.0 {
-        Ok(())
-    } else {
-        Err(ClothError::NotPositive { field, value })
-    }
+    if value.is_finite() && value > 0.0 { Ok(()) } else { Err(ClothError::NotPositive { field, value }) }
 }
 
 fn non_negative(field: &'static str, value: f32) -> Result<(), ClothError> {
-    if value.is_finite() && value >= 0.0 {
-        Ok(())
-    } else {
-        Err(ClothError::Negative { field, value })
-    }
+    if value.is_finite() && value >= 0.0 { Ok(()) } else { Err(ClothError::Negative { field, value }) }
 }
 
 fn finite(field: &'static str, value: Vec3) -> Result<(), ClothError> {
@@ -158,6 +186,17 @@ mod tests {
     #[test]
     fn defaults_are_valid() {
         ClothParams::default().validate().unwrap();
+    }
+
+    #[test]
+    fn stability_guard_adds_substeps_only_when_needed() {
+        let base = ClothParams::default();
+        assert_eq!(base.substeps(1.0 / 60.0), base.looper, "the defaults are stable as given");
+        let stiff = ClothParams { spring_k: 5000.0, ..base.clone() };
+        let n = stiff.substeps(1.0 / 60.0);
+        assert!(n > base.looper && (1.0 / 60.0) / n as f32 <= stiff.max_stable_substep(), "{n}");
+        let absurd = ClothParams { spring_k: 1.0e12, ..base };
+        assert_eq!(absurd.substeps(1.0 / 60.0), MAX_SUBSTEPS_PER_TICK);
     }
 
     #[test]

@@ -58,9 +58,7 @@ impl ClothSim {
         let n = grid.len();
         let mut free = vec![1.0f32; n];
         for &i in pins {
-            let slot = free
-                .get_mut(i as usize)
-                .ok_or(ClothError::PinOutOfRange { index: i, particles: n as u32 })?;
+            let slot = free.get_mut(i as usize).ok_or(ClothError::PinOutOfRange { index: i, particles: n as u32 })?;
             *slot = 0.0;
         }
         let mut pins = pins.to_vec();
@@ -88,6 +86,16 @@ impl ClothSim {
         }
     }
 
+    /// Moves every pinned particle to its rest position under `pose`: this is how pins follow
+    /// the object that holds the cloth.
+    pub fn pin_to(&mut self, pose: &Affine3A) {
+        for k in 0..self.pins.len() {
+            let i = self.pins[k] as usize;
+            let (r, c) = (i / self.grid.cols, i % self.grid.cols);
+            self.set_position(i, pose.transform_point3(self.grid.local_rest_position(r, c)));
+        }
+    }
+
     /// The parameters.
     pub fn params(&self) -> &ClothParams {
         &self.params
@@ -99,7 +107,7 @@ impl ClothSim {
     pub fn set_params(&mut self, params: ClothParams) -> Result<(), ClothError> {
         params.validate()?;
         if (params.rows, params.cols) != (self.params.rows, self.params.cols) || params.size != self.params.size {
-            return Err(ClothError::NotFinite { field: "rows/cols/size (grid shape changes need a new cloth)" });
+            return Err(ClothError::ShapeChanged);
         }
         self.params = params;
         Ok(())
@@ -214,16 +222,19 @@ impl ClothSim {
         e
     }
 
-    /// Advances one tick of `dt` seconds: `looper` substeps of `dt / looper`, each followed by
-    /// collision against every collider.
-    pub fn tick(&mut self, dt: f32, colliders: &[Collider]) {
+    /// Advances one tick of `dt` seconds: `looper` substeps of equal length (more when the
+    /// stability guard asks for them, see [`ClothParams::substeps`]), each followed by collision
+    /// against every collider. Returns the number of substeps run.
+    pub fn tick(&mut self, dt: f32, colliders: &[Collider]) -> u32 {
         if !(dt.is_finite() && dt > 0.0) {
-            return;
+            return 0;
         }
-        let h = dt / self.params.looper as f32;
-        for _ in 0..self.params.looper {
+        let substeps = self.params.substeps(dt);
+        let h = dt / substeps as f32;
+        for _ in 0..substeps {
             self.substep(h, colliders);
         }
+        substeps
     }
 
     /// Advances one substep of `h` seconds (integration, then collision).
@@ -251,7 +262,15 @@ impl ClothSim {
         }
     }
 
-    fn run_stage(&mut self, model: &ForceModel, h: f32, frames: &[ColliderFrame<'_>], stage: Stage, src: Src, dst: Dst) {
+    fn run_stage(
+        &mut self,
+        model: &ForceModel,
+        h: f32,
+        frames: &[ColliderFrame<'_>],
+        stage: Stage,
+        src: Src,
+        dst: Dst,
+    ) {
         let grid = self.grid;
         let cols = grid.cols;
         let w = LANES * cols;
@@ -265,23 +284,19 @@ impl ClothSim {
         let base: &[f32] = state;
         let free: &[f32] = free;
         let min_len = MIN_ROWS_PER_TASK.max(1);
-        out.par_chunks_mut(w)
-            .zip(slope_sum.par_chunks_mut(w))
-            .enumerate()
-            .with_min_len(min_len)
-            .for_each_init(
-                || vec![0.0f32; 3 * cols],
-                |acc, (r, (out_row, sum_row))| {
-                    model.row_acceleration(&grid, src, free, r, acc);
-                    let src_row = &src[r * w..(r + 1) * w];
-                    let base_row = &base[r * w..(r + 1) * w];
-                    let free_row = &free[r * cols..(r + 1) * cols];
-                    integrate_row(stage, h, cols, src_row, base_row, free_row, acc, sum_row, out_row);
-                    if matches!(stage, Stage::Rk4Final | Stage::Euler) && !frames.is_empty() {
-                        collide_row(frames, cols, base_row, free_row, out_row);
-                    }
-                },
-            );
+        out.par_chunks_mut(w).zip(slope_sum.par_chunks_mut(w)).enumerate().with_min_len(min_len).for_each_init(
+            || vec![0.0f32; 3 * cols],
+            |acc, (r, (out_row, sum_row))| {
+                model.row_acceleration(&grid, src, free, r, acc);
+                let src_row = &src[r * w..(r + 1) * w];
+                let base_row = &base[r * w..(r + 1) * w];
+                let free_row = &free[r * cols..(r + 1) * cols];
+                integrate_row(stage, h, cols, src_row, base_row, free_row, acc, sum_row, out_row);
+                if matches!(stage, Stage::Rk4Final | Stage::Euler) && !frames.is_empty() {
+                    collide_row(frames, cols, base_row, free_row, out_row);
+                }
+            },
+        );
     }
 }
 
@@ -313,7 +328,8 @@ fn integrate_row(
 ) {
     // Slope of lane l (0..6) at column i: velocity (masked) for positions, acceleration for
     // velocities.
-    let slope = |l: usize, i: usize| -> f32 { if l < 3 { src[(l + 3) * cols + i] * free[i] } else { acc[(l - 3) * cols + i] } };
+    let slope =
+        |l: usize, i: usize| -> f32 { if l < 3 { src[(l + 3) * cols + i] * free[i] } else { acc[(l - 3) * cols + i] } };
     match stage {
         Stage::Intermediate { first, weight, coef } => {
             let ch = coef * h;
@@ -355,7 +371,9 @@ fn integrate_row(
 /// Collision response for every free particle of a row, from its position before the substep
 /// (`base`) to after it (`out`).
 fn collide_row(frames: &[ColliderFrame<'_>], cols: usize, base: &[f32], free: &[f32], out: &mut [f32]) {
-    let get = |buf: &[f32], i: usize, l: usize| Vec3::new(buf[l * cols + i], buf[(l + 1) * cols + i], buf[(l + 2) * cols + i]);
+    let get = |buf: &[f32], i: usize, l: usize| {
+        Vec3::new(buf[l * cols + i], buf[(l + 1) * cols + i], buf[(l + 2) * cols + i])
+    };
     for i in 0..cols {
         if free[i] == 0.0 {
             continue;

@@ -108,9 +108,7 @@ pub fn voxel_spheres(mesh: MeshRef<'_>, n: u32) -> Result<VoxelSpheres, Collider
         return Err(ColliderError::ResolutionTooHigh { n, max: MAX_RESOLUTION });
     }
     let vertices = referenced_vertices(mesh)?;
-    let (min, max) = vertices
-        .iter()
-        .fold((Vec3::INFINITY, Vec3::NEG_INFINITY), |(lo, hi), &p| (lo.min(p), hi.max(p)));
+    let (min, max) = vertices.iter().fold((Vec3::INFINITY, Vec3::NEG_INFINITY), |(lo, hi), &p| (lo.min(p), hi.max(p)));
     let extent = max - min;
     if extent.max_element() <= 0.0 {
         return Err(ColliderError::ZeroExtent);
@@ -184,15 +182,12 @@ impl VoxelSpheres {
 /// The smaller of the box-centre and centroid spheres around `points` (see the module docs).
 pub fn enclosing_sphere(points: &[Vec3]) -> Sphere {
     debug_assert!(!points.is_empty());
-    let (lo, hi) = points
-        .iter()
-        .fold((Vec3::INFINITY, Vec3::NEG_INFINITY), |(lo, hi), &p| (lo.min(p), hi.max(p)));
+    let (lo, hi) = points.iter().fold((Vec3::INFINITY, Vec3::NEG_INFINITY), |(lo, hi), &p| (lo.min(p), hi.max(p)));
     let box_centre = 0.5 * (lo + hi);
     let centroid = points.iter().copied().sum::<Vec3>() / points.len() as f32;
     let radius_around = |c: Vec3| points.iter().map(|&p| p.distance(c)).fold(0.0f32, f32::max);
     let (r_box, r_centroid) = (radius_around(box_centre), radius_around(centroid));
-    let (centre, radius) =
-        if r_centroid < r_box { (centroid, r_centroid) } else { (box_centre, r_box) };
+    let (centre, radius) = if r_centroid < r_box { (centroid, r_centroid) } else { (box_centre, r_box) };
     Sphere::new(centre, radius * (1.0 + 1.0e-6))
 }
 
@@ -207,8 +202,7 @@ mod tests {
         }
         // Twelve triangles; their exact winding does not matter for voxelisation.
         let idx = vec![
-            0, 1, 3, 0, 3, 2, 4, 6, 7, 4, 7, 5, 0, 4, 5, 0, 5, 1, 2, 3, 7, 2, 7, 6, 0, 2, 6, 0, 6,
-            4, 1, 5, 7, 1, 7, 3,
+            0, 1, 3, 0, 3, 2, 4, 6, 7, 4, 7, 5, 0, 4, 5, 0, 5, 1, 2, 3, 7, 2, 7, 6, 0, 2, 6, 0, 6, 4, 1, 5, 7, 1, 7, 3,
         ];
         (p, idx)
     }

@@ -94,3 +94,49 @@ fn pins_out_of_range_are_rejected() {
     let err = ClothSim::new(ClothParams { rows: 4, cols: 4, ..Default::default() }, Affine3A::IDENTITY, &[16]);
     assert!(matches!(err, Err(bvh_cloth_core::ClothError::PinOutOfRange { index: 16, particles: 16 })));
 }
+
+#[test]
+fn pins_follow_their_pose_and_the_rest_keeps_its_state() {
+    let mut sim = hanging(8, 8);
+    let grid = *sim.grid();
+    let free = grid.index(4, 4);
+    let before = sim.position(free);
+    let pose =
+        Affine3A::from_rotation_translation(bvh_cloth_core::Quat::from_rotation_y(0.5), Vec3::new(1.0, 3.0, -2.0));
+    sim.pin_to(&pose);
+    for &i in sim.pins() {
+        let (r, c) = (i as usize / grid.cols, i as usize % grid.cols);
+        let expected = pose.transform_point3(grid.local_rest_position(r, c));
+        assert!(sim.position(i as usize).distance(expected) < 1e-6);
+    }
+    assert_eq!(sim.position(free), before, "free particles are not teleported");
+}
+
+#[test]
+fn shape_changes_are_refused_by_set_params() {
+    let mut sim = hanging(8, 8);
+    let mut params = sim.params().clone();
+    params.spring_k = 500.0;
+    sim.set_params(params.clone()).unwrap();
+    assert_eq!(sim.params().spring_k, 500.0);
+    params.rows = 9;
+    assert_eq!(sim.set_params(params).unwrap_err(), bvh_cloth_core::ClothError::ShapeChanged);
+    assert_eq!(sim.params().rows, 8, "the old parameters are kept");
+}
+
+#[test]
+fn stiff_springs_stay_stable_under_the_guard() {
+    // 100x the default stiffness with a quarter of the substeps: far past the explicit limit
+    // of `looper` alone (h w is about 20 here), so the guard must add substeps.
+    let params = ClothParams { rows: 24, cols: 24, size: 1.0, spring_k: 20_000.0, looper: 4, ..Default::default() };
+    let grid = ClothGrid { rows: 24, cols: 24, spacing: params.spacing() };
+    let mut sim = ClothSim::new(params, Affine3A::from_translation(Vec3::Y), &Pins::TwoEnds.indices(&grid)).unwrap();
+    let mut substeps = 0;
+    for _ in 0..120 {
+        substeps = sim.tick(1.0 / 60.0, &[]);
+    }
+    assert!(substeps > 4, "the guard kept {substeps} substeps");
+    assert!(sim.is_finite());
+    let speed = sim.velocities().iter().map(|v| v.length()).fold(0.0f32, f32::max);
+    assert!(speed < 5.0, "the stiff cloth is thrashing at {speed} m/s");
+}

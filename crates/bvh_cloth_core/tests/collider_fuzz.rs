@@ -24,7 +24,10 @@ fn positions() -> impl Strategy<Value = Vec<[f32; 3]>> {
         3 => -10.0f32..10.0,
         1 => (-3i32..3).prop_map(|v| v as f32),
     ];
-    (prop::collection::vec([clean.clone(), clean.clone(), clean], 0..60), prop::option::weighted(0.25, (any::<prop::sample::Index>(), 0usize..3, hostile_coordinate())))
+    (
+        prop::collection::vec([clean.clone(), clean.clone(), clean], 0..60),
+        prop::option::weighted(0.25, (any::<prop::sample::Index>(), 0usize..3, hostile_coordinate())),
+    )
         .prop_map(|(mut positions, corruption)| {
             if let (Some((slot, axis, value)), false) = (corruption, positions.is_empty()) {
                 let vertex = slot.index(positions.len());

@@ -2,8 +2,8 @@
 
 mod common;
 
-use bvh_cloth_core::{ColliderPose, Quat, Sphere, Vec3};
 use bvh_cloth_core::collision::ColliderFrame;
+use bvh_cloth_core::{ColliderPose, Quat, Sphere, Vec3};
 use common::sphere_collider;
 
 const EPS: f32 = 1.0e-5;
@@ -21,7 +21,8 @@ fn resolve(c: &bvh_cloth_core::Collider, prev: Vec3, p: Vec3, v: Vec3) -> (bool,
 
 #[test]
 fn flying_into_a_sphere_stops_at_the_entry_point() {
-    let (hit, p, v) = resolve(&unit_ball(), Vec3::new(0.0, 2.0, 0.0), Vec3::new(0.0, 0.5, 0.0), Vec3::new(1.0, -3.0, 0.0));
+    let (hit, p, v) =
+        resolve(&unit_ball(), Vec3::new(0.0, 2.0, 0.0), Vec3::new(0.0, 0.5, 0.0), Vec3::new(1.0, -3.0, 0.0));
     assert!(hit);
     assert!(p.distance(Vec3::Y) < EPS, "{p}");
     assert!(v.distance(Vec3::X) < EPS, "only the tangential velocity is kept: {v}");
@@ -88,11 +89,8 @@ fn overlapping_spheres_stop_at_the_first_one_entered() {
 
 #[test]
 fn margin_and_pose_are_applied() {
-    let pose = ColliderPose {
-        translation: Vec3::new(5.0, 1.0, -2.0),
-        rotation: Quat::from_rotation_z(0.7),
-        scale: 2.0,
-    };
+    let pose =
+        ColliderPose { translation: Vec3::new(5.0, 1.0, -2.0), rotation: Quat::from_rotation_z(0.7), scale: 2.0 };
     let c = unit_ball().with_pose(pose).with_margin(0.1);
     // World radius 2 * 1 + 0.1 around the translation.
     let centre = pose.translation;
@@ -101,4 +99,45 @@ fn margin_and_pose_are_applied() {
     assert!(p.distance(centre + Vec3::new(0.0, 2.1, 0.0)) < 1e-4, "{p}");
     assert!(!c.contains(centre + Vec3::new(2.11, 0.0, 0.0)));
     assert!(c.contains(centre + Vec3::new(2.09, 0.0, 0.0)));
+}
+
+#[test]
+fn friction_slows_the_tangential_velocity() {
+    // Falling onto the top of the ball at 0.5 m/s while sliding at 1 m/s.
+    let prev = Vec3::new(0.0, 1.1, 0.0);
+    let end = Vec3::new(0.0, 0.99, 0.0);
+    let v = Vec3::new(1.0, -0.5, 0.0);
+    let (_, _, frictionless) = resolve(&unit_ball(), prev, end, v);
+    assert!(frictionless.distance(Vec3::X) < EPS, "{frictionless}");
+    // mu = 0.4 takes 0.4 * 0.5 = 0.2 m/s off the tangential speed.
+    let (_, p, slowed) = resolve(&unit_ball().with_friction(0.4), prev, end, v);
+    assert!(slowed.distance(Vec3::new(0.8, 0.0, 0.0)) < 1e-4, "{slowed}");
+    assert!(p.distance(Vec3::Y) < EPS);
+    // Enough friction stops it, and never reverses it.
+    let (_, _, stopped) = resolve(&unit_ball().with_friction(5.0), prev, end, v);
+    assert_eq!(stopped, Vec3::ZERO);
+    // A particle leaving the surface feels no friction, and a hostile coefficient is ignored.
+    let (_, _, leaving) = resolve(
+        &unit_ball().with_friction(5.0),
+        Vec3::new(0.0, 0.5, 0.0),
+        Vec3::new(0.0, 0.9, 0.0),
+        Vec3::new(1.0, 0.5, 0.0),
+    );
+    assert!(leaving.distance(Vec3::X) < EPS, "{leaving}");
+    let (_, _, nan) = resolve(&unit_ball().with_friction(f32::NAN), prev, end, v);
+    assert!(nan.distance(Vec3::X) < EPS, "{nan}");
+}
+
+#[test]
+fn a_particle_pressed_against_a_sphere_slides_along_it() {
+    // On the surface, pushed into it and sideways: it slides, and only the normal speed goes.
+    let ball = unit_ball();
+    let prev = Vec3::Y;
+    let end = Vec3::new(0.01, 0.995, 0.0);
+    let (hit, p, v) = resolve(&ball, prev, end, Vec3::new(1.0, -0.5, 0.0));
+    assert!(hit);
+    assert!(p.x > 0.009 && (p.length() - 1.0).abs() < EPS, "it slid to {p}");
+    let n = p.normalize();
+    assert!(v.dot(n).abs() < 1e-3, "no normal velocity is left: {v}");
+    assert!(v.x > 0.9, "the tangential velocity is kept: {v}");
 }

@@ -34,8 +34,10 @@ fn check_invariants(bvh: &Lbvh) {
         let node = bvh.nodes[i as usize];
         for child in [node.left, node.right] {
             let (lo, hi) = bounds_of(child);
-            assert!(Vec3::from(node.aabb_min).cmple(lo).all() && Vec3::from(node.aabb_max).cmpge(hi).all(),
-                "inner node {i} does not contain child {child:#x}");
+            assert!(
+                Vec3::from(node.aabb_min).cmple(lo).all() && Vec3::from(node.aabb_max).cmpge(hi).all(),
+                "inner node {i} does not contain child {child:#x}"
+            );
             if child & LEAF_BIT != 0 {
                 leaves_seen[(child & !LEAF_BIT) as usize] += 1;
             } else {
