@@ -1,0 +1,268 @@
+//! `AutoCollider`: any mesh becomes a voxel-sphere LBVH collider (paper sections 2.4.1–2.4.2).
+//!
+//! When the entity's mesh asset is available, [`build_colliders`] copies its triangles and
+//! builds the collider: inline for small meshes, on the [`AsyncComputeTaskPool`] for big ones so
+//! that no frame hitches. Until a new build is done the previous collider (if any) keeps working.
+//! The collider follows the entity's [`GlobalTransform`] every frame without a rebuild; changing
+//! the resolution `n`, the [`Mesh3d`] or the mesh asset rebuilds it.
+
+use std::collections::HashSet;
+
+use bevy::asset::LoadState;
+use bevy::prelude::*;
+use bevy::tasks::{AsyncComputeTaskPool, Task, block_on, poll_once};
+use bvh_cloth_core::{Collider, ColliderPose};
+
+use crate::collider_mesh::{ColliderFailure, TriangleList};
+use crate::messages::ClothMessage;
+
+/// Meshes with at least this many vertices are voxelised on the async compute pool.
+pub const ASYNC_BUILD_MIN_VERTICES: usize = 20_000;
+
+/// Makes the entity's [`Mesh3d`] a collider for every cloth.
+///
+/// The mesh is cut into `resolution³` voxels over its bounding box; every voxel that holds a
+/// vertex becomes a bounding sphere, and the spheres are arranged in a Morton-code LBVH. The
+/// collider follows the entity's transform (rotation, translation and uniform scale; with a
+/// non-uniform scale the largest axis is used, and a warning says so).
+#[derive(Component, Clone, Debug, PartialEq, Reflect)]
+#[reflect(Component, Default, Debug)]
+#[require(Transform, ColliderStatus)]
+pub struct AutoCollider {
+    /// Voxels per axis, `n` in the paper (which uses 1, 3 and 5). Higher is tighter and costs
+    /// more memory; between 1 and [`bvh_cloth_core::voxel_spheres::MAX_RESOLUTION`].
+    pub resolution: u32,
+    /// Extra thickness in world units added to every sphere, so that the cloth rests a little
+    /// above the surface instead of on it.
+    pub margin: f32,
+    /// Coulomb friction coefficient of the surface. The paper's response is frictionless
+    /// (0), and a frictionless cloth slides off anything rounded. The default, 1.0 (a rough
+    /// surface), holds a resting cloth on slopes up to 45°, which keeps a cloth dropped on the
+    /// bunny or the dragon draped over it instead of sliding off one side.
+    pub friction: f32,
+}
+
+impl Default for AutoCollider {
+    fn default() -> Self {
+        Self { resolution: 5, margin: 0.01, friction: 1.0 }
+    }
+}
+
+impl AutoCollider {
+    /// A collider with `resolution³` voxels and the default margin.
+    pub fn new(resolution: u32) -> Self {
+        Self { resolution, ..default() }
+    }
+}
+
+/// Where an [`AutoCollider`] stands. Added with the collider.
+#[derive(Component, Clone, Debug, Default, PartialEq, Reflect)]
+#[reflect(Component, Default, Debug)]
+pub enum ColliderStatus {
+    /// The mesh asset is not loaded yet.
+    #[default]
+    Waiting,
+    /// A build is running on the async compute pool.
+    Building,
+    /// The collider is built and active.
+    Ready {
+        /// Leaf spheres (non-empty voxels).
+        spheres: u32,
+        /// Inner AABB nodes (`spheres - 1`).
+        inner_nodes: u32,
+    },
+    /// The mesh cannot become a collider; the message says why. Fixing the mesh, the
+    /// [`Mesh3d`] or the resolution retries.
+    Failed(String),
+}
+
+impl ColliderStatus {
+    fn ready(collider: &Collider) -> Self {
+        Self::Ready { spheres: collider.sphere_count() as u32, inner_nodes: collider.lbvh.nodes.len() as u32 }
+    }
+}
+
+/// The built collider of an [`AutoCollider`] entity, with its current pose.
+#[derive(Component, Clone, Debug)]
+pub struct ClothCollider {
+    collider: Collider,
+    warned_non_uniform: bool,
+}
+
+impl ClothCollider {
+    /// The collider: the sphere tree in the mesh's local frame, its margin and its pose.
+    pub fn collider(&self) -> &Collider {
+        &self.collider
+    }
+}
+
+/// What a build was (or is being) made from.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+struct BuildKey {
+    mesh: AssetId<Mesh>,
+    resolution: u32,
+}
+
+/// Per-entity build bookkeeping.
+#[derive(Component, Default)]
+pub(crate) struct ColliderBuild {
+    /// The key of the last build that finished (successfully or not).
+    done: Option<BuildKey>,
+    /// A build in flight.
+    pending: Option<(BuildKey, Task<Result<Collider, ColliderFailure>>)>,
+}
+
+/// Starts, polls and finishes collider builds; reports failures.
+#[allow(clippy::type_complexity)]
+pub(crate) fn build_colliders(
+    mut commands: Commands,
+    meshes: Res<Assets<Mesh>>,
+    asset_server: Option<Res<AssetServer>>,
+    mut mesh_events: MessageReader<AssetEvent<Mesh>>,
+    mut colliders: Query<(Entity, &AutoCollider, Option<&Mesh3d>, Option<&mut ColliderBuild>, &mut ColliderStatus)>,
+    mut messages: MessageWriter<ClothMessage>,
+) {
+    let modified: HashSet<AssetId<Mesh>> = mesh_events
+        .read()
+        .filter_map(|event| match event {
+            AssetEvent::Modified { id } => Some(*id),
+            _ => None,
+        })
+        .collect();
+    let load_failure = |id: AssetId<Mesh>| match asset_server.as_ref().map(|server| server.load_state(id)) {
+        Some(LoadState::Failed(error)) => Some(error.to_string()),
+        _ => None,
+    };
+    for (entity, auto, mesh3d, build, mut status) in &mut colliders {
+        let Some(mut build) = build else {
+            commands.entity(entity).insert(ColliderBuild::default());
+            continue;
+        };
+        let outcome = match mesh3d {
+            None if matches!(*status, ColliderStatus::Failed(_)) => continue,
+            None => Err(ColliderFailure::NoMesh3d),
+            Some(mesh3d) => {
+                let key = BuildKey { mesh: mesh3d.id(), resolution: auto.resolution };
+                match advance_build(&mut build, key, &meshes, modified.contains(&key.mesh), load_failure) {
+                    Progress::Done(result) => result,
+                    Progress::Idle => continue,
+                    Progress::Waiting => {
+                        *status = ColliderStatus::Waiting;
+                        continue;
+                    }
+                    Progress::Building => {
+                        *status = ColliderStatus::Building;
+                        continue;
+                    }
+                }
+            }
+        };
+        match outcome {
+            Ok(collider) => {
+                *status = ColliderStatus::ready(&collider);
+                commands.entity(entity).insert(ClothCollider { collider, warned_non_uniform: false });
+            }
+            Err(failure) => {
+                error!("AutoCollider on {entity}: {failure}; it will not collide");
+                *status = ColliderStatus::Failed(failure.to_string());
+                messages.write(ClothMessage::ColliderFailed { entity, failure });
+                commands.entity(entity).remove::<ClothCollider>();
+            }
+        }
+    }
+}
+
+/// Where one entity's build is after [`advance_build`].
+enum Progress {
+    /// Nothing to do: the collider is up to date.
+    Idle,
+    /// The mesh asset is not available yet.
+    Waiting,
+    /// A build is running on the async pool.
+    Building,
+    /// A build finished (or could not start) this frame.
+    Done(Result<Collider, ColliderFailure>),
+}
+
+/// Moves one entity's build forward: finishes a task, or starts a build when the collider is
+/// out of date with `key` (or its mesh asset was `modified`).
+fn advance_build(
+    build: &mut ColliderBuild,
+    key: BuildKey,
+    meshes: &Assets<Mesh>,
+    modified: bool,
+    load_failure: impl Fn(AssetId<Mesh>) -> Option<String>,
+) -> Progress {
+    // Finish a build in flight, or drop it when what it was built from has changed.
+    if let Some((pending_key, task)) = &mut build.pending {
+        if *pending_key == key {
+            return match block_on(poll_once(task)) {
+                Some(result) => {
+                    build.pending = None;
+                    build.done = Some(key);
+                    Progress::Done(result)
+                }
+                None => Progress::Building,
+            };
+        }
+        build.pending = None;
+    }
+    if build.done == Some(key) && !modified {
+        return Progress::Idle;
+    }
+    let Some(mesh) = meshes.get(key.mesh) else {
+        return match load_failure(key.mesh) {
+            Some(reason) => {
+                build.done = Some(key);
+                Progress::Done(Err(ColliderFailure::LoadFailed(reason)))
+            }
+            None => Progress::Waiting,
+        };
+    };
+    let triangles = match TriangleList::from_mesh(mesh) {
+        Ok(triangles) => triangles,
+        Err(failure) => {
+            build.done = Some(key);
+            return Progress::Done(Err(failure));
+        }
+    };
+    let big = triangles.len() >= ASYNC_BUILD_MIN_VERTICES;
+    let job = move || Collider::from_mesh(triangles.as_mesh_ref(), key.resolution).map_err(ColliderFailure::Mesh);
+    if big {
+        build.pending = Some((key, AsyncComputeTaskPool::get().spawn(async move { job() })));
+        Progress::Building
+    } else {
+        build.done = Some(key);
+        Progress::Done(job())
+    }
+}
+
+/// Places every collider where its entity is, and applies margin and friction changes (no
+/// rebuild).
+pub(crate) fn update_collider_poses(
+    mut colliders: Query<(Entity, &AutoCollider, &GlobalTransform, &mut ClothCollider, &mut ColliderStatus)>,
+) {
+    for (entity, auto, transform, mut built, mut status) in &mut colliders {
+        let (scale, rotation, translation) = transform.to_scale_rotation_translation();
+        let uniform = scale.max_element();
+        if !(scale.is_finite() && scale.min_element() > 0.0) {
+            if !matches!(*status, ColliderStatus::Failed(_)) {
+                error!("AutoCollider on {entity}: {}; it will not collide", ColliderFailure::BadScale(scale));
+                *status = ColliderStatus::Failed(ColliderFailure::BadScale(scale).to_string());
+            }
+        } else if uniform > scale.min_element() * 1.001 && !built.warned_non_uniform {
+            warn!(
+                "AutoCollider on {entity}: non-uniform scale {scale} is not supported; the spheres are scaled by {uniform}"
+            );
+            built.warned_non_uniform = true;
+        }
+        let pose = ColliderPose { translation, rotation, scale: uniform };
+        let collider = &mut built.bypass_change_detection().collider;
+        collider.pose = pose;
+        collider.margin = auto.margin;
+        collider.friction = auto.friction;
+        if matches!(*status, ColliderStatus::Failed(_)) && pose.is_valid() {
+            *status = ColliderStatus::ready(collider);
+        }
+    }
+}

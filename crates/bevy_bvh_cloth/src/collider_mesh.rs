@@ -1,0 +1,116 @@
+//! Reading a Bevy [`Mesh`] as the triangle list the collider builder takes.
+
+use core::fmt;
+
+use bevy::asset::RenderAssetUsages;
+use bevy::mesh::{Indices, PrimitiveTopology, VertexAttributeValues};
+use bevy::prelude::*;
+use bvh_cloth_core::{ColliderError, MeshRef};
+
+/// Why an [`AutoCollider`](crate::AutoCollider) could not be built.
+#[derive(Clone, Debug, PartialEq)]
+pub enum ColliderFailure {
+    /// The entity has no [`Mesh3d`].
+    NoMesh3d,
+    /// The mesh asset failed to load.
+    LoadFailed(String),
+    /// The mesh's data lives only in the render world (`RenderAssetUsages::RENDER_WORLD`), so
+    /// the main world cannot read its vertices.
+    NotInMainWorld,
+    /// The mesh is not a triangle list.
+    NotTriangles(PrimitiveTopology),
+    /// The mesh has no `Mesh::ATTRIBUTE_POSITION`.
+    NoPositions,
+    /// The positions are not `Float32x3`.
+    PositionsNotFloat3,
+    /// The transform's scale is zero, negative or not finite.
+    BadScale(Vec3),
+    /// The mesh data was rejected by the collider builder.
+    Mesh(ColliderError),
+}
+
+impl fmt::Display for ColliderFailure {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        match self {
+            Self::NoMesh3d => write!(f, "the entity has no Mesh3d to build a collider from"),
+            Self::LoadFailed(reason) => write!(f, "the mesh failed to load: {reason}"),
+            Self::NotInMainWorld => write!(
+                f,
+                "the mesh data was moved to the render world (RenderAssetUsages::RENDER_WORLD only); \
+                 keep MAIN_WORLD so a collider can be built from it"
+            ),
+            Self::NotTriangles(topology) => {
+                write!(f, "the mesh is a {topology:?}, but a collider needs a TriangleList")
+            }
+            Self::NoPositions => write!(f, "the mesh has no vertex positions"),
+            Self::PositionsNotFloat3 => write!(f, "the mesh positions are not Float32x3"),
+            Self::BadScale(scale) => write!(f, "the collider's scale {scale} is not positive and finite"),
+            Self::Mesh(error) => error.fmt(f),
+        }
+    }
+}
+
+impl std::error::Error for ColliderFailure {}
+
+/// A copy of a mesh's triangle list, ready to hand to a build task.
+#[derive(Clone, Debug, Default)]
+pub(crate) struct TriangleList {
+    pub positions: Vec<[f32; 3]>,
+    pub indices: Option<Vec<u32>>,
+}
+
+impl TriangleList {
+    /// Copies the positions and indices out of `mesh`.
+    pub fn from_mesh(mesh: &Mesh) -> Result<Self, ColliderFailure> {
+        if !mesh.asset_usage.contains(RenderAssetUsages::MAIN_WORLD) {
+            return Err(ColliderFailure::NotInMainWorld);
+        }
+        if mesh.primitive_topology() != PrimitiveTopology::TriangleList {
+            return Err(ColliderFailure::NotTriangles(mesh.primitive_topology()));
+        }
+        let positions = match mesh.attribute(Mesh::ATTRIBUTE_POSITION) {
+            None => return Err(ColliderFailure::NoPositions),
+            Some(VertexAttributeValues::Float32x3(p)) => p.clone(),
+            Some(_) => return Err(ColliderFailure::PositionsNotFloat3),
+        };
+        let indices = mesh.indices().map(|indices| match indices {
+            Indices::U16(i) => i.iter().map(|&i| u32::from(i)).collect(),
+            Indices::U32(i) => i.clone(),
+        });
+        Ok(Self { positions, indices })
+    }
+
+    /// Number of vertices.
+    pub fn len(&self) -> usize {
+        self.positions.len()
+    }
+
+    /// The borrowed view the core takes.
+    pub fn as_mesh_ref(&self) -> MeshRef<'_> {
+        MeshRef { positions: &self.positions, indices: self.indices.as_deref() }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn reads_indexed_triangles_and_refuses_the_rest() {
+        let mut mesh = Mesh::new(PrimitiveTopology::TriangleList, RenderAssetUsages::default());
+        assert_eq!(TriangleList::from_mesh(&mesh).unwrap_err(), ColliderFailure::NoPositions);
+        mesh.insert_attribute(Mesh::ATTRIBUTE_POSITION, vec![[0.0f32, 0.0, 0.0], [1.0, 0.0, 0.0], [0.0, 1.0, 0.0]]);
+        mesh.insert_indices(Indices::U16(vec![0, 1, 2]));
+        let list = TriangleList::from_mesh(&mesh).unwrap();
+        assert_eq!(list.indices, Some(vec![0, 1, 2]));
+        assert_eq!(list.len(), 3);
+
+        let lines = Mesh::new(PrimitiveTopology::LineList, RenderAssetUsages::default());
+        assert_eq!(
+            TriangleList::from_mesh(&lines).unwrap_err(),
+            ColliderFailure::NotTriangles(PrimitiveTopology::LineList)
+        );
+        let render_only = Mesh::new(PrimitiveTopology::TriangleList, RenderAssetUsages::RENDER_WORLD);
+        assert_eq!(TriangleList::from_mesh(&render_only).unwrap_err(), ColliderFailure::NotInMainWorld);
+    }
+}

@@ -1,0 +1,99 @@
+//! The CPU backend: every cloth stepped against every collider with the core's rayon stepper,
+//! and the results written into the cloths' meshes.
+
+use std::time::Instant;
+
+use bevy::camera::primitives::Aabb;
+use bevy::prelude::*;
+use bvh_cloth_core::{Affine3A, Collider};
+
+use crate::clock::ClothClock;
+use crate::cloth_mesh::write_cloth_mesh;
+use crate::collider::ClothCollider;
+use crate::messages::ClothMessage;
+use crate::simulation::{ClothSimulation, rigid_pose};
+use crate::stats::ClothStats;
+
+/// Runs this frame's ticks for every cloth. Within a frame the pins move smoothly from last
+/// frame's pose to this frame's, one step per tick.
+pub(crate) fn step_cloths(
+    clock: Res<ClothClock>,
+    colliders: Query<&ClothCollider>,
+    mut cloths: Query<(Entity, &mut ClothSimulation, &GlobalTransform)>,
+    mut stats: ResMut<ClothStats>,
+    mut messages: MessageWriter<ClothMessage>,
+) {
+    let start = Instant::now();
+    // Cheap copies: the sphere trees are shared, only the poses are per frame.
+    let colliders: Vec<Collider> = colliders.iter().map(|c| c.collider().clone()).collect();
+    let ticks = clock.ticks;
+    for (entity, mut state, transform) in &mut cloths {
+        if ticks == 0 {
+            continue;
+        }
+        let (from, to) = (state.pose, rigid_pose(transform));
+        let looper = state.sim.params().looper;
+        let mut substeps = looper;
+        for k in 1..=ticks {
+            let pose = interpolate(&from, &to, k as f32 / ticks as f32);
+            state.sim.pin_to(&pose);
+            substeps = state.sim.tick(clock.tick_seconds, &colliders);
+        }
+        if substeps > looper && !state.guard_warned {
+            warn!(
+                "Cloth on {entity}: spring_k is too stiff for looper = {looper} at this tick rate; \
+                 running {substeps} substeps per tick to stay stable"
+            );
+            state.guard_warned = true;
+        }
+        state.pose = to;
+        state.dirty = true;
+        if !state.sim.is_finite() {
+            warn!("Cloth on {entity}: its state became NaN or infinite; reset to its rest pose");
+            state.reset(to);
+            messages.write(ClothMessage::Diverged { entity });
+        }
+    }
+    *stats = ClothStats {
+        cloths: cloths.iter().count(),
+        particles: cloths.iter().map(|(_, s, _)| s.sim().len()).sum(),
+        colliders: colliders.len(),
+        spheres: colliders.iter().map(Collider::sphere_count).sum(),
+        ticks,
+        step_time: start.elapsed(),
+        backend: "CPU",
+    };
+}
+
+/// The rigid pose a fraction `t` of the way from `from` to `to`.
+fn interpolate(from: &Affine3A, to: &Affine3A, t: f32) -> Affine3A {
+    let (_, r0, t0) = from.to_scale_rotation_translation();
+    let (_, r1, t1) = to.to_scale_rotation_translation();
+    Affine3A::from_rotation_translation(r0.slerp(r1, t), t0.lerp(t1, t))
+}
+
+/// Writes every cloth that moved into its mesh, and sets its bounds for frustum culling.
+pub(crate) fn write_back_cloths(
+    mut meshes: ResMut<Assets<Mesh>>,
+    mut cloths: Query<(&mut ClothSimulation, &GlobalTransform, Option<&mut Aabb>, Entity)>,
+    mut commands: Commands,
+) {
+    for (mut state, transform, aabb, entity) in &mut cloths {
+        if !state.dirty {
+            continue;
+        }
+        let Some(mut mesh) = meshes.get_mut(&state.mesh) else {
+            continue;
+        };
+        let Some(bounds) = write_cloth_mesh(&mut mesh, state.sim(), transform) else {
+            continue;
+        };
+        state.dirty = false;
+        match aabb {
+            Some(mut aabb) => *aabb = bounds,
+            None => {
+                commands.entity(entity).insert(bounds);
+            }
+        }
+    }
+}

@@ -1,0 +1,41 @@
+//! Messages the plugin sends and receives.
+
+use bevy::prelude::*;
+use bvh_cloth_core::ClothError;
+
+use crate::collider_mesh::ColliderFailure;
+
+/// Something went wrong with one cloth or collider. Every message is also logged; read them to
+/// show the problem in a game's own UI. The rest of the scene keeps running in every case.
+#[derive(Message, Clone, Debug, PartialEq)]
+pub enum ClothMessage {
+    /// A [`Cloth`](crate::Cloth)'s parameters were refused. A cloth that was already running
+    /// keeps its last valid parameters; a new one is not created until they are fixed.
+    Rejected {
+        /// The cloth entity.
+        entity: Entity,
+        /// What is wrong.
+        error: ClothError,
+    },
+    /// A cloth's state became NaN or infinite, and it was reset to its rest pose.
+    Diverged {
+        /// The cloth entity.
+        entity: Entity,
+    },
+    /// An [`AutoCollider`](crate::AutoCollider) could not be built; that entity does not collide.
+    ColliderFailed {
+        /// The collider entity.
+        entity: Entity,
+        /// Why.
+        failure: ColliderFailure,
+    },
+}
+
+/// Ask for cloths to go back to their rest pose under their entity's current transform.
+#[derive(Message, Clone, Copy, Debug, PartialEq, Eq)]
+pub enum ResetCloth {
+    /// Every cloth.
+    All,
+    /// One cloth entity.
+    One(Entity),
+}

@@ -1,0 +1,99 @@
+//! The live parameter panel (feature `egui`): the paper's Looper, SpringK, Damping and
+//! External Force, plus pause, reset, the collider resolution, the debug view and live figures.
+
+use core::ops::DerefMut;
+
+use bevy::prelude::*;
+use bevy_egui::{EguiContexts, EguiPlugin, EguiPrimaryContextPass, egui};
+
+use crate::{AutoCollider, Cloth, ClothIntegrator, ClothSettings, ClothStats, ColliderStatus, ResetCloth};
+
+/// Adds the panel (and [`EguiPlugin`] if the app has none).
+pub struct ClothPanelPlugin;
+
+impl Plugin for ClothPanelPlugin {
+    fn build(&self, app: &mut App) {
+        if !app.is_plugin_added::<EguiPlugin>() {
+            app.add_plugins(EguiPlugin::default());
+        }
+        app.add_systems(EguiPrimaryContextPass, cloth_panel);
+    }
+}
+
+/// Shows `edit` on a copy of `value` and writes it back only when it changed, so that an idle
+/// panel does not trigger change detection every frame.
+fn edit_in_place<T: Clone + PartialEq>(value: &mut impl DerefMut<Target = T>, edit: impl FnOnce(&mut T)) {
+    let mut copy = (**value).clone();
+    edit(&mut copy);
+    if copy != **value {
+        **value = copy;
+    }
+}
+
+fn cloth_panel(
+    mut contexts: EguiContexts,
+    mut settings: ResMut<ClothSettings>,
+    stats: Res<ClothStats>,
+    mut cloths: Query<(Entity, &mut Cloth)>,
+    mut colliders: Query<(Entity, &mut AutoCollider, &ColliderStatus)>,
+    mut resets: MessageWriter<ResetCloth>,
+) -> Result {
+    egui::Window::new("Cloth").default_width(280.0).show(contexts.ctx_mut()?, |ui| {
+        ui.label(format!("Backend: {}", stats.backend));
+        ui.label(format!(
+            "{} particles in {} cloth(s), {} spheres in {} collider(s)",
+            stats.particles, stats.cloths, stats.spheres, stats.colliders
+        ));
+        ui.label(format!(
+            "Simulation: {:.2} ms this frame ({} ticks)",
+            stats.step_time.as_secs_f64() * 1e3,
+            stats.ticks
+        ));
+        ui.separator();
+
+        edit_in_place(&mut settings, |s| {
+            ui.horizontal(|ui| {
+                ui.checkbox(&mut s.paused, "Pause");
+                ui.checkbox(&mut s.debug_view, "Show BVH");
+            });
+        });
+        if ui.button("Reset cloth (R)").clicked() {
+            resets.write(ResetCloth::All);
+        }
+
+        for (entity, mut cloth) in &mut cloths {
+            ui.separator();
+            ui.label(format!("Cloth {entity}: {} x {}", cloth.rows, cloth.cols));
+            edit_in_place(&mut cloth, |c| {
+                ui.add(egui::Slider::new(&mut c.looper, 1..=64).text("Looper"));
+                ui.add(egui::Slider::new(&mut c.spring_k, 10.0..=400.0).logarithmic(true).text("SpringK (N/m)"));
+                ui.add(egui::Slider::new(&mut c.damping, 0.0..=10.0).text("Damping (1/s)"));
+                ui.label("External Force (N)");
+                ui.horizontal(|ui| {
+                    for (axis, value) in ["x", "y", "z"].into_iter().zip(c.external_force.as_mut()) {
+                        ui.add(egui::DragValue::new(value).speed(0.05).range(-20.0..=20.0).prefix(format!("{axis} ")));
+                    }
+                });
+                ui.horizontal(|ui| {
+                    ui.radio_value(&mut c.integrator, ClothIntegrator::Rk4, "RK4");
+                    ui.radio_value(&mut c.integrator, ClothIntegrator::SemiImplicitEuler, "Semi-implicit Euler");
+                });
+            });
+        }
+
+        for (entity, mut collider, status) in &mut colliders {
+            ui.separator();
+            let state = match status {
+                ColliderStatus::Ready { spheres, inner_nodes } => format!("{spheres} spheres, {inner_nodes} boxes"),
+                ColliderStatus::Failed(reason) => format!("failed: {reason}"),
+                other => format!("{other:?}"),
+            };
+            ui.label(format!("Collider {entity}: {state}"));
+            edit_in_place(&mut collider, |c| {
+                ui.add(egui::Slider::new(&mut c.resolution, 1..=32).text("Voxels per axis (n)"));
+                ui.add(egui::Slider::new(&mut c.friction, 0.0..=1.5).text("Friction"));
+            });
+        }
+    });
+    Ok(())
+}

@@ -1,0 +1,184 @@
+//! AutoCollider: building from OBJ and primitive meshes, draping, moving, rebuilding, failing.
+
+use bevy::asset::RenderAssetUsages;
+use bevy::mesh::{Indices, PrimitiveTopology};
+use bevy::prelude::*;
+use bevy_bvh_cloth::bvh_cloth_core::{Collider, MeshRef, obj::parse_obj};
+use bevy_bvh_cloth::prelude::*;
+use bevy_bvh_cloth::{ClothCollider, ColliderFailure};
+
+use crate::harness::{add_mesh, app, positions, run, sent, wait_for_collider};
+
+fn ball(app: &mut App, radius: f32) -> Handle<Mesh> {
+    add_mesh(app, Sphere::new(radius).mesh().uv(32, 18))
+}
+
+/// Every particle of `cloth` that lies inside a sphere of `collider` (margin included, beyond
+/// the core's surface tolerance of 1e-5 of a radius).
+fn inside(app: &App, cloth: Entity, collider: Entity) -> usize {
+    let collider = app.world().get::<ClothCollider>(collider).unwrap().collider();
+    positions(app, cloth).iter().filter(|&&p| collider.contains(p)).count()
+}
+
+#[test]
+fn cloth_drapes_over_the_low_resolution_bunny() {
+    let mut app = app();
+    let bunny_mesh = app.world().resource::<AssetServer>().load("models/bunny_low.obj");
+    let bunny = app.world_mut().spawn((Mesh3d(bunny_mesh), AutoCollider::new(5))).id();
+    let (spheres, inner) = wait_for_collider(&mut app, bunny);
+    // The same mesh through the core directly gives the same tree.
+    let text =
+        std::fs::read_to_string(concat!(env!("CARGO_MANIFEST_DIR"), "/../../assets/models/bunny_low.obj")).unwrap();
+    let obj = parse_obj(&text).unwrap();
+    let reference = Collider::from_mesh(MeshRef { positions: &obj.positions, indices: Some(&obj.indices) }, 5).unwrap();
+    assert_eq!((spheres as usize, inner as usize), (reference.sphere_count(), reference.lbvh.nodes.len()));
+
+    // The bunny stands on y = 0 and is 1 m at its largest; its back lies on the -x side of its
+    // box (the top spheres are at -0.4 < x < 0). Drop a 1.2 m cloth over it from 1.2 m.
+    let cloth = app
+        .world_mut()
+        .spawn((Cloth { damping: 1.0, ..Cloth::new(32, 32, 1.2) }, Transform::from_xyz(-0.2, 1.2, 0.0)))
+        .id();
+    let top = reference.lbvh.bounds().unwrap().1.y;
+    for _ in 0..5 {
+        run(&mut app, 1.0);
+        assert_eq!(inside(&app, cloth, bunny), 0, "particles inside the bunny's spheres");
+    }
+    let centroid = |app: &App| positions(app, cloth).iter().copied().sum::<Vec3>() / (32.0 * 32.0);
+    let before = centroid(&app);
+    run(&mut app, 1.0);
+    assert_eq!(inside(&app, cloth, bunny), 0, "particles inside the bunny's spheres");
+
+    let p = positions(&app, cloth);
+    let lowest = p.iter().map(|p| p.y).fold(f32::INFINITY, f32::min);
+    let highest = p.iter().map(|p| p.y).fold(f32::NEG_INFINITY, f32::max);
+    // Resting on the bunny: the top of the cloth lies on the top spheres, nothing has passed
+    // through to the ground under it, and it has stopped: the cloth as a whole moved less than
+    // a centimetre in the last second, and no particle is faster than a slow flap of an edge.
+    assert!(highest > top - 0.1 && highest < top + 0.1, "cloth top at {highest}, bunny top at {top}");
+    assert!(lowest > 0.1, "the cloth reached the ground under the bunny: {lowest}");
+    let drift = before.distance(centroid(&app));
+    assert!(drift < 0.01, "the cloth is sliding: its centroid moved {drift} m in 1 s");
+    let sim = app.world().get::<ClothSimulation>(cloth).unwrap().sim();
+    let speed = sim.velocities().iter().map(|v| v.length()).fold(0.0f32, f32::max);
+    assert!(speed < 0.5, "a particle still moves at {speed} m/s after 6 s");
+}
+
+#[test]
+fn moving_the_collider_moves_the_collision() {
+    let mut app = app();
+    let mesh = ball(&mut app, 0.5);
+    let collider = app.world_mut().spawn((Mesh3d(mesh), AutoCollider::new(1))).id();
+    wait_for_collider(&mut app, collider);
+    let cloth = app
+        .world_mut()
+        .spawn((Cloth { damping: 2.0, ..Cloth::new(16, 16, 0.6) }, Transform::from_xyz(0.0, 1.0, 0.0)))
+        .id();
+    run(&mut app, 1.0);
+    let centre = |app: &App| positions(app, cloth)[8 * 16 + 8];
+    // Held up by the ball (radius 0.5 plus the 0.01 margin).
+    assert!((centre(&app).y - 0.51).abs() < 0.02, "cloth centre at {}", centre(&app));
+
+    // Move the ball out from under the cloth: the cloth falls.
+    app.world_mut().get_mut::<Transform>(collider).unwrap().translation.x = 5.0;
+    run(&mut app, 1.0);
+    assert!(centre(&app).y < -1.0, "the cloth stayed up at {}", centre(&app));
+    let pose = app.world().get::<ClothCollider>(collider).unwrap().collider().pose;
+    assert_eq!(pose.translation, Vec3::new(5.0, 0.0, 0.0));
+}
+
+#[test]
+fn changing_n_rebuilds_with_the_expected_leaf_count() {
+    let mut app = app();
+    // A cuboid's 24 vertices sit on its 8 corners: n = 1 gives one sphere, n >= 2 eight.
+    let mesh = add_mesh(&mut app, Cuboid::new(1.0, 2.0, 3.0));
+    let collider = app.world_mut().spawn((Mesh3d(mesh), AutoCollider::new(1))).id();
+    assert_eq!(wait_for_collider(&mut app, collider), (1, 0));
+    app.world_mut().get_mut::<AutoCollider>(collider).unwrap().resolution = 3;
+    run(&mut app, 0.05);
+    assert_eq!(wait_for_collider(&mut app, collider), (8, 7));
+    let tree = &app.world().get::<ClothCollider>(collider).unwrap().collider().lbvh;
+    assert_eq!((tree.spheres.len(), tree.nodes.len()), (8, 7));
+}
+
+#[test]
+fn big_meshes_are_built_off_the_main_thread() {
+    let mut app = app();
+    let bunny_mesh = app.world().resource::<AssetServer>().load("models/bunny.obj");
+    let bunny = app.world_mut().spawn((Mesh3d(bunny_mesh), AutoCollider::new(5))).id();
+    let mut saw_building = false;
+    for _ in 0..20_000 {
+        match app.world().get::<ColliderStatus>(bunny).unwrap() {
+            ColliderStatus::Building => saw_building = true,
+            ColliderStatus::Ready { .. } => break,
+            _ => {}
+        }
+        app.update();
+    }
+    assert!(saw_building, "a 34,817-vertex mesh is above the async threshold");
+    let (spheres, _) = wait_for_collider(&mut app, bunny);
+    assert!(spheres > 50, "{spheres} spheres at n = 5");
+}
+
+#[test]
+fn a_broken_collider_reports_and_a_valid_one_still_works() {
+    let mut app = app();
+    let mut nan_mesh = Mesh::new(PrimitiveTopology::TriangleList, RenderAssetUsages::default());
+    nan_mesh
+        .insert_attribute(Mesh::ATTRIBUTE_POSITION, vec![[0.0f32, 0.0, 0.0], [f32::NAN, 1.0, 0.0], [0.0, 0.0, 1.0]]);
+    nan_mesh.insert_indices(Indices::U32(vec![0, 1, 2]));
+    let broken_meshes = [
+        add_mesh(&mut app, nan_mesh),
+        add_mesh(&mut app, Mesh::new(PrimitiveTopology::LineList, RenderAssetUsages::default())),
+        add_mesh(&mut app, Mesh::new(PrimitiveTopology::TriangleList, RenderAssetUsages::default())),
+    ];
+    let broken: Vec<Entity> = broken_meshes
+        .into_iter()
+        .map(|mesh| app.world_mut().spawn((Mesh3d(mesh), AutoCollider::new(5))).id())
+        .collect();
+    let no_mesh = app.world_mut().spawn(AutoCollider::new(5)).id();
+    let missing_file = app.world().resource::<AssetServer>().load("models/no_such_model.obj");
+    let missing = app.world_mut().spawn((Mesh3d(missing_file), AutoCollider::new(5))).id();
+    let valid_mesh = ball(&mut app, 0.5);
+    let valid = app.world_mut().spawn((Mesh3d(valid_mesh), AutoCollider::new(1))).id();
+    wait_for_collider(&mut app, valid);
+    for _ in 0..500 {
+        if matches!(app.world().get::<ColliderStatus>(missing), Some(ColliderStatus::Failed(_))) {
+            break;
+        }
+        app.update();
+        std::thread::sleep(core::time::Duration::from_millis(2));
+    }
+
+    let expected = [
+        (broken[0], "vertex 1 has a NaN"),
+        (broken[1], "LineList"),
+        (broken[2], "no vertex positions"),
+        (no_mesh, "no Mesh3d"),
+        (missing, "failed to load"),
+    ];
+    for (entity, reason) in expected {
+        let status = app.world().get::<ColliderStatus>(entity).unwrap();
+        let ColliderStatus::Failed(message) = status else { panic!("{entity}: {status:?}") };
+        assert!(message.contains(reason), "{entity}: {message:?} does not say {reason:?}");
+        assert!(app.world().get::<ClothCollider>(entity).is_none());
+        let reported = sent(&app)
+            .iter()
+            .filter(|m| matches!(m, ClothMessage::ColliderFailed { entity: e, .. } if *e == entity))
+            .count();
+        assert_eq!(reported, 1, "{entity} reported {reported} times");
+    }
+    assert!(sent(&app).iter().any(|m| matches!(
+        m,
+        ClothMessage::ColliderFailed { failure: ColliderFailure::NotTriangles(PrimitiveTopology::LineList), .. }
+    )));
+
+    // The valid collider still catches a cloth.
+    let cloth = app
+        .world_mut()
+        .spawn((Cloth { damping: 2.0, ..Cloth::new(16, 16, 0.6) }, Transform::from_xyz(0.0, 1.0, 0.0)))
+        .id();
+    run(&mut app, 1.0);
+    assert!(positions(&app, cloth)[8 * 16 + 8].y > 0.45);
+    assert_eq!(inside(&app, cloth, valid), 0);
+}

@@ -1,0 +1,9 @@
+//! Headless app tests of the plugin: MinimalPlugins, no window, no GPU, time advanced by hand.
+//! They assert on the ECS state after whole seconds of simulation.
+
+mod harness;
+
+mod colliders;
+mod hanging;
+mod lifecycle;
+mod parameters;

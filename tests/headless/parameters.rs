@@ -1,0 +1,100 @@
+//! The paper's live parameters change the result at runtime; bad values are refused.
+
+use bevy::prelude::*;
+use bevy_bvh_cloth::bvh_cloth_core::ClothError;
+use bevy_bvh_cloth::prelude::*;
+
+use crate::harness::{app, max_distance, positions, run, sent};
+
+/// A hanging cloth run for one second, `edit` applied to its component, then one more second.
+fn run_with(edit: impl FnOnce(&mut Cloth)) -> Vec<Vec3> {
+    let mut app = app();
+    let cloth = Cloth { damping: 0.5, ..Cloth::new(12, 12, 1.0).with_pins(ClothPins::TwoEnds) };
+    let entity = app.world_mut().spawn((cloth, Transform::from_xyz(0.0, 2.0, 0.0))).id();
+    run(&mut app, 1.0);
+    edit(&mut app.world_mut().get_mut::<Cloth>(entity).unwrap());
+    run(&mut app, 1.0);
+    positions(&app, entity)
+}
+
+/// A named change to a cloth's component.
+type Edit = fn(&mut Cloth);
+
+#[test]
+fn each_live_parameter_changes_the_result() {
+    let baseline = run_with(|_| {});
+    assert_eq!(baseline, run_with(|_| {}), "the simulation is deterministic");
+    let edits: [(&str, Edit); 4] = [
+        ("spring_k", |c| c.spring_k *= 3.0),
+        ("looper", |c| c.looper = 4),
+        ("damping", |c| c.damping = 5.0),
+        ("external_force", |c| c.external_force = Vec3::new(0.0, 0.0, 2.0)),
+    ];
+    for (name, edit) in edits {
+        let changed = run_with(edit);
+        let moved = max_distance(&baseline, &changed);
+        assert!(moved > 1e-3, "changing {name} moved the cloth by only {moved} m");
+    }
+}
+
+#[test]
+fn invalid_parameters_are_refused_and_the_cloth_keeps_running() {
+    let mut app = app();
+    let good = app.world_mut().spawn((Cloth::new(8, 8, 1.0), Transform::from_xyz(0.0, 2.0, 0.0))).id();
+    let bad = app.world_mut().spawn(Cloth::new(1, 8, 1.0)).id();
+    run(&mut app, 0.5);
+    assert!(app.world().get::<ClothSimulation>(bad).is_none());
+    assert!(
+        sent(&app)
+            .contains(&ClothMessage::Rejected { entity: bad, error: ClothError::GridTooSmall { rows: 1, cols: 8 } })
+    );
+
+    // A NaN pushed at runtime is refused; the cloth keeps its last valid parameters and moves on.
+    let before = positions(&app, good);
+    app.world_mut().get_mut::<Cloth>(good).unwrap().external_force = Vec3::NAN;
+    run(&mut app, 0.5);
+    let after = positions(&app, good);
+    assert!(after.iter().all(|p| p.is_finite()));
+    assert!(max_distance(&before, &after) > 0.1, "the cloth stopped falling");
+    let sim = app.world().get::<ClothSimulation>(good).unwrap().sim();
+    assert_eq!(sim.params().external_force, Vec3::ZERO);
+    assert!(sent(&app).iter().any(|m| matches!(
+        m,
+        ClothMessage::Rejected { entity, error: ClothError::NotFinite { field: "external_force" } } if *entity == good
+    )));
+
+    // Fixing the bad cloth brings it to life.
+    app.world_mut().get_mut::<Cloth>(bad).unwrap().rows = 8;
+    run(&mut app, 0.1);
+    assert_eq!(app.world().get::<ClothSimulation>(bad).unwrap().sim().len(), 64);
+}
+
+#[test]
+fn changing_the_grid_rebuilds_the_cloth_and_its_mesh() {
+    let mut app = app();
+    let cloth = app.world_mut().spawn(Cloth::new(8, 8, 1.0)).id();
+    run(&mut app, 0.2);
+    let handle = app.world().get::<Mesh3d>(cloth).unwrap().0.clone();
+    app.world_mut().get_mut::<Cloth>(cloth).unwrap().cols = 20;
+    run(&mut app, 0.2);
+    assert_eq!(app.world().get::<ClothSimulation>(cloth).unwrap().sim().len(), 8 * 20);
+    assert_eq!(app.world().get::<Mesh3d>(cloth).unwrap().0, handle, "the mesh handle is kept");
+    let meshes = app.world().resource::<Assets<Mesh>>();
+    assert_eq!(meshes.get(&handle).unwrap().count_vertices(), 8 * 20);
+}
+
+#[test]
+fn reset_puts_the_cloth_back_at_rest() {
+    let mut app = app();
+    app.world_mut().resource_mut::<ClothSettings>().paused = true;
+    let cloth = app.world_mut().spawn((Cloth::new(8, 8, 1.0), Transform::from_xyz(0.0, 2.0, 0.0))).id();
+    app.update();
+    let rest = positions(&app, cloth);
+    app.world_mut().resource_mut::<ClothSettings>().paused = false;
+    run(&mut app, 1.0);
+    assert!(max_distance(&rest, &positions(&app, cloth)) > 1.0, "the cloth fell");
+    app.world_mut().resource_mut::<ClothSettings>().paused = true;
+    app.world_mut().write_message(ResetCloth::One(cloth));
+    app.update();
+    assert!(max_distance(&rest, &positions(&app, cloth)) < 1e-6);
+}
