@@ -135,7 +135,7 @@ pub(crate) fn build_colliders(
     };
     for (entity, auto, mesh3d, build, mut status) in &mut colliders {
         let Some(mut build) = build else {
-            commands.entity(entity).insert(ColliderBuild::default());
+            commands.entity(entity).try_insert(ColliderBuild::default());
             continue;
         };
         let outcome = match mesh3d {
@@ -160,13 +160,13 @@ pub(crate) fn build_colliders(
         match outcome {
             Ok(collider) => {
                 *status = ColliderStatus::ready(&collider);
-                commands.entity(entity).insert(ClothCollider { collider, warned_non_uniform: false });
+                commands.entity(entity).try_insert(ClothCollider { collider, warned_non_uniform: false });
             }
             Err(failure) => {
                 error!("AutoCollider on {entity}: {failure}; it will not collide");
                 *status = ColliderStatus::Failed(failure.to_string());
                 messages.write(ClothMessage::ColliderFailed { entity, failure });
-                commands.entity(entity).remove::<ClothCollider>();
+                commands.entity(entity).try_remove::<ClothCollider>();
             }
         }
     }

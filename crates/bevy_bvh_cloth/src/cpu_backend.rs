@@ -92,7 +92,7 @@ pub(crate) fn write_back_cloths(
         match aabb {
             Some(mut aabb) => *aabb = bounds,
             None => {
-                commands.entity(entity).insert(bounds);
+                commands.entity(entity).try_insert(bounds);
             }
         }
     }

@@ -101,10 +101,15 @@ pub(crate) fn sync_cloths(
                 let new_mesh = new_cloth_mesh(&sim, transform);
                 // A rebuilt cloth keeps its mesh handle, so materials and user references stay.
                 let mesh = match state.map(|s| s.mesh.clone()) {
-                    Some(handle) if meshes.get_mut(&handle).map(|mut m| *m = new_mesh.clone()).is_some() => handle,
+                    Some(handle) if meshes.contains(&handle) => {
+                        if let Some(mut old) = meshes.get_mut(&handle) {
+                            *old = new_mesh;
+                        }
+                        handle
+                    }
                     _ => meshes.add(new_mesh),
                 };
-                commands.entity(entity).insert((
+                commands.entity(entity).try_insert((
                     ClothSimulation {
                         sim,
                         built_from: Cloth::clone(&cloth),
