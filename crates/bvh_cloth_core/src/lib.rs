@@ -15,6 +15,7 @@
 //! | [`traversal`] | 2.4.3, Algorithm 2 |
 //! | [`collision`] | 2.4.4 |
 //! | [`normals`] | Algorithm 3 |
+//! | [`gpu_layout`] | Table II: the buffer layouts of the GPU kernels |
 //! | [`obj`] | (a minimal OBJ reader for engine-free tools) |
 //!
 //! This crate knows nothing of any engine: it is tested, benchmarked and fuzzed on its own.
@@ -45,6 +46,7 @@ pub mod collider;
 pub mod collision;
 pub mod error;
 pub mod forces;
+pub mod gpu_layout;
 pub mod grid;
 pub mod lbvh;
 pub mod morton;

@@ -1,0 +1,232 @@
+//! One cloth on the GPU: its particle buffers (paper Table II), its parameters, and the
+//! dispatches that step it and write it into a vertex buffer.
+
+use bvh_cloth_core::gpu_layout::{GpuClothParams, GpuParticle, gpu_particles};
+use bvh_cloth_core::{ClothSim, Integrator};
+use wgpu::util::DeviceExt;
+use wgpu::{BindGroup, Buffer, BufferUsages, CommandEncoder, Device, Queue};
+
+use crate::colliders::GpuColliders;
+use crate::kernels::{ClothKernels, KernelError};
+
+/// A cloth's GPU state.
+///
+/// Four particle buffers: `base` holds the state at the start of a substep (the previous
+/// positions the collision response needs) and, after the collision dispatch, the state at its
+/// end; `stage_a` and `stage_b` take the RK4 intermediate states in turn; `slope_sum` holds
+/// `k1 + 2 k2 + 2 k3` of RK4.
+#[derive(Debug)]
+pub struct GpuCloth {
+    rows: u32,
+    cols: u32,
+    integrator: Integrator,
+    workgroups: (u32, u32),
+    substeps: u32,
+    params: Buffer,
+    base: Buffer,
+    stage_b: Buffer,
+    /// RK4 stages 1–4, then semi-implicit Euler.
+    node_update_groups: [BindGroup; 5],
+}
+
+impl GpuCloth {
+    /// Buffers for `sim`, filled with its current state.
+    pub fn new(device: &Device, kernels: &ClothKernels, sim: &ClothSim) -> Result<Self, KernelError> {
+        let grid = sim.grid();
+        let (rows, cols) = (grid.rows as u32, grid.cols as u32);
+        let workgroups = ClothKernels::workgroups(device, rows, cols)?;
+        let bytes = (sim.len() * size_of::<GpuParticle>()) as u64;
+        let max = device.limits().max_storage_buffer_binding_size;
+        if bytes > max {
+            return Err(KernelError::BufferTooLarge { bytes, max });
+        }
+        let particles = |label: &str| {
+            device.create_buffer(&wgpu::BufferDescriptor {
+                label: Some(label),
+                size: bytes,
+                usage: BufferUsages::STORAGE | BufferUsages::COPY_DST | BufferUsages::COPY_SRC,
+                mapped_at_creation: false,
+            })
+        };
+        let base = device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
+            label: Some("bvh_cloth_particles"),
+            contents: bytemuck::cast_slice(&gpu_particles(sim)),
+            usage: BufferUsages::STORAGE | BufferUsages::COPY_DST | BufferUsages::COPY_SRC,
+        });
+        let (stage_a, stage_b, slope_sum) =
+            (particles("bvh_cloth_stage_a"), particles("bvh_cloth_stage_b"), particles("bvh_cloth_slope_sum"));
+        let params = device.create_buffer(&wgpu::BufferDescriptor {
+            label: Some("bvh_cloth_params"),
+            size: size_of::<GpuClothParams>() as u64,
+            usage: BufferUsages::UNIFORM | BufferUsages::COPY_DST,
+            mapped_at_creation: false,
+        });
+        let group = |source: &Buffer, target: &Buffer| {
+            device.create_bind_group(&wgpu::BindGroupDescriptor {
+                label: Some("bvh_cloth_node_update"),
+                layout: &kernels.node_update_layout,
+                entries: &[
+                    wgpu::BindGroupEntry { binding: 0, resource: params.as_entire_binding() },
+                    wgpu::BindGroupEntry { binding: 1, resource: base.as_entire_binding() },
+                    wgpu::BindGroupEntry { binding: 2, resource: source.as_entire_binding() },
+                    wgpu::BindGroupEntry { binding: 3, resource: slope_sum.as_entire_binding() },
+                    wgpu::BindGroupEntry { binding: 4, resource: target.as_entire_binding() },
+                ],
+            })
+        };
+        // y -> a -> b -> a -> b, as the CPU stepper; Euler reads y and writes b.
+        let node_update_groups = [
+            group(&base, &stage_a),
+            group(&stage_a, &stage_b),
+            group(&stage_b, &stage_a),
+            group(&stage_a, &stage_b),
+            group(&base, &stage_b),
+        ];
+        Ok(Self {
+            rows,
+            cols,
+            integrator: sim.params().integrator,
+            workgroups,
+            substeps: sim.params().looper,
+            params,
+            base,
+            stage_b,
+            node_update_groups,
+        })
+    }
+
+    /// Uploads the parameters for ticks of `tick_seconds` against `colliders`: the same
+    /// substep count and length the CPU stepper would use (stability guard included).
+    pub fn set_params(&mut self, queue: &Queue, sim: &ClothSim, tick_seconds: f32, colliders: &GpuColliders) {
+        self.substeps = sim.params().substeps(tick_seconds);
+        self.integrator = sim.params().integrator;
+        let h = tick_seconds / self.substeps as f32;
+        queue.write_buffer(&self.params, 0, bytemuck::bytes_of(&GpuClothParams::new(sim, h, colliders.len())));
+    }
+
+    /// Replaces the GPU state with `sim`'s (a reset, or pins moved by the caller).
+    pub fn upload_state(&self, queue: &Queue, sim: &ClothSim) {
+        queue.write_buffer(&self.base, 0, bytemuck::cast_slice(&gpu_particles(sim)));
+    }
+
+    /// Records `ticks` ticks: per substep the integrator stages, then the collision response.
+    pub fn encode_ticks(
+        &self,
+        device: &Device,
+        encoder: &mut CommandEncoder,
+        kernels: &ClothKernels,
+        colliders: &GpuColliders,
+        ticks: u32,
+    ) {
+        if ticks == 0 {
+            return;
+        }
+        let collision_group = self.collision_group(device, kernels, colliders);
+        let stages: &[usize] = match self.integrator {
+            Integrator::Rk4 => &[0, 1, 2, 3],
+            Integrator::SemiImplicitEuler => &[4],
+        };
+        let (x, y) = self.workgroups;
+        let mut pass = encoder
+            .begin_compute_pass(&wgpu::ComputePassDescriptor { label: Some("bvh_cloth_step"), timestamp_writes: None });
+        for _ in 0..ticks * self.substeps {
+            for &stage in stages {
+                pass.set_pipeline(&kernels.node_update[stage]);
+                pass.set_bind_group(0, &self.node_update_groups[stage], &[]);
+                pass.dispatch_workgroups(x, y, 1);
+            }
+            pass.set_pipeline(&kernels.collision);
+            pass.set_bind_group(0, &collision_group, &[]);
+            pass.dispatch_workgroups(x, y, 1);
+        }
+    }
+
+    /// Records `collision_detection_with_bvh` alone: the state set by
+    /// [`Self::upload_integrated`] is resolved against `colliders`, with the current state as
+    /// the previous positions, and becomes the current state. For driving the kernel on its own
+    /// (tests, or a caller's own integrator).
+    pub fn encode_collision(
+        &self,
+        device: &Device,
+        encoder: &mut CommandEncoder,
+        kernels: &ClothKernels,
+        colliders: &GpuColliders,
+    ) {
+        let group = self.collision_group(device, kernels, colliders);
+        let (x, y) = self.workgroups;
+        let mut pass = encoder.begin_compute_pass(&wgpu::ComputePassDescriptor {
+            label: Some("bvh_cloth_collision"),
+            timestamp_writes: None,
+        });
+        pass.set_pipeline(&kernels.collision);
+        pass.set_bind_group(0, &group, &[]);
+        pass.dispatch_workgroups(x, y, 1);
+    }
+
+    /// Sets the integrated state that the collision dispatch reads (see
+    /// [`Self::encode_collision`]).
+    pub fn upload_integrated(&self, queue: &Queue, particles: &[GpuParticle]) {
+        queue.write_buffer(&self.stage_b, 0, bytemuck::cast_slice(particles));
+    }
+
+    fn collision_group(&self, device: &Device, kernels: &ClothKernels, colliders: &GpuColliders) -> BindGroup {
+        device.create_bind_group(&wgpu::BindGroupDescriptor {
+            label: Some("bvh_cloth_collision"),
+            layout: &kernels.collision_layout,
+            entries: &[
+                wgpu::BindGroupEntry { binding: 0, resource: self.params.as_entire_binding() },
+                wgpu::BindGroupEntry { binding: 5, resource: self.base.as_entire_binding() },
+                wgpu::BindGroupEntry { binding: 6, resource: self.stage_b.as_entire_binding() },
+                wgpu::BindGroupEntry { binding: 7, resource: colliders.frames.as_entire_binding() },
+                wgpu::BindGroupEntry { binding: 8, resource: colliders.nodes.as_entire_binding() },
+                wgpu::BindGroupEntry { binding: 9, resource: colliders.spheres.as_entire_binding() },
+            ],
+        })
+    }
+
+    /// Records `normal_shader`: positions and normals into `vertices` (a storage buffer of
+    /// `f32` words) as `writeback` (a uniform [`bvh_cloth_core::gpu_layout::GpuMeshWriteback`])
+    /// lays them out.
+    pub fn encode_writeback(
+        &self,
+        device: &Device,
+        encoder: &mut CommandEncoder,
+        kernels: &ClothKernels,
+        writeback: &Buffer,
+        vertices: wgpu::BufferBinding<'_>,
+    ) {
+        let group = device.create_bind_group(&wgpu::BindGroupDescriptor {
+            label: Some("bvh_cloth_normal_shader"),
+            layout: &kernels.normal_layout,
+            entries: &[
+                wgpu::BindGroupEntry { binding: 0, resource: self.params.as_entire_binding() },
+                wgpu::BindGroupEntry { binding: 10, resource: self.base.as_entire_binding() },
+                wgpu::BindGroupEntry { binding: 11, resource: writeback.as_entire_binding() },
+                wgpu::BindGroupEntry { binding: 12, resource: wgpu::BindingResource::Buffer(vertices) },
+            ],
+        });
+        let (x, y) = self.workgroups;
+        let mut pass = encoder.begin_compute_pass(&wgpu::ComputePassDescriptor {
+            label: Some("bvh_cloth_writeback"),
+            timestamp_writes: None,
+        });
+        pass.set_pipeline(&kernels.normal);
+        pass.set_bind_group(0, &group, &[]);
+        pass.dispatch_workgroups(x, y, 1);
+    }
+
+    /// The particle state (`GpuParticle`s, `COPY_SRC`), for readback in tests.
+    pub fn particles(&self) -> &Buffer {
+        &self.base
+    }
+
+    /// Particle rows and columns.
+    pub fn shape(&self) -> (u32, u32) {
+        (self.rows, self.cols)
+    }
+
+    /// Substeps per tick under the last parameters.
+    pub fn substeps(&self) -> u32 {
+        self.substeps
+    }
+}

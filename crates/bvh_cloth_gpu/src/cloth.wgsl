@@ -1,0 +1,371 @@
+// Bindings: 0 is shared; node_update uses 1-4, collision_detection_with_bvh 5-9, normal_shader
+// 10-12, so every (group, binding) names one variable.
+//
+// The paper's three compute kernels (Table I): node_update, collision_detection_with_bvh and
+// normal_shader. Each thread owns one particle of the rows x cols grid; workgroups are 8x8x1.
+// Every struct mirrors a #[repr(C)] struct of bvh_cloth_core::gpu_layout field for field, and
+// every formula follows the CPU reference (bvh_cloth_core's forces, sim, collision, traversal
+// and normals modules) in the same order of operations.
+
+struct GpuParticle {
+    position: vec4<f32>, // w: 1 free, 0 pinned
+    velocity: vec4<f32>,
+}
+
+struct GpuClothParams {
+    rows: u32,
+    cols: u32,
+    collider_count: u32,
+    _pad0: u32,
+    h: f32,
+    damping: f32,
+    _pad1: vec2<f32>,
+    k_over_m: vec4<f32>,
+    rest: vec4<f32>,
+    uniform_accel: vec4<f32>,
+}
+
+struct GpuCollider {
+    local_from_world: mat4x4<f32>,
+    world_from_local: mat4x4<f32>,
+    rotation: vec4<f32>,
+    margin_local: f32,
+    friction: f32,
+    node_offset: u32,
+    sphere_offset: u32,
+    node_count: u32,
+    sphere_count: u32,
+    _pad: vec2<u32>,
+}
+
+// bvh_cloth_core::BvhNode: child references with LEAF_BIT set name spheres.
+struct BvhNode {
+    aabb_min: vec3<f32>,
+    left: u32,
+    aabb_max: vec3<f32>,
+    right: u32,
+}
+
+struct GpuMeshWriteback {
+    local_from_world: mat4x4<f32>,
+    normal_from_world: mat4x4<f32>,
+    first_word: u32,
+    stride_words: u32,
+    position_word: u32,
+    normal_word: u32,
+}
+
+const LEAF_BIT: u32 = 0x80000000u;
+const STACK_SIZE: u32 = 64u;          // bvh_cloth_core::traversal::STACK_SIZE
+const SURFACE_TOLERANCE: f32 = 1.0e-5; // bvh_cloth_core::traversal::SURFACE_TOLERANCE
+const CONTACT_BAND: f32 = 1.0e-4;      // bvh_cloth_core::collision::CONTACT_BAND
+const MAX_PASSES: u32 = 4u;            // bvh_cloth_core::collision::MAX_PASSES
+
+// Which integrator stage a node_update pipeline runs: 0..3 are the four RK4 stages, 4 is
+// semi-implicit Euler.
+override STAGE: u32 = 0u;
+
+@group(0) @binding(0) var<uniform> params: GpuClothParams;
+
+// ---------------------------------------------------------------------------------------------
+// NodeUpdate: spring forces (paper eq. 1-3) and one integrator stage (eq. 4).
+// ---------------------------------------------------------------------------------------------
+
+@group(0) @binding(1) var<storage, read> base: array<GpuParticle>;      // state at substep start
+@group(0) @binding(2) var<storage, read> source: array<GpuParticle>;    // state the slope is taken at
+@group(0) @binding(3) var<storage, read_write> slope_sum: array<GpuParticle>;
+@group(0) @binding(4) var<storage, read_write> stage_out: array<GpuParticle>;
+
+// Acceleration of particle (r, c) at the `source` state; zero for a pinned particle.
+fn acceleration(r: i32, c: i32) -> vec3<f32> {
+    let rows = i32(params.rows);
+    let cols = i32(params.cols);
+    let me = source[r * cols + c];
+    let p = me.position.xyz;
+    var a = params.uniform_accel.xyz - params.damping * me.velocity.xyz;
+    // The stencil of bvh_cloth_core::grid::STENCIL, in its order: (dr, dc, kind).
+    var dr = array<i32, 12>(0, 0, -1, 1, -1, -1, 1, 1, 0, 0, -2, 2);
+    var dc = array<i32, 12>(-1, 1, 0, 0, -1, 1, -1, 1, -2, 2, 0, 0);
+    var kind = array<u32, 12>(0u, 0u, 0u, 0u, 1u, 1u, 1u, 1u, 2u, 2u, 2u, 2u);
+    for (var s = 0; s < 12; s++) {
+        let rr = r + dr[s];
+        let cc = c + dc[s];
+        if (rr < 0 || rr >= rows || cc < 0 || cc >= cols) {
+            continue;
+        }
+        let k = params.k_over_m[kind[s]];
+        if (k == 0.0) {
+            continue;
+        }
+        let rest = params.rest[kind[s]];
+        let d = source[rr * cols + cc].position.xyz - p;
+        let len = sqrt(d.x * d.x + d.y * d.y + d.z * d.z);
+        a += k * (1.0 - rest / max(len, 1.0e-6 * rest)) * d;
+    }
+    return a * me.position.w;
+}
+
+@compute @workgroup_size(8, 8, 1)
+fn node_update(@builtin(global_invocation_id) id: vec3<u32>) {
+    if (id.x >= params.cols || id.y >= params.rows) {
+        return;
+    }
+    let i = id.y * params.cols + id.x;
+    let acc = acceleration(i32(id.y), i32(id.x));
+    let b = base[i];
+    let free = b.position.w;
+    let h = params.h;
+    // Slope of the state: (velocity, acceleration), the velocity masked for pinned particles.
+    let kx = source[i].velocity.xyz * free;
+    var out: GpuParticle;
+    out.position.w = free;
+    switch STAGE {
+        case 0u, 1u, 2u: {
+            let weight = select(2.0, 1.0, STAGE == 0u);
+            let coef = select(0.5, 1.0, STAGE == 2u) * h;
+            var sum = slope_sum[i];
+            if (STAGE == 0u) {
+                sum.position = vec4(kx, 0.0);
+                sum.velocity = vec4(acc, 0.0);
+            } else {
+                sum.position = vec4(sum.position.xyz + weight * kx, 0.0);
+                sum.velocity = vec4(sum.velocity.xyz + weight * acc, 0.0);
+            }
+            slope_sum[i] = sum;
+            out.position = vec4(b.position.xyz + coef * kx, free);
+            out.velocity = vec4(b.velocity.xyz + coef * acc, 0.0);
+        }
+        case 3u: {
+            let sum = slope_sum[i];
+            let h6 = h / 6.0;
+            out.position = vec4(b.position.xyz + h6 * (sum.position.xyz + kx), free);
+            out.velocity = vec4(b.velocity.xyz + h6 * (sum.velocity.xyz + acc), 0.0);
+        }
+        default: {
+            let v = b.velocity.xyz + h * acc;
+            out.velocity = vec4(v, 0.0);
+            out.position = vec4(b.position.xyz + h * v * free, free);
+        }
+    }
+    stage_out[i] = out;
+}
+
+// ---------------------------------------------------------------------------------------------
+// CollisionDetectionWithBVH: stack traversal (Algorithm 2) and the response of section 2.4.4.
+// ---------------------------------------------------------------------------------------------
+
+@group(0) @binding(5) var<storage, read_write> state: array<GpuParticle>;   // in: previous; out: result
+@group(0) @binding(6) var<storage, read> moved: array<GpuParticle>;         // the integrated state
+@group(0) @binding(7) var<storage, read> colliders: array<GpuCollider>;
+@group(0) @binding(8) var<storage, read> nodes: array<BvhNode>;
+@group(0) @binding(9) var<storage, read> spheres: array<vec4<f32>>;        // xyz centre, w radius
+
+fn sphere_contains(sphere: vec4<f32>, p: vec3<f32>, margin: f32) -> bool {
+    let r = sphere.w + margin;
+    let shrunk = r * (1.0 - SURFACE_TOLERANCE);
+    let d = p - sphere.xyz;
+    return dot(d, d) < shrunk * shrunk;
+}
+
+fn box_contains(node: BvhNode, p: vec3<f32>, margin: f32) -> bool {
+    return all(p >= node.aabb_min - margin) && all(p <= node.aabb_max + margin);
+}
+
+// The best sphere one response pass found: an entry along the segment (kind 1) or, failing
+// that, the deepest penetration (kind 2); kind 0 when the point is in no sphere.
+struct Candidate {
+    kind: u32,
+    value: f32,
+    sphere: vec4<f32>,
+}
+
+fn consider(best: ptr<function, Candidate>, sphere: vec4<f32>, prev: vec3<f32>, p: vec3<f32>, margin: f32) {
+    let c = sphere.xyz;
+    let r = sphere.w + margin;
+    let contact = r * (1.0 + CONTACT_BAND);
+    let moving = dot(p - prev, p - prev) > 0.0;
+    let fp = prev - c;
+    if (moving && dot(fp, fp) >= contact * contact) {
+        let d = p - prev;
+        let a = dot(d, d);
+        let b = dot(fp, d);
+        let k = dot(fp, fp) - r * r;
+        let disc = max(b * b - a * k, 0.0);
+        let t = clamp((-b - sqrt(disc)) / a, 0.0, 1.0);
+        if ((*best).kind != 1u || t < (*best).value) {
+            *best = Candidate(1u, t, sphere);
+        }
+    } else if ((*best).kind != 1u) {
+        let depth = r - distance(p, c);
+        if ((*best).kind == 0u || depth > (*best).value) {
+            *best = Candidate(2u, depth, sphere);
+        }
+    }
+}
+
+// One response pass in the collider's local frame: every sphere containing p, in the CPU's
+// depth-first order (right child pushed first, so the left subtree is visited first).
+fn find_contact(col: GpuCollider, prev: vec3<f32>, p: vec3<f32>) -> Candidate {
+    var best = Candidate(0u, 0.0, vec4<f32>(0.0));
+    let margin = col.margin_local;
+    if (col.node_count == 0u) {
+        let s = spheres[col.sphere_offset];
+        if (sphere_contains(s, p, margin)) {
+            consider(&best, s, prev, p, margin);
+        }
+        return best;
+    }
+    if (!box_contains(nodes[col.node_offset], p, margin)) {
+        return best;
+    }
+    var stack: array<u32, STACK_SIZE>;
+    var top = 1u;
+    stack[0] = 0u;
+    while (top > 0u) {
+        top -= 1u;
+        let node = nodes[col.node_offset + stack[top]];
+        var children = array<u32, 2>(node.right, node.left);
+        for (var k = 0; k < 2; k++) {
+            let child = children[k];
+            if ((child & LEAF_BIT) != 0u) {
+                let s = spheres[col.sphere_offset + (child & ~LEAF_BIT)];
+                if (sphere_contains(s, p, margin)) {
+                    consider(&best, s, prev, p, margin);
+                }
+            } else if (top < STACK_SIZE && box_contains(nodes[col.node_offset + child], p, margin)) {
+                stack[top] = child;
+                top += 1u;
+            }
+        }
+    }
+    return best;
+}
+
+fn rotate(q: vec4<f32>, v: vec3<f32>) -> vec3<f32> {
+    let t = 2.0 * cross(q.xyz, v);
+    return v + q.w * t + cross(q.xyz, t);
+}
+
+fn contact_velocity(velocity: vec3<f32>, n: vec3<f32>, friction: f32) -> vec3<f32> {
+    let vn = dot(velocity, n);
+    let tangential = velocity - vn * n;
+    if (vn >= 0.0 || friction == 0.0) {
+        return tangential;
+    }
+    let speed = length(tangential);
+    let slowdown = friction * -vn;
+    if (speed > slowdown) {
+        return tangential * (1.0 - slowdown / speed);
+    }
+    return vec3<f32>(0.0);
+}
+
+fn outward_normal(p: vec3<f32>, prev: vec3<f32>, c: vec3<f32>) -> vec3<f32> {
+    let a = p - c;
+    if (dot(a, a) > 0.0) {
+        return normalize(a);
+    }
+    let b = prev - c;
+    if (dot(b, b) > 0.0) {
+        return normalize(b);
+    }
+    return vec3<f32>(0.0, 1.0, 0.0);
+}
+
+@compute @workgroup_size(8, 8, 1)
+fn collision_detection_with_bvh(@builtin(global_invocation_id) id: vec3<u32>) {
+    if (id.x >= params.cols || id.y >= params.rows) {
+        return;
+    }
+    let i = id.y * params.cols + id.x;
+    let prev_world = state[i].position.xyz;
+    var out = moved[i];
+    if (out.position.w != 0.0) {
+        var position = out.position.xyz;
+        var velocity = out.velocity.xyz;
+        for (var c = 0u; c < params.collider_count; c++) {
+            let col = colliders[c];
+            let prev = (col.local_from_world * vec4(prev_world, 1.0)).xyz;
+            var p = (col.local_from_world * vec4(position, 1.0)).xyz;
+            var hit = false;
+            for (var round = 0u; round < MAX_PASSES; round++) {
+                let best = find_contact(col, prev, p);
+                if (best.kind == 0u) {
+                    break;
+                }
+                var contact_point = p;
+                if (best.kind == 1u) {
+                    contact_point = mix(prev, p, best.value);
+                }
+                let centre = best.sphere.xyz;
+                let normal = outward_normal(contact_point, prev, centre);
+                p = centre + normal * (best.sphere.w + col.margin_local);
+                hit = true;
+                velocity = contact_velocity(velocity, rotate(col.rotation, normal), col.friction);
+            }
+            if (hit) {
+                position = (col.world_from_local * vec4(p, 1.0)).xyz;
+            }
+        }
+        out.position = vec4(position, out.position.w);
+        out.velocity = vec4(velocity, 0.0);
+    }
+    state[i] = out;
+}
+
+// ---------------------------------------------------------------------------------------------
+// NormalShader (Algorithm 3): per-vertex normals from the adjacent grid cells, written with the
+// positions into an interleaved vertex buffer.
+// ---------------------------------------------------------------------------------------------
+
+@group(0) @binding(10) var<storage, read> particles: array<GpuParticle>;
+@group(0) @binding(11) var<uniform> writeback: GpuMeshWriteback;
+@group(0) @binding(12) var<storage, read_write> vertices: array<f32>;
+
+fn position_at(r: u32, c: u32) -> vec3<f32> {
+    return particles[r * params.cols + c].position.xyz;
+}
+
+@compute @workgroup_size(8, 8, 1)
+fn normal_shader(@builtin(global_invocation_id) id: vec3<u32>) {
+    let r = id.y;
+    let c = id.x;
+    if (c >= params.cols || r >= params.rows) {
+        return;
+    }
+    let p = position_at(r, c);
+    let has_up = r > 0u;
+    let has_down = r + 1u < params.rows;
+    let has_left = c > 0u;
+    let has_right = c + 1u < params.cols;
+    // The CPU's order: down-right, right-up, up-left, left-down.
+    var n = vec3<f32>(0.0);
+    if (has_down && has_right) {
+        n += cross(position_at(r + 1u, c) - p, position_at(r, c + 1u) - p);
+    }
+    if (has_right && has_up) {
+        n += cross(position_at(r, c + 1u) - p, position_at(r - 1u, c) - p);
+    }
+    if (has_up && has_left) {
+        n += cross(position_at(r - 1u, c) - p, position_at(r, c - 1u) - p);
+    }
+    if (has_left && has_down) {
+        n += cross(position_at(r, c - 1u) - p, position_at(r + 1u, c) - p);
+    }
+    var world_normal = vec3<f32>(0.0, 1.0, 0.0);
+    let len2 = dot(n, n);
+    if (len2 > 0.0 && len2 < 3.0e38) {
+        world_normal = n * inverseSqrt(len2);
+    }
+    let local_position = (writeback.local_from_world * vec4(p, 1.0)).xyz;
+    var local_normal = (writeback.normal_from_world * vec4(world_normal, 0.0)).xyz;
+    let nl2 = dot(local_normal, local_normal);
+    local_normal = select(vec3<f32>(0.0, 1.0, 0.0), local_normal * inverseSqrt(nl2), nl2 > 0.0);
+    let w = writeback.first_word + (r * params.cols + c) * writeback.stride_words;
+    vertices[w + writeback.position_word] = local_position.x;
+    vertices[w + writeback.position_word + 1u] = local_position.y;
+    vertices[w + writeback.position_word + 2u] = local_position.z;
+    vertices[w + writeback.normal_word] = local_normal.x;
+    vertices[w + writeback.normal_word + 1u] = local_normal.y;
+    vertices[w + writeback.normal_word + 2u] = local_normal.z;
+}

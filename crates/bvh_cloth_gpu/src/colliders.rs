@@ -1,0 +1,87 @@
+//! Every collider of a scene on the GPU: frames, and the trees concatenated.
+
+use bvh_cloth_core::gpu_layout::GpuCollider;
+use bvh_cloth_core::{BvhNode, Collider, Sphere};
+use wgpu::util::DeviceExt;
+use wgpu::{Buffer, BufferUsages, Device, Queue};
+
+/// The colliders' frames and trees. Trees are uploaded once; [`Self::update_frames`] moves the
+/// colliders without touching them.
+#[derive(Debug)]
+pub struct GpuColliders {
+    pub(crate) frames: Buffer,
+    pub(crate) nodes: Buffer,
+    pub(crate) spheres: Buffer,
+    /// Colliders usable on the GPU (a collider with an invalid pose is left out).
+    pub(crate) count: u32,
+    /// Offsets of each input collider's tree, in input order.
+    offsets: Vec<(u32, u32)>,
+}
+
+fn storage_buffer<T: bytemuck::Pod + Default>(device: &Device, label: &str, items: &[T]) -> Buffer {
+    // wgpu rejects zero-sized bindings: an empty array is one zeroed element.
+    let fallback = [T::default()];
+    let contents: &[T] = if items.is_empty() { &fallback } else { items };
+    device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
+        label: Some(label),
+        contents: bytemuck::cast_slice(contents),
+        usage: BufferUsages::STORAGE | BufferUsages::COPY_DST,
+    })
+}
+
+impl GpuColliders {
+    /// Uploads `colliders`: trees and frames.
+    pub fn new(device: &Device, colliders: &[Collider]) -> Self {
+        let mut nodes: Vec<BvhNode> = Vec::new();
+        let mut spheres: Vec<Sphere> = Vec::new();
+        let mut offsets = Vec::with_capacity(colliders.len());
+        for collider in colliders {
+            offsets.push((nodes.len() as u32, spheres.len() as u32));
+            nodes.extend_from_slice(&collider.lbvh.nodes);
+            spheres.extend_from_slice(&collider.lbvh.spheres);
+        }
+        let frames = Self::frames_of(colliders, &offsets);
+        Self {
+            count: frames.len() as u32,
+            frames: storage_buffer(device, "bvh_cloth_collider_frames", &pad_frames(frames, colliders.len())),
+            nodes: storage_buffer(device, "bvh_cloth_bvh_nodes", &nodes),
+            spheres: storage_buffer(device, "bvh_cloth_bvh_spheres", &spheres),
+            offsets,
+        }
+    }
+
+    fn frames_of(colliders: &[Collider], offsets: &[(u32, u32)]) -> Vec<GpuCollider> {
+        colliders
+            .iter()
+            .zip(offsets)
+            .filter_map(|(collider, &(node, sphere))| GpuCollider::new(collider, node, sphere))
+            .collect()
+    }
+
+    /// Uploads new poses, margins and frictions for the same colliders, in the same order, as
+    /// [`Self::new`] was given.
+    pub fn update_frames(&mut self, queue: &Queue, colliders: &[Collider]) {
+        let frames = Self::frames_of(colliders, &self.offsets);
+        self.count = frames.len() as u32;
+        if !frames.is_empty() {
+            queue.write_buffer(&self.frames, 0, bytemuck::cast_slice(&frames));
+        }
+    }
+
+    /// Colliders the kernels test against.
+    pub fn len(&self) -> u32 {
+        self.count
+    }
+
+    /// Whether there is none.
+    pub fn is_empty(&self) -> bool {
+        self.count == 0
+    }
+}
+
+/// The frame buffer is sized for every input collider, so that a collider whose pose becomes
+/// valid later fits without a new buffer.
+fn pad_frames(mut frames: Vec<GpuCollider>, capacity: usize) -> Vec<GpuCollider> {
+    frames.resize(capacity.max(frames.len()), GpuCollider::default());
+    frames
+}

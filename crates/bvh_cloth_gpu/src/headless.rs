@@ -1,0 +1,44 @@
+//! A device without a window, and blocking readback: for tests and benchmarks, never for a
+//! frame loop.
+
+use bytemuck::Pod;
+use wgpu::{Buffer, BufferUsages, Device, Queue};
+
+/// A device and queue on the first adapter `WGPU_BACKEND` (or the platform default) offers, or
+/// `None` when there is none.
+pub fn device() -> Option<(wgpu::Adapter, Device, Queue)> {
+    let instance = wgpu::Instance::new(wgpu::InstanceDescriptor::new_without_display_handle_from_env());
+    let adapter =
+        futures_lite::future::block_on(instance.request_adapter(&wgpu::RequestAdapterOptions::default())).ok()?;
+    let (device, queue) = futures_lite::future::block_on(adapter.request_device(&wgpu::DeviceDescriptor {
+        label: Some("bvh_cloth_headless"),
+        required_limits: adapter.limits(),
+        ..Default::default()
+    }))
+    .ok()?;
+    Some((adapter, device, queue))
+}
+
+/// Copies `buffer` (which needs `COPY_SRC`) into memory, waiting for the GPU.
+pub fn read<T: Pod>(device: &Device, queue: &Queue, buffer: &Buffer) -> Vec<T> {
+    let size = buffer.size();
+    let staging = device.create_buffer(&wgpu::BufferDescriptor {
+        label: Some("bvh_cloth_readback"),
+        size,
+        usage: BufferUsages::MAP_READ | BufferUsages::COPY_DST,
+        mapped_at_creation: false,
+    });
+    let mut encoder = device.create_command_encoder(&Default::default());
+    encoder.copy_buffer_to_buffer(buffer, 0, &staging, 0, size);
+    queue.submit([encoder.finish()]);
+    staging.slice(..).map_async(wgpu::MapMode::Read, |result| result.expect("mapping a readback buffer"));
+    device.poll(wgpu::PollType::Wait { submission_index: None, timeout: None }).expect("waiting for the GPU");
+    let out = bytemuck::cast_slice(&staging.slice(..).get_mapped_range()).to_vec();
+    staging.unmap();
+    out
+}
+
+/// Waits until the GPU has finished everything submitted so far.
+pub fn wait(device: &Device) {
+    device.poll(wgpu::PollType::Wait { submission_index: None, timeout: None }).expect("waiting for the GPU");
+}

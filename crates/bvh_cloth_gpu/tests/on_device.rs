@@ -1,0 +1,338 @@
+//! The real WGSL kernels on a real device: lavapipe in CI (`WGPU_BACKEND=vulkan`), any GPU
+//! elsewhere. First each kernel alone on a tiny input with a hand-checked answer, so that a
+//! failure points at one kernel; then whole scenes against the CPU reference.
+//!
+//! Without an adapter these tests pass with a note, unless `BVH_CLOTH_REQUIRE_GPU` is set (as
+//! `.ci/run` sets it), where a missing adapter fails them.
+
+use bvh_cloth_core::gpu_layout::{GpuMeshWriteback, GpuParticle, load_gpu_particles};
+use bvh_cloth_core::obj::parse_obj;
+use bvh_cloth_core::{
+    Affine3A, ClothGrid, ClothParams, ClothSim, Collider, ColliderPose, Integrator, Lbvh, MeshRef, Pins, Quat, Sphere,
+    SpringStiffness, Vec3,
+};
+use bvh_cloth_gpu::wgpu::util::DeviceExt;
+use bvh_cloth_gpu::wgpu::{self, Device, Queue};
+use bvh_cloth_gpu::{ClothKernels, GpuCloth, GpuColliders, headless};
+
+struct Rig {
+    device: Device,
+    queue: Queue,
+    kernels: ClothKernels,
+}
+
+fn rig() -> Option<Rig> {
+    let Some((adapter, device, queue)) = headless::device() else {
+        assert!(
+            std::env::var_os("BVH_CLOTH_REQUIRE_GPU").is_none(),
+            "no GPU adapter (install mesa-vulkan-drivers for lavapipe and set WGPU_BACKEND=vulkan)"
+        );
+        eprintln!("no GPU adapter: skipped");
+        return None;
+    };
+    eprintln!("adapter: {:?}", adapter.get_info().name);
+    let kernels = ClothKernels::new(&device).expect("the kernels fit the device");
+    Some(Rig { device, queue, kernels })
+}
+
+impl Rig {
+    fn cloth(&self, sim: &ClothSim, tick: f32, colliders: &GpuColliders) -> GpuCloth {
+        let mut cloth = GpuCloth::new(&self.device, &self.kernels, sim).unwrap();
+        cloth.set_params(&self.queue, sim, tick, colliders);
+        cloth
+    }
+
+    fn ticks(&self, cloth: &GpuCloth, colliders: &GpuColliders, ticks: u32) {
+        let mut encoder = self.device.create_command_encoder(&Default::default());
+        cloth.encode_ticks(&self.device, &mut encoder, &self.kernels, colliders, ticks);
+        self.queue.submit([encoder.finish()]);
+    }
+
+    fn particles(&self, cloth: &GpuCloth) -> Vec<GpuParticle> {
+        headless::read(&self.device, &self.queue, cloth.particles())
+    }
+}
+
+fn position(p: &GpuParticle) -> Vec3 {
+    Vec3::from_slice(&p.position[..3])
+}
+
+fn velocity(p: &GpuParticle) -> Vec3 {
+    Vec3::from_slice(&p.velocity[..3])
+}
+
+/// A 2 x 2 cloth, 1 m wide, whose particles weigh 1 kg each, with no damping.
+fn small(integrator: Integrator, spring_k: f32, gravity: Vec3, pins: &[u32]) -> ClothSim {
+    let params = ClothParams {
+        rows: 2,
+        cols: 2,
+        size: 1.0,
+        mass: 4.0,
+        looper: 1,
+        spring_k,
+        damping: 0.0,
+        gravity,
+        stiffness: SpringStiffness { structural: 1.0, shear: 0.0, bending: 0.0 },
+        integrator,
+        ..Default::default()
+    };
+    ClothSim::new(params, Affine3A::IDENTITY, pins).unwrap()
+}
+
+// ---------------------------------------------------------------------------------------------
+// node_update alone (the collision dispatch that follows has no collider: it copies)
+// ---------------------------------------------------------------------------------------------
+
+#[test]
+fn node_update_euler_free_fall() {
+    let Some(rig) = rig() else { return };
+    let sim = small(Integrator::SemiImplicitEuler, 0.0, Vec3::new(0.0, -10.0, 0.0), &[]);
+    let none = GpuColliders::new(&rig.device, &[]);
+    let cloth = rig.cloth(&sim, 0.1, &none);
+    rig.ticks(&cloth, &none, 1);
+    // v = g h = -1; x = x0 + h v = x0 - 0.1.
+    for (i, p) in rig.particles(&cloth).iter().enumerate() {
+        assert!(velocity(p).distance(Vec3::new(0.0, -1.0, 0.0)) < 1e-6, "{i}: {:?}", p.velocity);
+        assert!(position(p).distance(sim.position(i) + Vec3::new(0.0, -0.1, 0.0)) < 1e-6, "{i}: {:?}", p.position);
+    }
+}
+
+#[test]
+fn node_update_rk4_is_exact_under_constant_acceleration() {
+    let Some(rig) = rig() else { return };
+    let mut sim = small(Integrator::Rk4, 0.0, Vec3::new(0.0, -10.0, 0.0), &[2]);
+    for i in 0..4 {
+        sim.set_velocity(i, Vec3::X);
+    }
+    let none = GpuColliders::new(&rig.device, &[]);
+    let cloth = rig.cloth(&sim, 0.1, &none);
+    rig.ticks(&cloth, &none, 1);
+    let out = rig.particles(&cloth);
+    // x = x0 + v0 h + g h^2 / 2, v = v0 + g h: RK4 is exact for a quadratic path.
+    for i in [0, 1, 3] {
+        let p = &out[i];
+        assert!(position(p).distance(sim.position(i) + Vec3::new(0.1, -0.05, 0.0)) < 1e-6, "{i}: {:?}", p.position);
+        assert!(velocity(p).distance(Vec3::new(1.0, -1.0, 0.0)) < 1e-6, "{i}: {:?}", p.velocity);
+    }
+    // The pinned particle has not moved (its velocity is masked).
+    assert_eq!(position(&out[2]), sim.position(2));
+}
+
+#[test]
+fn node_update_hooke_force_of_two_springs() {
+    let Some(rig) = rig() else { return };
+    // Particles at (-0.5, 0, -0.5), (0.5, 0, -0.5), (-0.5, 0, 0.5), (0.5, 0, 0.5); pin three and
+    // pull the last 0.5 m along +x. k / m = 1, rest length 1.
+    let mut sim = small(Integrator::SemiImplicitEuler, 1.0, Vec3::ZERO, &[0, 1, 2]);
+    sim.set_position(3, Vec3::new(1.0, 0.0, 0.5));
+    let none = GpuColliders::new(&rig.device, &[]);
+    let cloth = rig.cloth(&sim, 0.1, &none);
+    rig.ticks(&cloth, &none, 1);
+    let p = rig.particles(&cloth)[3];
+    // To particle 2: d = (-1.5, 0, 0), (1 - 1/1.5) d = (-0.5, 0, 0).
+    // To particle 1: d = (-0.5, 0, -1), (1 - 1/sqrt(1.25)) d = (-0.0527864, 0, -0.1055728).
+    let a = Vec3::new(-0.5 - 0.052_786_4, 0.0, -0.105_572_8);
+    assert!(velocity(&p).distance(0.1 * a) < 1e-6, "{:?}", p.velocity);
+    assert!(position(&p).distance(Vec3::new(1.0, 0.0, 0.5) + 0.01 * a) < 1e-6, "{:?}", p.position);
+}
+
+// ---------------------------------------------------------------------------------------------
+// collision_detection_with_bvh alone
+// ---------------------------------------------------------------------------------------------
+
+fn particle(p: Vec3, v: Vec3, free: bool) -> GpuParticle {
+    GpuParticle { position: p.extend(if free { 1.0 } else { 0.0 }).to_array(), velocity: v.extend(0.0).to_array() }
+}
+
+#[test]
+fn collision_kernel_on_a_posed_ball() {
+    let Some(rig) = rig() else { return };
+    // A unit ball scaled by 2 and moved to (5, 1, -2), turned about z, with a 0.1 margin: a
+    // world radius of 2.1. Four particles, one per case.
+    let pose =
+        ColliderPose { translation: Vec3::new(5.0, 1.0, -2.0), rotation: Quat::from_rotation_z(0.7), scale: 2.0 };
+    let ball = Collider {
+        lbvh: Lbvh::build(&[Sphere::new(Vec3::ZERO, 1.0)]).into(),
+        resolution: 1,
+        margin: 0.1,
+        friction: 0.0,
+        pose,
+    };
+    let colliders = GpuColliders::new(&rig.device, std::slice::from_ref(&ball));
+    let c = pose.translation;
+    let previous = [
+        particle(c + Vec3::new(0.0, 5.0, 0.0), Vec3::ZERO, true), // flies in from above
+        particle(c + Vec3::new(0.2, 0.4, 0.0), Vec3::ZERO, true), // starts inside
+        particle(c + Vec3::new(0.0, 3.0, 0.0), Vec3::ZERO, true), // stays outside
+        particle(c + Vec3::new(0.0, 1.0, 0.0), Vec3::ZERO, false), // pinned inside
+    ];
+    let integrated = [
+        particle(c + Vec3::new(0.0, 1.0, 0.0), Vec3::new(1.0, -3.0, 0.0), true),
+        particle(c + Vec3::new(0.6, 0.8, 0.0), Vec3::new(0.0, 1.0, 0.0), true),
+        particle(c + Vec3::new(0.0, 2.5, 0.0), Vec3::new(0.0, -1.0, 0.0), true),
+        particle(c + Vec3::new(0.0, 1.0, 0.0), Vec3::ZERO, false),
+    ];
+    let mut sim = small(Integrator::SemiImplicitEuler, 0.0, Vec3::ZERO, &[3]);
+    load_gpu_particles(&mut sim, &previous);
+    let cloth = rig.cloth(&sim, 0.1, &colliders);
+    cloth.upload_integrated(&rig.queue, &integrated);
+    let mut encoder = rig.device.create_command_encoder(&Default::default());
+    cloth.encode_collision(&rig.device, &mut encoder, &rig.kernels, &colliders);
+    rig.queue.submit([encoder.finish()]);
+    let out = rig.particles(&cloth);
+
+    let expect = |i: usize, p: Vec3, v: Vec3| {
+        assert!(position(&out[i]).distance(p) < 1e-4, "particle {i} at {:?}, expected {p}", out[i].position);
+        assert!(velocity(&out[i]).distance(v) < 1e-4, "particle {i} moving {:?}, expected {v}", out[i].velocity);
+    };
+    expect(0, c + Vec3::new(0.0, 2.1, 0.0), Vec3::X); // the entry point; the normal part is gone
+    let radial = Vec3::new(0.6, 0.8, 0.0);
+    expect(1, c + 2.1 * radial, Vec3::new(0.0, 1.0, 0.0) - 0.8 * radial); // pushed out along the normal
+    expect(2, c + Vec3::new(0.0, 2.5, 0.0), Vec3::new(0.0, -1.0, 0.0)); // untouched
+    expect(3, c + Vec3::new(0.0, 1.0, 0.0), Vec3::ZERO); // pinned particles are never moved
+}
+
+// ---------------------------------------------------------------------------------------------
+// normal_shader alone
+// ---------------------------------------------------------------------------------------------
+
+#[test]
+fn normal_shader_writes_an_interleaved_vertex_buffer() {
+    let Some(rig) = rig() else { return };
+    // A flat 3 x 3 grid stood up by a quarter turn about x (its normals point along +Z in the
+    // world), in a mesh whose entity sits at (1, 2, 3) turned the same way: in the mesh's own
+    // frame the grid is flat again and faces +Y.
+    let turn = Quat::from_rotation_x(core::f32::consts::FRAC_PI_2);
+    let params = ClothParams { rows: 3, cols: 3, size: 1.0, ..Default::default() };
+    let sim = ClothSim::new(params, Affine3A::from_rotation_translation(turn, Vec3::new(1.0, 2.0, 3.0)), &[]).unwrap();
+    let none = GpuColliders::new(&rig.device, &[]);
+    let cloth = rig.cloth(&sim, 0.1, &none);
+    // Vertices of 8 words: position at 0, normal at 4, sentinels elsewhere; one vertex of
+    // padding before the first.
+    const STRIDE: u32 = 8;
+    let sentinel = -7.0f32;
+    let words = vec![sentinel; (1 + sim.len()) * STRIDE as usize];
+    let vertices = rig.device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
+        label: None,
+        contents: bytemuck::cast_slice(&words),
+        usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_SRC,
+    });
+    let mesh_to_world = Affine3A::from_rotation_translation(turn, Vec3::new(1.0, 2.0, 3.0));
+    let writeback = GpuMeshWriteback::new(mesh_to_world, STRIDE, STRIDE, 0, 4);
+    let writeback = rig.device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
+        label: None,
+        contents: bytemuck::bytes_of(&writeback),
+        usage: wgpu::BufferUsages::UNIFORM,
+    });
+    let mut encoder = rig.device.create_command_encoder(&Default::default());
+    cloth.encode_writeback(&rig.device, &mut encoder, &rig.kernels, &writeback, vertices.as_entire_buffer_binding());
+    rig.queue.submit([encoder.finish()]);
+    let out: Vec<f32> = headless::read(&rig.device, &rig.queue, &vertices);
+
+    assert!(out[..STRIDE as usize].iter().all(|&w| w == sentinel), "the padding vertex was written");
+    let grid = ClothGrid { rows: 3, cols: 3, spacing: 0.5 };
+    for r in 0..3 {
+        for c in 0..3 {
+            let v = &out[((1 + grid.index(r, c)) * STRIDE as usize)..][..STRIDE as usize];
+            // In the mesh's own frame the cloth is its flat rest pose, facing +Y.
+            let local = Vec3::from_slice(&v[0..3]);
+            assert!(local.distance(grid.local_rest_position(r, c)) < 1e-5, "({r},{c}) at {local}");
+            assert!(Vec3::from_slice(&v[4..7]).distance(Vec3::Y) < 1e-5, "({r},{c}) normal {:?}", &v[4..7]);
+            assert_eq!((v[3], v[7]), (sentinel, sentinel), "({r},{c}): a word outside the attributes was written");
+        }
+    }
+}
+
+// ---------------------------------------------------------------------------------------------
+// Whole scenes against the CPU reference
+// ---------------------------------------------------------------------------------------------
+
+fn largest_gap(a: &[Vec3], b: &[Vec3]) -> f32 {
+    a.iter().zip(b).map(|(p, q)| p.distance(*q)).fold(0.0, f32::max)
+}
+
+fn gpu_positions(rig: &Rig, cloth: &GpuCloth) -> Vec<Vec3> {
+    rig.particles(cloth).iter().map(position).collect()
+}
+
+/// The two-ends-fixed cloth (paper Fig. 5), 32 x 32, stepped 2 s on both backends.
+///
+/// Tolerance: 1 mm. Nothing touches a collider, so the two runs differ only by f32 rounding
+/// (fused multiply-adds and `sqrt`/division rounding on the device), a few ulps per operation;
+/// a damped hanging cloth does not amplify them, and 1 mm is about 1/30 of the grid spacing.
+#[test]
+fn hanging_cloth_agrees_with_the_cpu() {
+    let Some(rig) = rig() else { return };
+    let params = ClothParams { rows: 32, cols: 32, size: 1.0, damping: 1.0, ..Default::default() };
+    let grid = ClothGrid { rows: 32, cols: 32, spacing: params.spacing() };
+    let mut cpu = ClothSim::new(params, Affine3A::from_translation(Vec3::Y), &Pins::TwoEnds.indices(&grid)).unwrap();
+    let none = GpuColliders::new(&rig.device, &[]);
+    let gpu = rig.cloth(&cpu, 1.0 / 60.0, &none);
+    for _ in 0..120 {
+        cpu.tick(1.0 / 60.0, &[]);
+    }
+    rig.ticks(&gpu, &none, 120);
+    let gap = largest_gap(&cpu.positions(), &gpu_positions(&rig, &gpu));
+    eprintln!("hanging cloth, 120 ticks: largest CPU-GPU gap {gap:e} m");
+    assert!(gap < 1e-3, "GPU and CPU differ by {gap} m");
+}
+
+fn bunny(n: u32) -> Collider {
+    let text =
+        std::fs::read_to_string(concat!(env!("CARGO_MANIFEST_DIR"), "/../../assets/models/bunny_low.obj")).unwrap();
+    let obj = parse_obj(&text).unwrap();
+    Collider::from_mesh(MeshRef { positions: &obj.positions, indices: Some(&obj.indices) }, n)
+        .unwrap()
+        .with_margin(0.01)
+        .with_friction(1.0)
+}
+
+/// The paper's scene: a 64 x 64 cloth dropped on the (low-resolution) bunny at n = 5, 300 ticks.
+///
+/// Two tolerances, because contact is chaotic: one-ulp differences at the moment a particle
+/// meets a sphere decide which way a fold goes, and from then on single particles may differ by
+/// centimetres while the cloth as a whole does the same thing.
+/// * Before contact (tick 10, the cloth still falling freely): every particle within 0.1 mm.
+/// * After 300 ticks (5 s, resting): centroid within 2 cm, lowest and highest points within
+///   3 cm, and on the GPU too no particle inside any sphere.
+#[test]
+fn bunny_drop_agrees_with_the_cpu() {
+    let Some(rig) = rig() else { return };
+    let colliders = [bunny(5)];
+    let params = ClothParams { rows: 64, cols: 64, size: 1.2, damping: 1.0, ..Default::default() };
+    let mut cpu = ClothSim::new(params, Affine3A::from_translation(Vec3::new(-0.2, 1.2, 0.0)), &[]).unwrap();
+    let gpu_colliders = GpuColliders::new(&rig.device, &colliders);
+    let gpu = rig.cloth(&cpu, 1.0 / 60.0, &gpu_colliders);
+
+    for _ in 0..10 {
+        cpu.tick(1.0 / 60.0, &colliders);
+    }
+    rig.ticks(&gpu, &gpu_colliders, 10);
+    let early = largest_gap(&cpu.positions(), &gpu_positions(&rig, &gpu));
+    eprintln!("bunny drop, tick 10: largest CPU-GPU gap {early:e} m");
+    assert!(early < 1e-4, "before contact GPU and CPU differ by {early} m");
+
+    for _ in 10..300 {
+        cpu.tick(1.0 / 60.0, &colliders);
+    }
+    rig.ticks(&gpu, &gpu_colliders, 290);
+    let (c, g) = (cpu.positions(), gpu_positions(&rig, &gpu));
+    let centroid = |p: &[Vec3]| p.iter().copied().sum::<Vec3>() / p.len() as f32;
+    let lowest = |p: &[Vec3]| p.iter().map(|p| p.y).fold(f32::INFINITY, f32::min);
+    let highest = |p: &[Vec3]| p.iter().map(|p| p.y).fold(f32::NEG_INFINITY, f32::max);
+    eprintln!(
+        "bunny drop, tick 300: centroid gap {:e} m, lowest {} vs {}, highest {} vs {}, largest particle gap {:e} m",
+        centroid(&c).distance(centroid(&g)),
+        lowest(&c),
+        lowest(&g),
+        highest(&c),
+        highest(&g),
+        largest_gap(&c, &g)
+    );
+    assert!(centroid(&c).distance(centroid(&g)) < 0.02);
+    assert!((lowest(&c) - lowest(&g)).abs() < 0.03);
+    assert!((highest(&c) - highest(&g)).abs() < 0.03);
+    assert!(g.iter().all(|p| p.is_finite()));
+    let inside = g.iter().filter(|&&p| colliders[0].contains(p)).count();
+    assert_eq!(inside, 0, "{inside} GPU particles inside the bunny's spheres");
+}
