@@ -67,6 +67,7 @@
 
 #![deny(missing_docs)]
 
+mod backend;
 mod clock;
 mod cloth;
 mod cloth_mesh;
@@ -74,6 +75,7 @@ mod collider;
 mod collider_mesh;
 mod cpu_backend;
 mod debug_view;
+mod gpu_backend;
 mod messages;
 #[cfg(feature = "egui")]
 pub mod panel;
@@ -82,10 +84,15 @@ mod simulation;
 mod stats;
 
 use bevy::app::PluginGroupBuilder;
-use bevy::camera::visibility::VisibilitySystems;
+use bevy::camera::visibility::{NoFrustumCulling, VisibilitySystems};
 use bevy::prelude::*;
+use bevy::render::RenderApp;
+use bevy::render::mesh::allocator::MeshAllocatorSettings;
+use bevy::render::render_resource::{BufferUsages, DownlevelFlags};
+use bevy::render::renderer::{RenderAdapter, RenderDevice};
 use bevy::transform::TransformSystems;
 
+pub use backend::{ActiveClothBackend, ClothBackend};
 pub use bvh_cloth_core;
 pub use clock::ClothClock;
 pub use cloth::{Cloth, ClothIntegrator, ClothPins, SpringScales};
@@ -101,9 +108,9 @@ pub mod prelude {
     #[cfg(feature = "egui")]
     pub use crate::panel::ClothPanelPlugin;
     pub use crate::{
-        AutoCollider, BvhClothPlugin, BvhClothPlugins, Cloth, ClothClock, ClothDebugViewPlugin, ClothIntegrator,
-        ClothMessage, ClothPins, ClothSettings, ClothSimulation, ClothStats, ClothSystems, ColliderStatus, ResetCloth,
-        SpringScales,
+        ActiveClothBackend, AutoCollider, BvhClothPlugin, BvhClothPlugins, Cloth, ClothBackend, ClothClock,
+        ClothDebugViewPlugin, ClothIntegrator, ClothMessage, ClothPins, ClothSettings, ClothSimulation, ClothStats,
+        ClothSystems, ColliderStatus, ResetCloth, SpringScales,
     };
 }
 
@@ -133,10 +140,12 @@ pub enum ClothSystems {
     Writeback,
 }
 
-/// The simulation: [`Cloth`] and [`AutoCollider`] components, stepped on the CPU.
+/// The simulation: [`Cloth`] and [`AutoCollider`] components, stepped on the GPU where the
+/// render device runs compute shaders and on the CPU otherwise (see [`ClothBackend`]).
 ///
 /// Needs Bevy's asset, mesh and transform plugins (all part of `DefaultPlugins`; with
-/// `MinimalPlugins`, add `AssetPlugin`, `MeshPlugin` and `TransformPlugin`).
+/// `MinimalPlugins`, add `AssetPlugin`, `MeshPlugin` and `TransformPlugin`, and the CPU backend
+/// runs).
 pub struct BvhClothPlugin;
 
 impl Plugin for BvhClothPlugin {
@@ -147,9 +156,13 @@ impl Plugin for BvhClothPlugin {
             .register_type::<ClothSettings>()
             .register_type::<ClothClock>()
             .register_type::<ClothStats>()
+            .register_type::<ClothBackend>()
+            .register_type::<ActiveClothBackend>()
             .init_resource::<ClothSettings>()
             .init_resource::<ClothClock>()
             .init_resource::<ClothStats>()
+            .init_resource::<ClothBackend>()
+            .init_resource::<ActiveClothBackend>()
             .add_message::<ClothMessage>()
             .add_message::<ResetCloth>()
             .configure_sets(
@@ -166,10 +179,57 @@ impl Plugin for BvhClothPlugin {
                         .chain()
                         .in_set(ClothSystems::BuildColliders),
                     (clock::advance_clock, simulation::sync_cloths).in_set(ClothSystems::Prepare),
-                    cpu_backend::step_cloths.in_set(ClothSystems::Step),
-                    cpu_backend::write_back_cloths.in_set(ClothSystems::Writeback),
+                    (cpu_backend::step_cloths.run_if(backend::cpu_backend_active), stats::update_stats)
+                        .chain()
+                        .in_set(ClothSystems::Step),
+                    (
+                        cpu_backend::write_back_cloths.run_if(backend::cpu_backend_active),
+                        gpu_cloths_skip_culling.run_if(not(backend::cpu_backend_active)),
+                    )
+                        .in_set(ClothSystems::Writeback),
                 ),
             );
+    }
+
+    fn finish(&self, app: &mut App) {
+        let requested = *app.world().resource::<ClothBackend>();
+        let active = backend::choose_backend(requested, gpu_capability(app));
+        app.insert_resource(active);
+        if active == ActiveClothBackend::Gpu
+            && let Some(render_app) = app.get_sub_app_mut(RenderApp)
+        {
+            // normal_shader writes into the mesh slabs: they must be storage buffers too.
+            render_app.world_mut().resource_mut::<MeshAllocatorSettings>().extra_buffer_usages |= BufferUsages::STORAGE;
+            gpu_backend::add_render_systems(render_app);
+        }
+    }
+}
+
+/// What the render device offers the GPU backend; `None` when the app does not render.
+fn gpu_capability(app: &App) -> Option<backend::GpuCapability> {
+    let render_world = app.get_sub_app(RenderApp)?.world();
+    let adapter = render_world.get_resource::<RenderAdapter>()?;
+    let device = render_world.get_resource::<RenderDevice>()?;
+    if !adapter.get_downlevel_capabilities().flags.contains(DownlevelFlags::COMPUTE_SHADERS) {
+        return Some(Err("the render device does not run compute shaders".into()));
+    }
+    let storage = device.limits().max_storage_buffers_per_shader_stage;
+    if storage < 5 {
+        return Some(Err(format!(
+            "the render device allows {storage} storage buffers per shader stage, the kernels need 5"
+        )));
+    }
+    Some(Ok(()))
+}
+
+/// A cloth the GPU moves keeps the bounds of its first pose on the CPU side; it opts out of
+/// frustum culling instead, so that it never vanishes while in view.
+fn gpu_cloths_skip_culling(
+    mut commands: Commands,
+    cloths: Query<Entity, (With<ClothSimulation>, Without<NoFrustumCulling>)>,
+) {
+    for entity in &cloths {
+        commands.entity(entity).try_insert(NoFrustumCulling);
     }
 }
 

@@ -44,11 +44,15 @@ fn cloth_panel(
             "{} particles in {} cloth(s), {} spheres in {} collider(s)",
             stats.particles, stats.cloths, stats.spheres, stats.colliders
         ));
-        ui.label(format!(
-            "Simulation: {:.2} ms this frame ({} ticks)",
-            stats.step_time.as_secs_f64() * 1e3,
-            stats.ticks
-        ));
+        if stats.step_time.is_zero() {
+            ui.label(format!("Simulation: {} ticks this frame", stats.ticks));
+        } else {
+            ui.label(format!(
+                "Simulation: {:.2} ms this frame ({} ticks)",
+                stats.step_time.as_secs_f64() * 1e3,
+                stats.ticks
+            ));
+        }
         ui.separator();
 
         edit_in_place(&mut settings, |s| {

@@ -1,5 +1,7 @@
 //! A cloth's simulation state, kept in step with its [`Cloth`] component.
 
+use std::sync::atomic::{AtomicU64, Ordering};
+
 use bevy::camera::visibility::NoAutoAabb;
 use bevy::prelude::*;
 use bvh_cloth_core::{Affine3A, ClothSim};
@@ -26,6 +28,15 @@ pub struct ClothSimulation {
     pub(crate) dirty: bool,
     /// Whether the stability guard's warning was given for the current parameters.
     pub(crate) guard_warned: bool,
+    /// Changes whenever the state is replaced (a new grid, a reset), so that the GPU backend
+    /// knows to upload it. Unique across cloths.
+    pub(crate) generation: u64,
+}
+
+/// The source of [`ClothSimulation::generation`].
+fn next_generation() -> u64 {
+    static NEXT: AtomicU64 = AtomicU64::new(1);
+    NEXT.fetch_add(1, Ordering::Relaxed)
 }
 
 impl ClothSimulation {
@@ -44,6 +55,7 @@ impl ClothSimulation {
         self.sim.reset(pose);
         self.pose = pose;
         self.dirty = true;
+        self.generation = next_generation();
     }
 }
 
@@ -117,6 +129,7 @@ pub(crate) fn sync_cloths(
                         mesh: mesh.clone(),
                         dirty: true,
                         guard_warned: false,
+                        generation: next_generation(),
                     },
                     Mesh3d(mesh),
                     NoAutoAabb,

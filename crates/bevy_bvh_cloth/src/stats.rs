@@ -4,7 +4,12 @@ use core::time::Duration;
 
 use bevy::prelude::*;
 
-/// What the simulation did in the last frame. Updated by the backend every frame.
+use crate::backend::ActiveClothBackend;
+use crate::clock::ClothClock;
+use crate::collider::ClothCollider;
+use crate::simulation::ClothSimulation;
+
+/// What the simulation did in the last frame.
 #[derive(Resource, Clone, Debug, Default, Reflect)]
 #[reflect(Resource, Default, Debug)]
 pub struct ClothStats {
@@ -18,8 +23,28 @@ pub struct ClothStats {
     pub spheres: usize,
     /// Ticks run in the last frame.
     pub ticks: u32,
-    /// Wall time the simulation took in the last frame.
+    /// Wall time the CPU backend took in the last frame. Zero on the GPU backend, which reads
+    /// nothing back and so cannot time a frame without stalling it.
     pub step_time: Duration,
     /// The backend that ran it.
     pub backend: &'static str,
+}
+
+pub(crate) fn update_stats(
+    active: Res<ActiveClothBackend>,
+    clock: Res<ClothClock>,
+    cloths: Query<&ClothSimulation>,
+    colliders: Query<&ClothCollider>,
+    mut stats: ResMut<ClothStats>,
+) {
+    let step_time = if *active == ActiveClothBackend::Cpu { stats.step_time } else { Duration::ZERO };
+    *stats = ClothStats {
+        cloths: cloths.iter().count(),
+        particles: cloths.iter().map(|c| c.sim().len()).sum(),
+        colliders: colliders.iter().count(),
+        spheres: colliders.iter().map(|c| c.collider().sphere_count()).sum(),
+        ticks: clock.ticks,
+        step_time,
+        backend: active.name(),
+    };
 }

@@ -8,6 +8,8 @@ use glam::{Affine3A, Mat4, Vec3};
 use crate::collider::Collider;
 use crate::collision::ColliderFrame;
 use crate::forces::ForceModel;
+use crate::grid::ClothGrid;
+use crate::params::ClothParams;
 use crate::sim::ClothSim;
 
 /// One particle: position and velocity in world space. 32 bytes.
@@ -47,10 +49,10 @@ pub struct GpuClothParams {
 }
 
 impl GpuClothParams {
-    /// The constants of `sim` for substeps of `h` seconds against `collider_count` colliders.
-    pub fn new(sim: &ClothSim, h: f32, collider_count: u32) -> Self {
-        let grid = sim.grid();
-        let model = ForceModel::new(sim.params(), grid);
+    /// The constants of a cloth with `params` on `grid`, for substeps of `h` seconds against
+    /// `collider_count` colliders.
+    pub fn new(params: &ClothParams, grid: &ClothGrid, h: f32, collider_count: u32) -> Self {
+        let model = ForceModel::new(params, grid);
         let [s, sh, b] = model.k_over_m;
         let [rs, rsh, rb] = model.rest;
         Self {

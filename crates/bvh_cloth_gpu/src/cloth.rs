@@ -2,7 +2,7 @@
 //! dispatches that step it and write it into a vertex buffer.
 
 use bvh_cloth_core::gpu_layout::{GpuClothParams, GpuParticle, gpu_particles};
-use bvh_cloth_core::{ClothSim, Integrator};
+use bvh_cloth_core::{ClothGrid, ClothParams, ClothSim, Integrator, Vec3};
 use wgpu::util::DeviceExt;
 use wgpu::{BindGroup, Buffer, BufferUsages, CommandEncoder, Device, Queue};
 
@@ -17,8 +17,7 @@ use crate::kernels::{ClothKernels, KernelError};
 /// `k1 + 2 k2 + 2 k3` of RK4.
 #[derive(Debug)]
 pub struct GpuCloth {
-    rows: u32,
-    cols: u32,
+    grid: ClothGrid,
     integrator: Integrator,
     workgroups: (u32, u32),
     substeps: u32,
@@ -83,8 +82,7 @@ impl GpuCloth {
             group(&base, &stage_b),
         ];
         Ok(Self {
-            rows,
-            cols,
+            grid: *grid,
             integrator: sim.params().integrator,
             workgroups,
             substeps: sim.params().looper,
@@ -96,12 +94,25 @@ impl GpuCloth {
     }
 
     /// Uploads the parameters for ticks of `tick_seconds` against `colliders`: the same
-    /// substep count and length the CPU stepper would use (stability guard included).
-    pub fn set_params(&mut self, queue: &Queue, sim: &ClothSim, tick_seconds: f32, colliders: &GpuColliders) {
-        self.substeps = sim.params().substeps(tick_seconds);
-        self.integrator = sim.params().integrator;
+    /// substep count and length the CPU stepper would use (stability guard included). The grid's
+    /// shape is the one the buffers were made for; `params` may change anything else.
+    pub fn set_params(&mut self, queue: &Queue, params: &ClothParams, tick_seconds: f32, colliders: &GpuColliders) {
+        self.substeps = params.substeps(tick_seconds);
+        self.integrator = params.integrator;
         let h = tick_seconds / self.substeps as f32;
-        queue.write_buffer(&self.params, 0, bytemuck::bytes_of(&GpuClothParams::new(sim, h, colliders.len())));
+        let uniform = GpuClothParams::new(params, &self.grid, h, colliders.len());
+        queue.write_buffer(&self.params, 0, bytemuck::bytes_of(&uniform));
+    }
+
+    /// Moves pinned particles: `(index, world position)` pairs. Only their positions are
+    /// written; they stay pinned.
+    pub fn write_pins(&self, queue: &Queue, pins: &[(u32, Vec3)]) {
+        for &(index, position) in pins {
+            if (index as usize) < self.grid.len() {
+                let offset = u64::from(index) * size_of::<GpuParticle>() as u64;
+                queue.write_buffer(&self.base, offset, bytemuck::bytes_of(&position.extend(0.0).to_array()));
+            }
+        }
     }
 
     /// Replaces the GPU state with `sim`'s (a reset, or pins moved by the caller).
@@ -220,9 +231,9 @@ impl GpuCloth {
         &self.base
     }
 
-    /// Particle rows and columns.
-    pub fn shape(&self) -> (u32, u32) {
-        (self.rows, self.cols)
+    /// The grid the buffers were made for.
+    pub fn grid(&self) -> &ClothGrid {
+        &self.grid
     }
 
     /// Substeps per tick under the last parameters.

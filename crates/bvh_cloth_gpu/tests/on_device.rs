@@ -38,7 +38,7 @@ fn rig() -> Option<Rig> {
 impl Rig {
     fn cloth(&self, sim: &ClothSim, tick: f32, colliders: &GpuColliders) -> GpuCloth {
         let mut cloth = GpuCloth::new(&self.device, &self.kernels, sim).unwrap();
-        cloth.set_params(&self.queue, sim, tick, colliders);
+        cloth.set_params(&self.queue, sim.params(), tick, colliders);
         cloth
     }
 

@@ -1,0 +1,241 @@
+//! The GPU backend: the paper's kernels (from [`bvh_cloth_gpu`]) run in the render world every
+//! frame, and `normal_shader` writes positions and normals straight into each cloth mesh's
+//! vertex slab. Nothing is read back.
+//!
+//! Per frame:
+//! 1. [`extract_cloths`] (`ExtractSchedule`) copies the clock, every cloth's parameters, pins,
+//!    transform and mesh, and every collider's pose into [`GpuClothWorld`]; a cloth's whole
+//!    state only when it was rebuilt or reset.
+//! 2. [`prepare_cloths`] (`Render`, `PrepareResources`) creates buffers for new or resized
+//!    cloths and drops those of despawned ones, uploads the parameter uniforms (a SpringK
+//!    change is one 80-byte write), the pins, the collider frames, and where each mesh's
+//!    vertices lie in their slab.
+//! 3. [`simulate_cloths`] (`RenderGraph`, before the camera driver) records the ticks and the
+//!    writeback.
+
+use bevy::core_pipeline::schedule::camera_driver;
+use bevy::ecs::entity::EntityHashMap;
+use bevy::mesh::VertexFormat;
+use bevy::prelude::*;
+use bevy::render::mesh::RenderMesh;
+use bevy::render::mesh::allocator::MeshAllocator;
+use bevy::render::render_asset::RenderAssets;
+use bevy::render::renderer::{RenderContext, RenderDevice, RenderGraph, RenderQueue};
+use bevy::render::{Extract, ExtractSchedule, Render, RenderSystems};
+use bvh_cloth_core::gpu_layout::GpuMeshWriteback;
+use bvh_cloth_core::{Affine3A, ClothParams, ClothSim, Collider};
+use bvh_cloth_gpu::wgpu::{self, BufferUsages};
+use bvh_cloth_gpu::{ClothKernels, GpuCloth, GpuColliders};
+
+use crate::clock::ClothClock;
+use crate::collider::ClothCollider;
+use crate::simulation::{ClothSimulation, rigid_pose};
+
+/// Adds the render-world systems. Called by the plugin when the GPU backend is active.
+pub(crate) fn add_render_systems(render_app: &mut SubApp) {
+    render_app
+        .init_resource::<GpuClothWorld>()
+        .add_systems(ExtractSchedule, extract_cloths)
+        .add_systems(Render, prepare_cloths.in_set(RenderSystems::PrepareResources))
+        .add_systems(RenderGraph, simulate_cloths.before(camera_driver));
+}
+
+/// One cloth as extracted this frame.
+struct ExtractedCloth {
+    entity: Entity,
+    generation: u64,
+    /// The whole state, when the render world does not have this generation yet.
+    fresh: Option<ClothSim>,
+    params: ClothParams,
+    pins: Vec<(u32, Vec3)>,
+    mesh: AssetId<Mesh>,
+    mesh_to_world: Affine3A,
+}
+
+/// Where `normal_shader` writes one cloth: its mesh, and the layout of that mesh's vertices.
+struct Writeback {
+    mesh: AssetId<Mesh>,
+    uniform: wgpu::Buffer,
+    /// Whether the mesh is allocated and has float positions and normals this frame.
+    ready: bool,
+}
+
+/// A cloth's GPU resources.
+struct RenderCloth {
+    gpu: GpuCloth,
+    generation: u64,
+    writeback: Writeback,
+}
+
+/// The render world's cloth state.
+#[derive(Resource, Default)]
+pub(crate) struct GpuClothWorld {
+    kernels: Option<ClothKernels>,
+    /// The kernels could not be built; said once.
+    failed: bool,
+    /// The colliders, keyed by the identity of their (shared) trees.
+    colliders: Option<(Vec<usize>, GpuColliders)>,
+    cloths: EntityHashMap<RenderCloth>,
+    /// This frame's input.
+    ticks: u32,
+    tick_seconds: f32,
+    extracted: Vec<ExtractedCloth>,
+    extracted_colliders: Vec<Collider>,
+}
+
+fn extract_cloths(
+    mut world: ResMut<GpuClothWorld>,
+    clock: Extract<Res<ClothClock>>,
+    cloths: Extract<Query<(Entity, &ClothSimulation, &GlobalTransform, &Mesh3d)>>,
+    colliders: Extract<Query<&ClothCollider>>,
+) {
+    world.ticks = clock.ticks;
+    world.tick_seconds = clock.tick_seconds;
+    let extracted = cloths
+        .iter()
+        .map(|(entity, state, transform, mesh)| {
+            let known = world.cloths.get(&entity).map(|c| c.generation);
+            let sim = state.sim();
+            let pose = rigid_pose(transform);
+            let grid = sim.grid();
+            let pins = sim
+                .pins()
+                .iter()
+                .map(|&i| {
+                    let (r, c) = (i as usize / grid.cols, i as usize % grid.cols);
+                    (i, pose.transform_point3(grid.local_rest_position(r, c)))
+                })
+                .collect();
+            ExtractedCloth {
+                entity,
+                generation: state.generation,
+                fresh: (known != Some(state.generation)).then(|| sim.clone()),
+                params: sim.params().clone(),
+                pins,
+                mesh: mesh.id(),
+                mesh_to_world: transform.affine(),
+            }
+        })
+        .collect();
+    world.extracted = extracted;
+    world.extracted_colliders = colliders.iter().map(|c| c.collider().clone()).collect();
+}
+
+/// Word offsets of the position and normal in a mesh's vertices, and its stride in words;
+/// `None` unless both are `Float32x3`.
+fn vertex_words(mesh: &RenderMesh) -> Option<(u32, u32, u32)> {
+    let layout = &mesh.layout.0;
+    let word = |id| {
+        let k = layout.attribute_ids().iter().position(|&a| a == id)?;
+        let attribute = layout.layout().attributes.get(k)?;
+        (attribute.format == VertexFormat::Float32x3 && attribute.offset % 4 == 0)
+            .then_some(attribute.offset as u32 / 4)
+    };
+    let stride = layout.layout().array_stride;
+    (stride % 4 == 0).then_some(())?;
+    Some((stride as u32 / 4, word(Mesh::ATTRIBUTE_POSITION.id)?, word(Mesh::ATTRIBUTE_NORMAL.id)?))
+}
+
+fn prepare_cloths(
+    mut world: ResMut<GpuClothWorld>,
+    device: Res<RenderDevice>,
+    queue: Res<RenderQueue>,
+    mesh_allocator: Res<MeshAllocator>,
+    render_meshes: Res<RenderAssets<RenderMesh>>,
+) {
+    let world = &mut *world;
+    let device = device.wgpu_device();
+    if world.kernels.is_none() && !world.failed {
+        match ClothKernels::new(device) {
+            Ok(kernels) => world.kernels = Some(kernels),
+            Err(error) => {
+                error!("bevy_bvh_cloth: the GPU kernels cannot run on this device: {error}");
+                world.failed = true;
+            }
+        }
+    }
+    let Some(kernels) = &world.kernels else { return };
+
+    // Colliders: new buffers when the set of trees changed, otherwise only the frames.
+    let key: Vec<usize> = world.extracted_colliders.iter().map(|c| std::sync::Arc::as_ptr(&c.lbvh) as usize).collect();
+    match &mut world.colliders {
+        Some((old, gpu)) if *old == key => gpu.update_frames(&queue, &world.extracted_colliders),
+        slot => *slot = Some((key, GpuColliders::new(device, &world.extracted_colliders))),
+    }
+    let Some((_, colliders)) = &world.colliders else { return };
+
+    // Cloths that are gone take their buffers with them.
+    let present: bevy::ecs::entity::EntityHashSet = world.extracted.iter().map(|c| c.entity).collect();
+    world.cloths.retain(|entity, _| present.contains(entity));
+
+    for cloth in world.extracted.drain(..) {
+        let existing = world.cloths.remove(&cloth.entity);
+        let render = match (existing, &cloth.fresh) {
+            (Some(render), None) => Some(render),
+            (Some(render), Some(sim)) if render.gpu.grid() == sim.grid() => {
+                render.gpu.upload_state(&queue, sim);
+                Some(RenderCloth { generation: cloth.generation, ..render })
+            }
+            (_, Some(sim)) => match GpuCloth::new(device, kernels, sim) {
+                Ok(gpu) => Some(RenderCloth {
+                    gpu,
+                    generation: cloth.generation,
+                    writeback: Writeback {
+                        mesh: cloth.mesh,
+                        uniform: device.create_buffer(&wgpu::BufferDescriptor {
+                            label: Some("bvh_cloth_mesh_writeback"),
+                            size: size_of::<GpuMeshWriteback>() as u64,
+                            usage: BufferUsages::UNIFORM | BufferUsages::COPY_DST,
+                            mapped_at_creation: false,
+                        }),
+                        ready: false,
+                    },
+                }),
+                Err(error) => {
+                    error!("Cloth on {}: cannot run on the GPU: {error}", cloth.entity);
+                    None
+                }
+            },
+            (None, None) => None,
+        };
+        let Some(mut render) = render else { continue };
+        render.gpu.set_params(&queue, &cloth.params, world.tick_seconds.max(f32::MIN_POSITIVE), colliders);
+        render.gpu.write_pins(&queue, &cloth.pins);
+
+        // Where the mesh's vertices are this frame (slabs can move).
+        render.writeback.mesh = cloth.mesh;
+        let layout = render_meshes.get(cloth.mesh).and_then(vertex_words);
+        let slice = mesh_allocator.mesh_vertex_slice(&cloth.mesh);
+        render.writeback.ready = match (layout, slice) {
+            (Some((stride, position, normal)), Some(slice)) => {
+                let uniform =
+                    GpuMeshWriteback::new(cloth.mesh_to_world, slice.range.start * stride, stride, position, normal);
+                queue.write_buffer(&render.writeback.uniform, 0, bytemuck::bytes_of(&uniform));
+                true
+            }
+            _ => false,
+        };
+        world.cloths.insert(cloth.entity, render);
+    }
+}
+
+fn simulate_cloths(mut render_context: RenderContext, world: Res<GpuClothWorld>, mesh_allocator: Res<MeshAllocator>) {
+    let (Some(kernels), Some((_, colliders))) = (&world.kernels, &world.colliders) else { return };
+    let device = render_context.render_device().clone();
+    let device = device.wgpu_device();
+    for render in world.cloths.values() {
+        let encoder = render_context.command_encoder();
+        render.gpu.encode_ticks(device, encoder, kernels, colliders, world.ticks);
+        if !render.writeback.ready {
+            continue;
+        }
+        let Some(slice) = mesh_allocator.mesh_vertex_slice(&render.writeback.mesh) else { continue };
+        render.gpu.encode_writeback(
+            device,
+            encoder,
+            kernels,
+            &render.writeback.uniform,
+            slice.buffer.as_entire_buffer_binding(),
+        );
+    }
+}
