@@ -132,7 +132,9 @@ fn vertex_words(mesh: &RenderMesh) -> Option<(u32, u32, u32)> {
             .then_some(attribute.offset as u32 / 4)
     };
     let stride = layout.layout().array_stride;
-    (stride % 4 == 0).then_some(())?;
+    if !stride.is_multiple_of(4) {
+        return None;
+    }
     Some((stride as u32 / 4, word(Mesh::ATTRIBUTE_POSITION.id)?, word(Mesh::ATTRIBUTE_NORMAL.id)?))
 }
 
