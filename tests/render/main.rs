@@ -1,0 +1,152 @@
+//! Rendering smoke test: the bunny scene rendered without a window into an image, on the
+//! backend `Auto` picks (the GPU kernels where the device runs compute shaders: lavapipe in CI).
+//! The cloth must be visible and draped over the bunny. The picture is kept as
+//! `$CARGO_TARGET_TMPDIR/bunny_render.png`.
+//!
+//! Without an adapter this test passes with a note, unless `BVH_CLOTH_REQUIRE_GPU` is set (as
+//! `.ci/run` sets it).
+
+use std::sync::{Arc, Mutex};
+use std::time::Duration;
+
+use bevy::app::PluginsState;
+use bevy::asset::RenderAssetUsages;
+use bevy::camera::RenderTarget;
+use bevy::core_pipeline::tonemapping::Tonemapping;
+use bevy::prelude::*;
+use bevy::render::render_resource::TextureFormat;
+use bevy::render::view::screenshot::{Screenshot, ScreenshotCaptured};
+use bevy::time::TimeUpdateStrategy;
+use bevy::window::ExitCondition;
+use bevy::winit::WinitPlugin;
+use bevy_bvh_cloth::prelude::*;
+
+const WIDTH: u32 = 320;
+const HEIGHT: u32 = 240;
+const CLOTH: Color = Color::srgb(0.0, 0.0, 1.0);
+const BUNNY: Color = Color::srgb(1.0, 0.0, 0.0);
+
+fn unlit(materials: &mut Assets<StandardMaterial>, color: Color) -> MeshMaterial3d<StandardMaterial> {
+    MeshMaterial3d(materials.add(StandardMaterial {
+        base_color: color,
+        unlit: true,
+        double_sided: true,
+        cull_mode: None,
+        ..default()
+    }))
+}
+
+/// A headless app with the whole renderer, ready to update.
+fn render_app() -> App {
+    let mut app = App::new();
+    app.add_plugins((
+        DefaultPlugins.build().disable::<WinitPlugin>().set(WindowPlugin {
+            primary_window: None,
+            exit_condition: ExitCondition::DontExit,
+            close_when_requested: false,
+            ..default()
+        }),
+        bevy_obj::ObjPlugin,
+        BvhClothPlugins,
+    ))
+    .insert_resource(TimeUpdateStrategy::ManualDuration(Duration::from_secs_f64(1.0 / 60.0)))
+    .insert_resource(ClearColor(Color::BLACK));
+    while app.plugins_state() == PluginsState::Adding {
+        bevy::tasks::tick_global_task_pools_on_main_thread();
+    }
+    app.finish();
+    app.cleanup();
+    app
+}
+
+#[test]
+fn bunny_scene_renders_a_draped_cloth() {
+    if bvh_cloth_gpu::headless::device().is_none() {
+        assert!(std::env::var_os("BVH_CLOTH_REQUIRE_GPU").is_none(), "no GPU adapter (install mesa-vulkan-drivers)");
+        eprintln!("no GPU adapter: skipped");
+        return;
+    }
+    let mut app = render_app();
+    let backend = *app.world().resource::<ActiveClothBackend>();
+    eprintln!("cloth backend: {backend:?}");
+    if std::env::var_os("BVH_CLOTH_REQUIRE_GPU").is_some() {
+        assert_eq!(backend, ActiveClothBackend::Gpu, "lavapipe runs compute shaders: Auto must pick the GPU");
+    }
+
+    let world = app.world_mut();
+    let target = world.resource_mut::<Assets<Image>>().add({
+        let mut image = Image::new_target_texture(WIDTH, HEIGHT, TextureFormat::Rgba8UnormSrgb, None);
+        image.asset_usage = RenderAssetUsages::default();
+        image
+    });
+    world.spawn((
+        Camera3d::default(),
+        RenderTarget::Image(target.clone().into()),
+        Tonemapping::None,
+        Transform::from_xyz(0.2, 0.7, 2.6).looking_at(Vec3::new(-0.1, 0.45, 0.0), Vec3::Y),
+    ));
+    let bunny_mesh = world.resource::<AssetServer>().load("models/bunny_low.obj");
+    let bunny_material = unlit(&mut world.resource_mut::<Assets<StandardMaterial>>(), BUNNY);
+    let bunny = world.spawn((Mesh3d(bunny_mesh), bunny_material, AutoCollider::new(5))).id();
+    for _ in 0..2000 {
+        if matches!(app.world().get::<ColliderStatus>(bunny), Some(ColliderStatus::Ready { .. })) {
+            break;
+        }
+        app.update();
+    }
+    assert!(matches!(app.world().get::<ColliderStatus>(bunny), Some(ColliderStatus::Ready { .. })));
+
+    let world = app.world_mut();
+    let cloth_material = unlit(&mut world.resource_mut::<Assets<StandardMaterial>>(), CLOTH);
+    world.spawn((
+        Cloth { damping: 1.0, ..Cloth::new(48, 48, 1.2) },
+        cloth_material,
+        Transform::from_xyz(-0.2, 1.3, 0.0),
+    ));
+    // Three seconds: it falls, lands and drapes.
+    for _ in 0..180 {
+        app.update();
+    }
+
+    let captured: Arc<Mutex<Option<Image>>> = Arc::default();
+    let slot = captured.clone();
+    app.world_mut().spawn(Screenshot::image(target)).observe(move |shot: On<ScreenshotCaptured>| {
+        *slot.lock().unwrap() = Some(shot.image.clone());
+    });
+    for _ in 0..20 {
+        app.update();
+        if captured.lock().unwrap().is_some() {
+            break;
+        }
+    }
+    let image = captured.lock().unwrap().take().expect("a screenshot within 20 frames");
+    let png = std::path::Path::new(env!("CARGO_TARGET_TMPDIR")).join("bunny_render.png");
+    image.clone().try_into_dynamic().unwrap().to_rgb8().save(&png).unwrap();
+    eprintln!("saved {}", png.display());
+
+    // Classify pixels: cloth blue, bunny red, black background.
+    let (mut cloth, mut bunny_px) = (Vec::new(), Vec::new());
+    for y in 0..HEIGHT {
+        for x in 0..WIDTH {
+            let c = image.get_color_at(x, y).unwrap().to_srgba();
+            if c.blue > 0.6 && c.red < 0.3 && c.green < 0.3 {
+                cloth.push((x, y));
+            } else if c.red > 0.6 && c.blue < 0.3 && c.green < 0.3 {
+                bunny_px.push((x, y));
+            }
+        }
+    }
+    let area = (WIDTH * HEIGHT) as usize;
+    eprintln!("cloth pixels: {}, bunny pixels: {}", cloth.len(), bunny_px.len());
+    assert!(cloth.len() > area / 20, "the cloth covers only {} pixels", cloth.len());
+    assert!(bunny_px.len() > area / 100, "the bunny shows only {} pixels", bunny_px.len());
+    let rows = |px: &[(u32, u32)]| (px.iter().map(|p| p.1).min().unwrap(), px.iter().map(|p| p.1).max().unwrap());
+    let ((cloth_top, cloth_bottom), (bunny_top, bunny_bottom)) = (rows(&cloth), rows(&bunny_px));
+    eprintln!("rows: cloth {cloth_top}..{cloth_bottom}, bunny {bunny_top}..{bunny_bottom}");
+    // Draped: the cloth covers the top of the bunny and hangs down past it, well above the
+    // bunny's bottom (it has not fallen through).
+    assert!(cloth_top <= bunny_top, "the cloth is not on top of the bunny");
+    let bunny_height = bunny_bottom - bunny_top;
+    assert!(cloth_bottom > bunny_top + bunny_height / 4, "the cloth does not hang down the bunny's sides");
+    assert!(cloth_top < bunny_top + bunny_height / 2, "the cloth fell through the bunny");
+}
