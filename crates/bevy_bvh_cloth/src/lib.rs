@@ -48,10 +48,19 @@
 //!
 //! ## How it runs
 //!
-//! Everything runs in [`PostUpdate`], after transform propagation, in the chained
+//! The main-world systems run in [`PostUpdate`], after transform propagation, in the chained
 //! [`ClothSystems`] sets. A fixed-rate clock ([`ClothSettings::tick_rate`]) decides how many
 //! whole ticks a frame runs, and each tick runs [`Cloth::looper`] substeps, so a cloth behaves
 //! the same at 30 and at 144 frames per second.
+//!
+//! Who runs the ticks is decided once at start-up ([`ClothBackend`], [`ActiveClothBackend`]):
+//! * **GPU** (where the render device runs compute shaders): the render world runs the paper's
+//!   kernels from [`bvh_cloth_gpu`] in Bevy's `RenderGraph` schedule, before the camera driver,
+//!   and `normal_shader` writes positions and normals straight into the cloth mesh's vertex
+//!   slab. Nothing is read back; [`ClothSimulation`] then holds the state as of the last
+//!   rebuild or reset.
+//! * **CPU** (no compute shaders, no renderer, or asked for): the core's rayon stepper in
+//!   [`ClothSystems::Step`], writing the `Mesh` asset in [`ClothSystems::Writeback`].
 //!
 //! ## Features
 //!

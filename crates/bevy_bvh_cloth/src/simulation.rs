@@ -14,7 +14,8 @@ use crate::settings::ClothSettings;
 /// The running simulation of a [`Cloth`] entity, added by the plugin.
 ///
 /// Particle positions are in world space. The entity's [`Mesh3d`] shows them in the entity's
-/// local frame.
+/// local frame. On the CPU backend this is the live state; on the GPU backend the live state
+/// stays on the GPU, and this holds the state as of the last rebuild or reset.
 #[derive(Component, Debug)]
 pub struct ClothSimulation {
     pub(crate) sim: ClothSim,
