@@ -13,6 +13,8 @@
 //! 3. [`simulate_cloths`] (`RenderGraph`, before the camera driver) records the ticks and the
 //!    writeback.
 
+use std::sync::Arc;
+
 use bevy::core_pipeline::schedule::camera_driver;
 use bevy::ecs::entity::EntityHashMap;
 use bevy::mesh::VertexFormat;
@@ -23,7 +25,7 @@ use bevy::render::render_asset::RenderAssets;
 use bevy::render::renderer::{RenderContext, RenderDevice, RenderGraph, RenderQueue};
 use bevy::render::{Extract, ExtractSchedule, Render, RenderSystems};
 use bvh_cloth_core::gpu_layout::GpuMeshWriteback;
-use bvh_cloth_core::{Affine3A, ClothParams, ClothSim, Collider};
+use bvh_cloth_core::{Affine3A, ClothParams, ClothSim, Collider, Lbvh};
 use bvh_cloth_gpu::wgpu::{self, BufferUsages};
 use bvh_cloth_gpu::{ClothKernels, GpuCloth, GpuColliders};
 
@@ -73,8 +75,9 @@ pub(crate) struct GpuClothWorld {
     kernels: Option<ClothKernels>,
     /// The kernels could not be built; said once.
     failed: bool,
-    /// The colliders, keyed by the identity of their (shared) trees.
-    colliders: Option<(Vec<usize>, GpuColliders)>,
+    /// The colliders, keyed by their (shared) trees. Holding the trees keeps them alive, so an
+    /// identical pointer always means the same tree.
+    colliders: Option<(Vec<Arc<Lbvh>>, GpuColliders)>,
     cloths: EntityHashMap<RenderCloth>,
     /// This frame's input.
     ticks: u32,
@@ -159,10 +162,12 @@ fn prepare_cloths(
     let Some(kernels) = &world.kernels else { return };
 
     // Colliders: new buffers when the set of trees changed, otherwise only the frames.
-    let key: Vec<usize> = world.extracted_colliders.iter().map(|c| std::sync::Arc::as_ptr(&c.lbvh) as usize).collect();
+    let trees: Vec<Arc<Lbvh>> = world.extracted_colliders.iter().map(|c| c.lbvh.clone()).collect();
+    let same_trees = matches!(&world.colliders, Some((old, _))
+        if old.len() == trees.len() && old.iter().zip(&trees).all(|(a, b)| Arc::ptr_eq(a, b)));
     match &mut world.colliders {
-        Some((old, gpu)) if *old == key => gpu.update_frames(&queue, &world.extracted_colliders),
-        slot => *slot = Some((key, GpuColliders::new(device, &world.extracted_colliders))),
+        Some((_, gpu)) if same_trees => gpu.update_frames(&queue, &world.extracted_colliders),
+        slot => *slot = Some((trees, GpuColliders::new(device, &world.extracted_colliders))),
     }
     let Some((_, colliders)) = &world.colliders else { return };
 
