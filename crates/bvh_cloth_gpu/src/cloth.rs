@@ -164,14 +164,7 @@ impl GpuCloth {
         colliders: &GpuColliders,
     ) {
         let group = self.collision_group(device, kernels, colliders);
-        let (x, y) = self.workgroups;
-        let mut pass = encoder.begin_compute_pass(&wgpu::ComputePassDescriptor {
-            label: Some("bvh_cloth_collision"),
-            timestamp_writes: None,
-        });
-        pass.set_pipeline(&kernels.collision);
-        pass.set_bind_group(0, &group, &[]);
-        pass.dispatch_workgroups(x, y, 1);
+        self.dispatch_once(encoder, "bvh_cloth_collision", &kernels.collision, &group);
     }
 
     /// Sets the integrated state that the collision dispatch reads (see
@@ -216,13 +209,22 @@ impl GpuCloth {
                 wgpu::BindGroupEntry { binding: 12, resource: wgpu::BindingResource::Buffer(vertices) },
             ],
         });
+        self.dispatch_once(encoder, "bvh_cloth_writeback", &kernels.normal, &group);
+    }
+
+    /// One compute pass with a single dispatch of `pipeline` over the grid.
+    fn dispatch_once(
+        &self,
+        encoder: &mut CommandEncoder,
+        label: &str,
+        pipeline: &wgpu::ComputePipeline,
+        group: &BindGroup,
+    ) {
         let (x, y) = self.workgroups;
-        let mut pass = encoder.begin_compute_pass(&wgpu::ComputePassDescriptor {
-            label: Some("bvh_cloth_writeback"),
-            timestamp_writes: None,
-        });
-        pass.set_pipeline(&kernels.normal);
-        pass.set_bind_group(0, &group, &[]);
+        let mut pass =
+            encoder.begin_compute_pass(&wgpu::ComputePassDescriptor { label: Some(label), timestamp_writes: None });
+        pass.set_pipeline(pipeline);
+        pass.set_bind_group(0, group, &[]);
         pass.dispatch_workgroups(x, y, 1);
     }
 
