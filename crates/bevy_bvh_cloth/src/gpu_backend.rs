@@ -79,6 +79,9 @@ pub(crate) struct GpuClothWorld {
     /// identical pointer always means the same tree.
     colliders: Option<(Vec<Arc<Lbvh>>, GpuColliders)>,
     cloths: EntityHashMap<RenderCloth>,
+    /// Cloths the device refused (too big for it), with the generation refused: said once, and
+    /// tried again only when the cloth changes.
+    refused: EntityHashMap<u64>,
     /// This frame's input.
     ticks: u32,
     tick_seconds: f32,
@@ -97,7 +100,7 @@ fn extract_cloths(
     let extracted = cloths
         .iter()
         .map(|(entity, state, transform, mesh)| {
-            let known = world.cloths.get(&entity).map(|c| c.generation);
+            let known = world.cloths.get(&entity).map(|c| c.generation).or(world.refused.get(&entity).copied());
             let sim = state.sim();
             let pose = rigid_pose(transform);
             let grid = sim.grid();
@@ -174,6 +177,7 @@ fn prepare_cloths(
     // Cloths that are gone take their buffers with them.
     let present: bevy::ecs::entity::EntityHashSet = world.extracted.iter().map(|c| c.entity).collect();
     world.cloths.retain(|entity, _| present.contains(entity));
+    world.refused.retain(|entity, _| present.contains(entity));
 
     for cloth in world.extracted.drain(..) {
         let existing = world.cloths.remove(&cloth.entity);
@@ -199,7 +203,8 @@ fn prepare_cloths(
                     },
                 }),
                 Err(error) => {
-                    error!("Cloth on {}: cannot run on the GPU: {error}", cloth.entity);
+                    error!("Cloth on {}: cannot run on the GPU: {error}; it stays at rest", cloth.entity);
+                    world.refused.insert(cloth.entity, cloth.generation);
                     None
                 }
             },
