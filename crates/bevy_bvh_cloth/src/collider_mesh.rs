@@ -5,7 +5,7 @@ use core::fmt;
 use bevy::asset::RenderAssetUsages;
 use bevy::mesh::{Indices, PrimitiveTopology, VertexAttributeValues};
 use bevy::prelude::*;
-use bvh_cloth_core::{ColliderError, MeshRef};
+use bvh_cloth_core::{Collider, ColliderError, MeshRef};
 
 /// Why an [`AutoCollider`](crate::AutoCollider) could not be built.
 #[derive(Clone, Debug, PartialEq)]
@@ -89,6 +89,16 @@ impl TriangleList {
     pub fn as_mesh_ref(&self) -> MeshRef<'_> {
         MeshRef { positions: &self.positions, indices: self.indices.as_deref() }
     }
+}
+
+/// Builds a collider from a Bevy mesh at resolution `n`, the way [`AutoCollider`] does: for
+/// tools, tests, or colliders a game builds itself. Never panics; a mesh that cannot become a
+/// collider gives the reason.
+///
+/// [`AutoCollider`]: crate::AutoCollider
+pub fn collider_from_mesh(mesh: &Mesh, n: u32) -> Result<Collider, ColliderFailure> {
+    let triangles = TriangleList::from_mesh(mesh)?;
+    Collider::from_mesh(triangles.as_mesh_ref(), n).map_err(ColliderFailure::Mesh)
 }
 
 #[cfg(test)]

@@ -106,7 +106,7 @@ pub use bvh_cloth_core;
 pub use clock::ClothClock;
 pub use cloth::{Cloth, ClothIntegrator, ClothPins, SpringScales};
 pub use collider::{ASYNC_BUILD_MIN_VERTICES, AutoCollider, ClothCollider, ColliderStatus};
-pub use collider_mesh::ColliderFailure;
+pub use collider_mesh::{ColliderFailure, collider_from_mesh};
 pub use messages::{ClothMessage, ResetCloth};
 pub use settings::ClothSettings;
 pub use simulation::ClothSimulation;
