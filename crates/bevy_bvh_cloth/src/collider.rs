@@ -227,7 +227,7 @@ fn advance_build(
         }
     };
     let big = triangles.len() >= ASYNC_BUILD_MIN_VERTICES;
-    let job = move || Collider::from_mesh(triangles.as_mesh_ref(), key.resolution).map_err(ColliderFailure::Mesh);
+    let job = move || triangles.build(key.resolution);
     if big {
         build.pending = Some((key, AsyncComputeTaskPool::get().spawn(async move { job() })));
         Progress::Building

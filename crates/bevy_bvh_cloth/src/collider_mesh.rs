@@ -89,6 +89,11 @@ impl TriangleList {
     pub fn as_mesh_ref(&self) -> MeshRef<'_> {
         MeshRef { positions: &self.positions, indices: self.indices.as_deref() }
     }
+
+    /// Voxelises the triangles at resolution `n` into a collider.
+    pub fn build(&self, n: u32) -> Result<Collider, ColliderFailure> {
+        Collider::from_mesh(self.as_mesh_ref(), n).map_err(ColliderFailure::Mesh)
+    }
 }
 
 /// Builds a collider from a Bevy mesh at resolution `n`, the way [`AutoCollider`] does: for
@@ -97,8 +102,7 @@ impl TriangleList {
 ///
 /// [`AutoCollider`]: crate::AutoCollider
 pub fn collider_from_mesh(mesh: &Mesh, n: u32) -> Result<Collider, ColliderFailure> {
-    let triangles = TriangleList::from_mesh(mesh)?;
-    Collider::from_mesh(triangles.as_mesh_ref(), n).map_err(ColliderFailure::Mesh)
+    TriangleList::from_mesh(mesh)?.build(n)
 }
 
 #[cfg(test)]

@@ -102,16 +102,7 @@ fn extract_cloths(
         .map(|(entity, state, transform, mesh)| {
             let known = world.cloths.get(&entity).map(|c| c.generation).or(world.refused.get(&entity).copied());
             let sim = state.sim();
-            let pose = rigid_pose(transform);
-            let grid = sim.grid();
-            let pins = sim
-                .pins()
-                .iter()
-                .map(|&i| {
-                    let (r, c) = (i as usize / grid.cols, i as usize % grid.cols);
-                    (i, pose.transform_point3(grid.local_rest_position(r, c)))
-                })
-                .collect();
+            let pins = sim.pin_targets(&rigid_pose(transform)).collect();
             ExtractedCloth {
                 entity,
                 generation: state.generation,

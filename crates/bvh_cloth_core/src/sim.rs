@@ -89,11 +89,19 @@ impl ClothSim {
     /// Moves every pinned particle to its rest position under `pose`: this is how pins follow
     /// the object that holds the cloth.
     pub fn pin_to(&mut self, pose: &Affine3A) {
-        for k in 0..self.pins.len() {
-            let i = self.pins[k] as usize;
-            let (r, c) = (i / self.grid.cols, i % self.grid.cols);
-            self.set_position(i, pose.transform_point3(self.grid.local_rest_position(r, c)));
+        let targets: Vec<(u32, Vec3)> = self.pin_targets(pose).collect();
+        for (i, p) in targets {
+            self.set_position(i as usize, p);
         }
+    }
+
+    /// Where each pinned particle belongs under `pose`: `(index, world position)`, its rest
+    /// position placed by the pose.
+    pub fn pin_targets<'a>(&'a self, pose: &'a Affine3A) -> impl Iterator<Item = (u32, Vec3)> + 'a {
+        self.pins.iter().map(move |&i| {
+            let (r, c) = (i as usize / self.grid.cols, i as usize % self.grid.cols);
+            (i, pose.transform_point3(self.grid.local_rest_position(r, c)))
+        })
     }
 
     /// The parameters.

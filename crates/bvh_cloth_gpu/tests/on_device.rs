@@ -251,6 +251,14 @@ fn largest_gap(a: &[Vec3], b: &[Vec3]) -> f32 {
     a.iter().zip(b).map(|(p, q)| p.distance(*q)).fold(0.0, f32::max)
 }
 
+fn centroid(p: &[Vec3]) -> Vec3 {
+    p.iter().copied().sum::<Vec3>() / p.len() as f32
+}
+
+fn lowest(p: &[Vec3]) -> f32 {
+    p.iter().map(|p| p.y).fold(f32::INFINITY, f32::min)
+}
+
 fn gpu_positions(rig: &Rig, cloth: &GpuCloth) -> Vec<Vec3> {
     rig.particles(cloth).iter().map(position).collect()
 }
@@ -317,8 +325,6 @@ fn bunny_drop_agrees_with_the_cpu() {
     }
     rig.ticks(&gpu, &gpu_colliders, 290);
     let (c, g) = (cpu.positions(), gpu_positions(&rig, &gpu));
-    let centroid = |p: &[Vec3]| p.iter().copied().sum::<Vec3>() / p.len() as f32;
-    let lowest = |p: &[Vec3]| p.iter().map(|p| p.y).fold(f32::INFINITY, f32::min);
     let highest = |p: &[Vec3]| p.iter().map(|p| p.y).fold(f32::NEG_INFINITY, f32::max);
     eprintln!(
         "bunny drop, tick 300: centroid gap {:e} m, lowest {} vs {}, highest {} vs {}, largest particle gap {:e} m",
@@ -361,7 +367,6 @@ fn two_colliders_one_moving_agree_with_the_cpu() {
     let mut cpu = ClothSim::new(params, Affine3A::from_translation(Vec3::new(0.0, 1.0, 0.0)), &[]).unwrap();
     let mut gpu_colliders = GpuColliders::new(&rig.device, &colliders);
     let gpu = rig.cloth(&cpu, 1.0 / 60.0, &gpu_colliders);
-    let centroid = |p: &[Vec3]| p.iter().copied().sum::<Vec3>() / p.len() as f32;
 
     for _ in 0..15 {
         cpu.tick(1.0 / 60.0, &colliders);
@@ -379,7 +384,6 @@ fn two_colliders_one_moving_agree_with_the_cpu() {
     }
 
     let (c, g) = (cpu.positions(), gpu_positions(&rig, &gpu));
-    let lowest = |p: &[Vec3]| p.iter().map(|p| p.y).fold(f32::INFINITY, f32::min);
     eprintln!(
         "two colliders, tick 180: centroid gap {:e} m, lowest {} vs {}, largest particle gap {:e} m",
         centroid(&c).distance(centroid(&g)),
