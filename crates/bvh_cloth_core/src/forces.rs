@@ -5,6 +5,8 @@
 //! over a contiguous column range with no branch, which the compiler vectorises; borders are
 //! handled by shortening that range, not by tests inside the loop.
 
+use core::ops::Range;
+
 use glam::Vec3;
 
 use crate::grid::{ClothGrid, STENCIL};
@@ -44,69 +46,115 @@ impl ForceModel {
         }
     }
 
-    /// Writes the acceleration of every particle of row `r` into `acc` (`[ax | ay | az]`, each
-    /// `cols` long), reading positions and velocities from `state` (the whole cloth, row layout).
-    /// Pinned particles (`free == 0`) get zero.
-    pub fn row_acceleration(&self, grid: &ClothGrid, state: &[f32], free: &[f32], r: usize, acc: &mut [f32]) {
+    /// Writes the acceleration of every particle of rows `band` into `acc` (for each row of the
+    /// band in turn, `[ax | ay | az]`, each `cols` long), reading positions and velocities from
+    /// `state` (the whole cloth, row layout). Pinned particles (`free == 0`) get zero.
+    ///
+    /// Each spring is evaluated once and applied to both of its ends (Newton's third law), so a
+    /// band pays for the springs inside it once and only re-evaluates the few that cross its
+    /// edges. The band split is fixed by the caller, so the sums are the same on any thread count.
+    pub fn band_acceleration(
+        &self,
+        grid: &ClothGrid,
+        state: &[f32],
+        free: &[f32],
+        band: Range<usize>,
+        acc: &mut [f32],
+        scratch: &mut SpringScratch,
+    ) {
         let cols = grid.cols;
         let w = LANES * cols;
-        let row = &state[r * w..(r + 1) * w];
-        let (px, py, pz) = (&row[..cols], &row[cols..2 * cols], &row[2 * cols..3 * cols]);
-        let (vx, vy, vz) = (&row[3 * cols..4 * cols], &row[4 * cols..5 * cols], &row[5 * cols..]);
-        let (ax, rest) = acc.split_at_mut(cols);
-        let (ay, az) = rest.split_at_mut(cols);
         let g = self.uniform_accel;
         let c = self.damping;
-        for i in 0..cols {
-            ax[i] = g.x - c * vx[i];
-            ay[i] = g.y - c * vy[i];
-            az[i] = g.z - c * vz[i];
-        }
-        for s in STENCIL {
-            let rr = r as i64 + i64::from(s.dr);
-            if rr < 0 || rr >= grid.rows as i64 {
-                continue;
+        for (j, r) in band.clone().enumerate() {
+            let v = &state[r * w + 3 * cols..(r + 1) * w];
+            let a = &mut acc[j * 3 * cols..(j + 1) * 3 * cols];
+            for (axis, g) in [g.x, g.y, g.z].into_iter().enumerate() {
+                let (a, v) = (&mut a[axis * cols..(axis + 1) * cols], &v[axis * cols..(axis + 1) * cols]);
+                for i in 0..cols {
+                    a[i] = g - c * v[i];
+                }
             }
+        }
+        let position = |r: usize, lo: usize, hi: usize| -> [&[f32]; 3] {
+            let row = &state[r * w..r * w + 3 * cols];
+            [&row[lo..hi], &row[cols + lo..cols + hi], &row[2 * cols + lo..2 * cols + hi]]
+        };
+        for s in STENCIL.iter().filter(|s| s.dr > 0 || (s.dr == 0 && s.dc > 0)) {
             let kind = s.kind as usize;
             let (k, rest_len) = (self.k_over_m[kind], self.rest[kind]);
-            if k == 0.0 {
-                continue;
-            }
-            let nrow = &state[rr as usize * w..(rr as usize + 1) * w];
-            // Columns c whose neighbour c + dc lies in the grid.
-            let dc = s.dc as i64;
+            let (dr, dc) = (s.dr as usize, i64::from(s.dc));
+            // Columns c of the first end whose second end c + dc lies in the grid.
             let lo = (-dc).max(0) as usize;
-            let hi = (cols as i64 - dc.max(0)) as usize;
-            if lo >= hi {
+            let hi = (cols as i64 - dc.max(0)).max(0) as usize;
+            if k == 0.0 || lo >= hi || dr >= grid.rows {
                 continue;
             }
             let (nlo, nhi) = ((lo as i64 + dc) as usize, (hi as i64 + dc) as usize);
-            spring_span(
-                k,
-                rest_len,
-                [&px[lo..hi], &py[lo..hi], &pz[lo..hi]],
-                [&nrow[nlo..nhi], &nrow[cols + nlo..cols + nhi], &nrow[2 * cols + nlo..2 * cols + nhi]],
-                [&mut ax[lo..hi], &mut ay[lo..hi], &mut az[lo..hi]],
-            );
+            // Every spring with at least one end in the band: first end in rows first..last.
+            let first = band.start.saturating_sub(dr);
+            let last = band.end.min(grid.rows - dr);
+            for r in first..last {
+                let f = scratch.spans(hi - lo);
+                spring_span(k, rest_len, position(r, lo, hi), position(r + dr, nlo, nhi), f);
+                if band.contains(&r) {
+                    add_span(acc, (r - band.start) * 3 * cols, cols, lo, &scratch.force, hi - lo, 1.0);
+                }
+                if band.contains(&(r + dr)) {
+                    add_span(acc, (r + dr - band.start) * 3 * cols, cols, nlo, &scratch.force, hi - lo, -1.0);
+                }
+            }
         }
-        let f = &free[r * cols..(r + 1) * cols];
-        for i in 0..cols {
-            ax[i] *= f[i];
-            ay[i] *= f[i];
-            az[i] *= f[i];
+        for (j, r) in band.enumerate() {
+            let f = &free[r * cols..(r + 1) * cols];
+            for a in acc[j * 3 * cols..(j + 1) * 3 * cols].chunks_exact_mut(cols) {
+                for i in 0..cols {
+                    a[i] *= f[i];
+                }
+            }
         }
     }
 }
 
-/// Adds the Hooke force (paper eq. 1, divided by the mass) of one spring per particle over a
-/// contiguous span: particle `i` at `p[i]` pulled towards its neighbour at `q[i]`.
+/// Per-task scratch space for [`ForceModel::band_acceleration`]: one span of spring forces.
+#[derive(Clone, Debug, Default)]
+pub struct SpringScratch {
+    /// `[fx | fy | fz]` of the span being applied, each `len` long.
+    force: Vec<f32>,
+}
+
+impl SpringScratch {
+    fn spans(&mut self, len: usize) -> [&mut [f32]; 3] {
+        self.force.resize(3 * len, 0.0);
+        let (x, rest) = self.force.split_at_mut(len);
+        let (y, z) = rest.split_at_mut(len);
+        [x, y, z]
+    }
+}
+
+/// Adds `sign * force` (`[fx | fy | fz]`, each `len` long) to columns `col..col + len` of the
+/// acceleration row starting at `acc[offset]`.
 #[inline(always)]
-fn spring_span(k: f32, rest: f32, p: [&[f32]; 3], q: [&[f32]; 3], a: [&mut [f32]; 3]) {
+fn add_span(acc: &mut [f32], offset: usize, cols: usize, col: usize, force: &[f32], len: usize, sign: f32) {
+    for axis in 0..3 {
+        let a = &mut acc[offset + axis * cols + col..][..len];
+        let f = &force[axis * len..(axis + 1) * len];
+        for i in 0..len {
+            a[i] += sign * f[i];
+        }
+    }
+}
+
+/// The Hooke force (paper eq. 1, divided by the mass) of one spring kind over a contiguous span:
+/// `f[i]` pulls the particle at `p[i]` towards its neighbour at `q[i]` (and the neighbour back by
+/// `-f[i]`).
+#[inline(always)]
+fn spring_span(k: f32, rest: f32, p: [&[f32]; 3], q: [&[f32]; 3], f: [&mut [f32]; 3]) {
     let n = p[0].len();
     let [px, py, pz] = p.map(|s| &s[..n]);
     let [qx, qy, qz] = q.map(|s| &s[..n]);
-    let [ax, ay, az] = a;
-    let (ax, ay, az) = (&mut ax[..n], &mut ay[..n], &mut az[..n]);
+    let [fx, fy, fz] = f;
+    let (fx, fy, fz) = (&mut fx[..n], &mut fy[..n], &mut fz[..n]);
     for i in 0..n {
         let dx = qx[i] - px[i];
         let dy = qy[i] - py[i];
@@ -115,8 +163,87 @@ fn spring_span(k: f32, rest: f32, p: [&[f32]; 3], q: [&[f32]; 3], a: [&mut [f32]
         // k (|d| - rest) / |d|. The floor keeps a coincident pair (d = 0) finite: it then
         // contributes 0 * finite = 0.
         let s = k * (1.0 - rest / len.max(1.0e-6 * rest));
-        ax[i] += s * dx;
-        ay[i] += s * dy;
-        az[i] += s * dz;
+        fx[i] = s * dx;
+        fy[i] = s * dy;
+        fz[i] = s * dz;
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::params::ClothParams;
+
+    /// The acceleration of particle `(r, c)` straight from eq. 1–3, every spring seen from this
+    /// end, in f64.
+    fn naive(
+        model: &ForceModel,
+        grid: &ClothGrid,
+        p: &[glam::DVec3],
+        v: &[glam::DVec3],
+        r: usize,
+        c: usize,
+    ) -> glam::DVec3 {
+        let i = r * grid.cols + c;
+        let mut a = model.uniform_accel.as_dvec3() - f64::from(model.damping) * v[i];
+        for s in STENCIL {
+            let (rr, cc) = (r as i64 + i64::from(s.dr), c as i64 + i64::from(s.dc));
+            if rr < 0 || cc < 0 || rr >= grid.rows as i64 || cc >= grid.cols as i64 {
+                continue;
+            }
+            let d = p[rr as usize * grid.cols + cc as usize] - p[i];
+            let kind = s.kind as usize;
+            a += f64::from(model.k_over_m[kind]) * (d.length() - f64::from(model.rest[kind])) * d / d.length();
+        }
+        a
+    }
+
+    #[test]
+    fn bands_apply_each_spring_to_both_ends_like_the_full_stencil() {
+        let params = ClothParams { rows: 13, cols: 11, spring_k: 700.0, damping: 0.3, ..Default::default() };
+        let grid = ClothGrid { rows: 13, cols: 11, spacing: params.spacing() };
+        let model = ForceModel::new(&params, &grid);
+        let (rows, cols) = (grid.rows, grid.cols);
+        // A rest grid, jiggled deterministically, with a few pinned particles.
+        let jiggle = |i: usize, axis: usize| ((i * 7 + axis * 13) % 17) as f32 / 17.0 - 0.5;
+        let mut state = vec![0.0f32; rows * cols * LANES];
+        let (mut p, mut v) = (Vec::new(), Vec::new());
+        for r in 0..rows {
+            for c in 0..cols {
+                let i = r * cols + c;
+                let pos = Vec3::new(c as f32, 0.0, r as f32) * grid.spacing
+                    + 0.3 * grid.spacing * Vec3::new(jiggle(i, 0), jiggle(i, 1), jiggle(i, 2));
+                let vel = Vec3::new(jiggle(i, 3), jiggle(i, 4), jiggle(i, 5));
+                for (l, x) in [pos.x, pos.y, pos.z, vel.x, vel.y, vel.z].into_iter().enumerate() {
+                    state[r * LANES * cols + l * cols + c] = x;
+                }
+                p.push(pos.as_dvec3());
+                v.push(vel.as_dvec3());
+            }
+        }
+        let free: Vec<f32> = (0..rows * cols).map(|i| if i % 10 == 3 { 0.0 } else { 1.0 }).collect();
+        for band_rows in [1, 2, 3, 5, 13] {
+            let mut scratch = SpringScratch::default();
+            for first in (0..rows).step_by(band_rows) {
+                let band = first..(first + band_rows).min(rows);
+                let mut acc = vec![f32::NAN; 3 * cols * band.len()];
+                model.band_acceleration(&grid, &state, &free, band.clone(), &mut acc, &mut scratch);
+                for (j, r) in band.enumerate() {
+                    for c in 0..cols {
+                        let got = Vec3::new(
+                            acc[j * 3 * cols + c],
+                            acc[j * 3 * cols + cols + c],
+                            acc[j * 3 * cols + 2 * cols + c],
+                        );
+                        let want = naive(&model, &grid, &p, &v, r, c) * f64::from(free[r * cols + c]);
+                        let err = (got.as_dvec3() - want).length();
+                        assert!(
+                            err <= 1e-4 * want.length().max(1.0),
+                            "band of {band_rows}, ({r}, {c}): {got} vs {want}"
+                        );
+                    }
+                }
+            }
+        }
     }
 }

@@ -12,12 +12,13 @@ use rayon::prelude::*;
 use crate::collider::Collider;
 use crate::collision::ColliderFrame;
 use crate::error::ClothError;
-use crate::forces::{ForceModel, LANES};
+use crate::forces::{ForceModel, LANES, SpringScratch};
 use crate::grid::{ClothGrid, STENCIL};
 use crate::params::{ClothParams, Integrator};
 
-/// Rows handed to one rayon task at least, so small cloths are not split into tiny jobs.
-const MIN_ROWS_PER_TASK: usize = 8;
+/// Rows per band: the unit of parallel work, and of spring reuse (see
+/// [`ForceModel::band_acceleration`]). It is fixed, so results do not depend on the thread count.
+const BAND_ROWS: usize = 8;
 
 /// A simulated cloth.
 #[derive(Clone, Debug)]
@@ -291,17 +292,23 @@ impl ClothSim {
         };
         let base: &[f32] = state;
         let free: &[f32] = free;
-        let min_len = MIN_ROWS_PER_TASK.max(1);
-        out.par_chunks_mut(w).zip(slope_sum.par_chunks_mut(w)).enumerate().with_min_len(min_len).for_each_init(
-            || vec![0.0f32; 3 * cols],
-            |acc, (r, (out_row, sum_row))| {
-                model.row_acceleration(&grid, src, free, r, acc);
-                let src_row = &src[r * w..(r + 1) * w];
-                let base_row = &base[r * w..(r + 1) * w];
-                let free_row = &free[r * cols..(r + 1) * cols];
-                integrate_row(stage, h, cols, src_row, base_row, free_row, acc, sum_row, out_row);
-                if matches!(stage, Stage::Rk4Final | Stage::Euler) && !frames.is_empty() {
-                    collide_row(frames, cols, base_row, free_row, out_row);
+        let band_len = BAND_ROWS * w;
+        out.par_chunks_mut(band_len).zip(slope_sum.par_chunks_mut(band_len)).enumerate().for_each_init(
+            || (vec![0.0f32; 3 * cols * BAND_ROWS], SpringScratch::default()),
+            |(acc, scratch), (b, (out_band, sum_band))| {
+                let first = b * BAND_ROWS;
+                let band = first..first + out_band.len() / w;
+                model.band_acceleration(&grid, src, free, band.clone(), acc, scratch);
+                for (j, r) in band.enumerate() {
+                    let row = r * w..(r + 1) * w;
+                    let (out_row, sum_row) = (&mut out_band[j * w..(j + 1) * w], &mut sum_band[j * w..(j + 1) * w]);
+                    let acc_row = &acc[j * 3 * cols..(j + 1) * 3 * cols];
+                    let (src_row, base_row) = (&src[row.clone()], &base[row]);
+                    let free_row = &free[r * cols..(r + 1) * cols];
+                    integrate_row(stage, h, cols, src_row, base_row, free_row, acc_row, sum_row, out_row);
+                    if matches!(stage, Stage::Rk4Final | Stage::Euler) && !frames.is_empty() {
+                        collide_row(frames, cols, base_row, free_row, out_row);
+                    }
                 }
             },
         );
@@ -334,28 +341,31 @@ fn integrate_row(
     sum: &mut [f32],
     out: &mut [f32],
 ) {
-    // Slope of lane l (0..6) at column i: velocity (masked) for positions, acceleration for
-    // velocities.
-    let slope =
-        |l: usize, i: usize| -> f32 { if l < 3 { src[(l + 3) * cols + i] * free[i] } else { acc[(l - 3) * cols + i] } };
+    // The slope of lane l (0..6) at column i: the velocity (zero when pinned) for the position
+    // lanes, the acceleration for the velocity lanes. Each lane runs one branch-free loop, so
+    // that it vectorises.
+    let velocity = &src[3 * cols..];
     match stage {
         Stage::Intermediate { first, weight, coef } => {
             let ch = coef * h;
-            for l in 0..LANES {
-                let o = l * cols;
-                for i in 0..cols {
-                    let k = slope(l, i);
-                    sum[o + i] = if first { k } else { sum[o + i] + weight * k };
-                    out[o + i] = base[o + i] + ch * k;
+            for l in 0..3 {
+                let (v, a) = (&velocity[l * cols..(l + 1) * cols], &acc[l * cols..(l + 1) * cols]);
+                for (o, slope) in [(l * cols, Slope::Masked(v, free)), ((l + 3) * cols, Slope::Plain(a))] {
+                    let (out, sum, base) = (&mut out[o..o + cols], &mut sum[o..o + cols], &base[o..o + cols]);
+                    slope.for_each(|i, k| {
+                        sum[i] = if first { k } else { sum[i] + weight * k };
+                        out[i] = base[i] + ch * k;
+                    });
                 }
             }
         }
         Stage::Rk4Final => {
             let h6 = h / 6.0;
-            for l in 0..LANES {
-                let o = l * cols;
-                for i in 0..cols {
-                    out[o + i] = base[o + i] + h6 * (sum[o + i] + slope(l, i));
+            for l in 0..3 {
+                let (v, a) = (&velocity[l * cols..(l + 1) * cols], &acc[l * cols..(l + 1) * cols]);
+                for (o, slope) in [(l * cols, Slope::Masked(v, free)), ((l + 3) * cols, Slope::Plain(a))] {
+                    let (out, sum, base) = (&mut out[o..o + cols], &sum[o..o + cols], &base[o..o + cols]);
+                    slope.for_each(|i, k| out[i] = base[i] + h6 * (sum[i] + k));
                 }
             }
         }
@@ -370,6 +380,35 @@ fn integrate_row(
                 let o = l * cols;
                 for i in 0..cols {
                     out[o + i] = base[o + i] + h * out[(l + 3) * cols + i] * free[i];
+                }
+            }
+        }
+    }
+}
+
+/// The slope of one lane of a row: a velocity masked by `free` (position lanes) or an
+/// acceleration (velocity lanes).
+#[derive(Clone, Copy)]
+enum Slope<'a> {
+    Masked(&'a [f32], &'a [f32]),
+    Plain(&'a [f32]),
+}
+
+impl Slope<'_> {
+    /// Calls `f(i, slope_i)` for every column, with the variant chosen outside the loop so that
+    /// each loop vectorises.
+    #[inline(always)]
+    fn for_each(self, mut f: impl FnMut(usize, f32)) {
+        match self {
+            Slope::Masked(v, free) => {
+                let free = &free[..v.len()];
+                for i in 0..v.len() {
+                    f(i, v[i] * free[i]);
+                }
+            }
+            Slope::Plain(a) => {
+                for (i, &k) in a.iter().enumerate() {
+                    f(i, k);
                 }
             }
         }
