@@ -18,6 +18,7 @@
 //! mesh that is longer on one axis. A flat axis (a planar mesh) has a single layer of voxels.
 
 use glam::Vec3;
+use rayon::prelude::*;
 
 use crate::error::ColliderError;
 use crate::lbvh::Sphere;
@@ -39,49 +40,44 @@ pub struct MeshRef<'a> {
     pub indices: Option<&'a [u32]>,
 }
 
-/// Checks a mesh and returns the positions of the vertices its triangles use, in index order
-/// of first use, deduplicated.
-fn referenced_vertices(mesh: MeshRef<'_>) -> Result<Vec<Vec3>, ColliderError> {
+/// Checks a mesh and returns which vertices its triangles use (`None`: all of them).
+fn used_vertices(mesh: MeshRef<'_>) -> Result<Option<Vec<bool>>, ColliderError> {
     if mesh.positions.is_empty() {
         return Err(ColliderError::EmptyMesh);
     }
-    for (vertex, p) in mesh.positions.iter().enumerate() {
-        if !p.iter().all(|c| c.is_finite()) {
-            return Err(ColliderError::NonFiniteVertex { vertex });
-        }
-        if p.iter().any(|c| c.abs() > MAX_COORDINATE) {
-            return Err(ColliderError::VertexTooFar { vertex, limit: MAX_COORDINATE });
-        }
+    let bad = |p: &[f32; 3]| !p.iter().all(|c| c.is_finite() && c.abs() <= MAX_COORDINATE);
+    let first_bad = mesh.positions.par_chunks(CHUNK).enumerate().find_map_first(|(c, chunk)| {
+        chunk.iter().position(bad).map(|i| c * CHUNK + i)
+    });
+    if let Some(vertex) = first_bad {
+        let p = mesh.positions[vertex];
+        return Err(if p.iter().all(|c| c.is_finite()) {
+            ColliderError::VertexTooFar { vertex, limit: MAX_COORDINATE }
+        } else {
+            ColliderError::NonFiniteVertex { vertex }
+        });
     }
     let vertices = mesh.positions.len();
-    match mesh.indices {
-        None => {
-            if !vertices.is_multiple_of(3) {
-                return Err(ColliderError::IndicesNotTriangles { len: vertices });
-            }
-            Ok(mesh.positions.iter().map(|&p| Vec3::from(p)).collect())
+    let Some(indices) = mesh.indices else {
+        if !vertices.is_multiple_of(3) {
+            return Err(ColliderError::IndicesNotTriangles { len: vertices });
         }
-        Some(indices) => {
-            if indices.is_empty() {
-                return Err(ColliderError::NoTriangles);
-            }
-            if !indices.len().is_multiple_of(3) {
-                return Err(ColliderError::IndicesNotTriangles { len: indices.len() });
-            }
-            let mut used = vec![false; vertices];
-            let mut out = Vec::new();
-            for (position, &index) in indices.iter().enumerate() {
-                let Some(flag) = used.get_mut(index as usize) else {
-                    return Err(ColliderError::IndexOutOfRange { position, index, vertices });
-                };
-                if !*flag {
-                    *flag = true;
-                    out.push(Vec3::from(mesh.positions[index as usize]));
-                }
-            }
-            Ok(out)
-        }
+        return Ok(None);
+    };
+    if indices.is_empty() {
+        return Err(ColliderError::NoTriangles);
     }
+    if !indices.len().is_multiple_of(3) {
+        return Err(ColliderError::IndicesNotTriangles { len: indices.len() });
+    }
+    let mut used = vec![false; vertices];
+    for (position, &index) in indices.iter().enumerate() {
+        let Some(flag) = used.get_mut(index as usize) else {
+            return Err(ColliderError::IndexOutOfRange { position, index, vertices });
+        };
+        *flag = true;
+    }
+    Ok(Some(used))
 }
 
 /// The spheres of a voxelised mesh, in voxel order (x fastest, then y, then z).
@@ -107,40 +103,62 @@ pub fn voxel_spheres(mesh: MeshRef<'_>, n: u32) -> Result<VoxelSpheres, Collider
     if n > MAX_RESOLUTION {
         return Err(ColliderError::ResolutionTooHigh { n, max: MAX_RESOLUTION });
     }
-    let vertices = referenced_vertices(mesh)?;
-    let (min, max) = vertices.iter().fold((Vec3::INFINITY, Vec3::NEG_INFINITY), |(lo, hi), &p| (lo.min(p), hi.max(p)));
+    let used = used_vertices(mesh)?;
+    let is_used = |i: usize| used.as_ref().is_none_or(|u| u[i]);
+    let positions = mesh.positions;
+    let empty = (Vec3::INFINITY, Vec3::NEG_INFINITY);
+    let (min, max) = positions
+        .par_chunks(CHUNK)
+        .enumerate()
+        .map(|(c, chunk)| {
+            let used = chunk.iter().enumerate().filter(|&(j, _)| is_used(c * CHUNK + j));
+            used.fold(empty, |(lo, hi), (_, &p)| (lo.min(Vec3::from(p)), hi.max(Vec3::from(p))))
+        })
+        .reduce(|| empty, |(a, b), (c, d)| (a.min(c), b.max(d)));
     let extent = max - min;
     if extent.max_element() <= 0.0 {
         return Err(ColliderError::ZeroExtent);
     }
 
     let grid = VoxelGrid::new(min, max, n);
-    // Counting sort of the vertices by voxel: counts, prefix sums, scatter.
+    // Counting sort of the used vertices by voxel: keys, counts, prefix sums, scatter.
     let cells = (n as usize).pow(3);
-    let keys: Vec<u32> = vertices.iter().map(|&p| grid.voxel_of(p)).collect();
+    let mut keys = vec![UNUSED; positions.len()];
+    keys.par_chunks_mut(CHUNK).zip(positions.par_chunks(CHUNK)).enumerate().for_each(|(c, (keys, chunk))| {
+        for (j, (key, &p)) in keys.iter_mut().zip(chunk).enumerate() {
+            if is_used(c * CHUNK + j) {
+                *key = grid.voxel_of(Vec3::from(p));
+            }
+        }
+    });
     let mut start = vec![0u32; cells + 1];
-    for &k in &keys {
+    for &k in keys.iter().filter(|&&k| k != UNUSED) {
         start[k as usize + 1] += 1;
     }
     for i in 0..cells {
         start[i + 1] += start[i];
     }
     let mut cursor = start.clone();
-    let mut grouped = vec![Vec3::ZERO; vertices.len()];
-    for (&k, &p) in keys.iter().zip(&vertices) {
+    let mut grouped = vec![Vec3::ZERO; start[cells] as usize];
+    for (&k, &p) in keys.iter().zip(positions).filter(|&(&k, _)| k != UNUSED) {
         let slot = &mut cursor[k as usize];
-        grouped[*slot as usize] = p;
+        grouped[*slot as usize] = Vec3::from(p);
         *slot += 1;
     }
 
-    let (voxels, spheres) = start
-        .windows(2)
-        .enumerate()
-        .filter(|(_, w)| w[1] > w[0])
-        .map(|(key, w)| (key as u32, enclosing_sphere(&grouped[w[0] as usize..w[1] as usize])))
-        .unzip();
+    let occupied: Vec<(u32, u32, u32)> =
+        start.windows(2).enumerate().filter(|(_, w)| w[1] > w[0]).map(|(key, w)| (key as u32, w[0], w[1])).collect();
+    let spheres =
+        occupied.par_iter().map(|&(_, lo, hi)| enclosing_sphere(&grouped[lo as usize..hi as usize])).collect();
+    let voxels = occupied.into_iter().map(|(key, _, _)| key).collect();
     Ok(VoxelSpheres { spheres, voxels, mesh_min: min, mesh_max: max, resolution: n })
 }
+
+/// Vertices per parallel task in the passes over the whole mesh.
+const CHUNK: usize = 1 << 14;
+
+/// The voxel key of a vertex no triangle uses.
+const UNUSED: u32 = u32::MAX;
 
 /// The voxel grid over a mesh's AABB.
 #[derive(Clone, Copy, Debug)]
@@ -160,9 +178,11 @@ impl VoxelGrid {
 
     /// The voxel holding `p`, as `x + n (y + n z)`; points on the far faces go to the last layer.
     fn voxel_of(&self, p: Vec3) -> u32 {
-        let top = (self.n - 1) as f32;
-        let q = ((p - self.min) * self.inv_cell).floor().clamp(Vec3::ZERO, Vec3::splat(top));
-        q.x as u32 + self.n * (q.y as u32 + self.n * q.z as u32)
+        // `as` truncates, which is `floor` here because the offset is not negative (and it
+        // saturates, should rounding push a point a hair outside the box).
+        let q = ((p - self.min) * self.inv_cell).max(Vec3::ZERO);
+        let cell = |x: f32| (x as u32).min(self.n - 1);
+        cell(q.x) + self.n * (cell(q.y) + self.n * cell(q.z))
     }
 }
 
