@@ -46,9 +46,11 @@ fn used_vertices(mesh: MeshRef<'_>) -> Result<Option<Vec<bool>>, ColliderError> 
         return Err(ColliderError::EmptyMesh);
     }
     let bad = |p: &[f32; 3]| !p.iter().all(|c| c.is_finite() && c.abs() <= MAX_COORDINATE);
-    let first_bad = mesh.positions.par_chunks(CHUNK).enumerate().find_map_first(|(c, chunk)| {
-        chunk.iter().position(bad).map(|i| c * CHUNK + i)
-    });
+    let first_bad = mesh
+        .positions
+        .par_chunks(CHUNK)
+        .enumerate()
+        .find_map_first(|(c, chunk)| chunk.iter().position(bad).map(|i| c * CHUNK + i));
     if let Some(vertex) = first_bad {
         let p = mesh.positions[vertex];
         return Err(if p.iter().all(|c| c.is_finite()) {

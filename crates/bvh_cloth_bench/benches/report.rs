@@ -1,0 +1,328 @@
+//! The benchmark report: prints markdown tables, and writes the data of the plot as CSV.
+//!
+//! 1. The paper's Table VII: a 64 x 64 cloth on the bunny and the dragon at n = 1, 3, 5, per
+//!    frame, on the CPU backend (1 thread and all threads) and the GPU kernels.
+//! 2. Particle queries head to head: our LBVH, brute force over the same spheres, and parry3d's
+//!    exact triangle-mesh projection, on the same draped particle positions.
+//! 3. Collider fidelity: cloths resting on the spheres, measured against the true mesh.
+//! 4. Scaling: step time against cloth size, and collider build time against n.
+//!
+//! `WGPU_BACKEND=vulkan cargo bench -p bvh_cloth_bench --bench report`
+//! (without a GPU adapter the GPU columns say so and the rest still runs). Append `-- NAME` to
+//! run only the sections whose name contains NAME: `table_vii`, `queries`, `fidelity`,
+//! `step_scaling`, `build_scaling`.
+
+use std::fmt::Write as _;
+
+use bvh_cloth_bench::{MODELS, TICK, best_of, cloth_above, collider, drape, median, model, time};
+use bvh_cloth_core::obj::ObjMesh;
+use bvh_cloth_core::{ClothSim, Collider, Integrator, Vec3};
+use bvh_cloth_gpu::{ClothKernels, GpuCloth, GpuColliders, headless, wgpu};
+use parry3d::math::Vector;
+use parry3d::query::{PointQuery, Ray, RayCast};
+use parry3d::shape::{TriMesh, TriMeshFlags};
+
+/// The paper's Table VII (GTX 1650, quoted, not rerun): its method's ms per frame at n = 1, 3, 5.
+const PAPER_MS: [[f64; 3]; 2] = [[8.0, 12.0, 12.0], [13.0, 13.0, 15.0]];
+/// Voxel resolutions of the query and fidelity tables.
+const RESOLUTIONS: [u32; 7] = [1, 3, 5, 8, 16, 32, 64];
+/// Frames timed per Table VII case, after one simulated second of falling and landing.
+const FRAMES: usize = 30;
+
+/// A GPU, or why there is none.
+struct Gpu {
+    device: wgpu::Device,
+    queue: wgpu::Queue,
+    kernels: ClothKernels,
+    /// A software rasteriser such as lavapipe, which runs on the CPU cores.
+    software: bool,
+}
+
+fn main() {
+    let threads = rayon::current_num_threads();
+    let single = rayon::ThreadPoolBuilder::new().num_threads(1).build().expect("a one-thread pool");
+    let gpu = headless::device().map(|(adapter, device, queue)| {
+        let info = adapter.get_info();
+        println!("GPU adapter: {} ({:?}, driver {} {})", info.name, info.device_type, info.driver, info.driver_info);
+        let kernels = ClothKernels::new(&device).expect("the kernels fit the device");
+        Gpu { device, queue, kernels, software: info.device_type == wgpu::DeviceType::Cpu }
+    });
+    if gpu.is_none() {
+        println!("GPU adapter: none (set WGPU_BACKEND, e.g. vulkan for lavapipe); GPU columns are skipped");
+    }
+    println!("CPU: {}, {threads} threads", cpu_name());
+    let meshes: Vec<ObjMesh> = MODELS.iter().map(|m| model(m)).collect();
+    let csv_dir = format!("{}/../../docs/benchmarks", env!("CARGO_MANIFEST_DIR"));
+    std::fs::create_dir_all(&csv_dir).expect("docs/benchmarks is writable");
+
+    // `cargo bench ... -- NAME` runs only the sections whose name contains NAME.
+    let filter = std::env::args().skip(1).find(|a| !a.starts_with("--")).unwrap_or_default();
+    let run = |section: &str| section.contains(filter.as_str());
+    if run("table_vii") {
+        table_vii(&meshes, gpu.as_ref(), &single, threads);
+    }
+    let parry: Vec<TriMesh> = meshes.iter().map(exact_mesh).collect();
+    if run("queries") {
+        std::fs::write(format!("{csv_dir}/queries.csv"), queries(&meshes, &parry)).expect("write queries.csv");
+    }
+    if run("fidelity") {
+        std::fs::write(format!("{csv_dir}/fidelity.csv"), fidelity(&meshes, &parry)).expect("write fidelity.csv");
+    }
+    if run("step_scaling") {
+        step_scaling(gpu.as_ref(), &single, threads);
+    }
+    if run("build_scaling") {
+        build_scaling(&meshes);
+    }
+    println!("\nCSV written to docs/benchmarks/ (plot: python3 scripts/plot_benchmarks.py)");
+}
+
+/// Table VII: ms per frame (one 60 Hz tick of Looper = 16 RK4 substeps, collision included).
+fn table_vii(meshes: &[ObjMesh], gpu: Option<&Gpu>, single: &rayon::ThreadPool, threads: usize) {
+    println!("\n## Table VII: 64 x 64 cloth, Looper 16, one 60 Hz tick per frame (median of {FRAMES} frames)\n");
+    println!(
+        "| model | n | spheres | CPU 1 thread ms | CPU {threads} threads ms | CPU substeps/s ({threads} threads) | GPU ms | paper ms (GTX 1650, quoted) |"
+    );
+    println!("|---|---|---|---|---|---|---|---|");
+    for (m, mesh) in meshes.iter().enumerate() {
+        for (k, n) in [1u32, 3, 5].into_iter().enumerate() {
+            let colliders = [collider(mesh, n)];
+            let landed = drape(&colliders[0], 1.0);
+            let frames = |sim: &mut ClothSim| -> f64 {
+                median((0..FRAMES).map(|_| time(|| _ = sim.tick(TICK, &colliders)) * 1e3).collect())
+            };
+            let one = single.install(|| frames(&mut landed.clone()));
+            let all = frames(&mut landed.clone());
+            let substeps = f64::from(landed.params().looper);
+            let gpu_ms = gpu.map_or("no adapter".into(), |gpu| format!("{:.2}", gpu_frame_ms(gpu, &colliders, 64, 1)));
+            println!(
+                "| {} | {n} | {} | {one:.2} | {all:.2} | {:.0} | {gpu_ms} | {} |",
+                MODELS[m],
+                colliders[0].sphere_count(),
+                substeps * 1e3 / all,
+                PAPER_MS[m][k]
+            );
+        }
+    }
+    println!("\nQuoted from the same table of the paper: Kim et al. 2019 took 17-25 ms, Unity Cloth 211-247 ms.");
+    if gpu.is_some_and(|g| g.software) {
+        println!("The GPU here is a software adapter on the same CPU cores: its column is not a GPU figure.");
+    }
+}
+
+/// Median wall time (ms) of `ticks` ticks of a `size x size` cloth on the GPU, around a blocking
+/// submit, after the cloth has fallen onto `colliders` for one simulated second.
+fn gpu_frame_ms(gpu: &Gpu, colliders: &[Collider], size: u32, ticks: u32) -> f64 {
+    let cpu = cloth_above(&colliders[0], size, Integrator::Rk4);
+    let gpu_colliders = GpuColliders::new(&gpu.device, colliders);
+    let mut cloth = GpuCloth::new(&gpu.device, &gpu.kernels, &cpu).expect("the cloth fits the device");
+    cloth.set_params(&gpu.queue, cpu.params(), TICK, &gpu_colliders);
+    let frame = |ticks: u32| {
+        time(|| {
+            let mut encoder = gpu.device.create_command_encoder(&Default::default());
+            cloth.encode_ticks(&gpu.device, &mut encoder, &gpu.kernels, &gpu_colliders, ticks);
+            gpu.queue.submit([encoder.finish()]);
+            headless::wait(&gpu.device);
+        }) * 1e3
+    };
+    frame(60);
+    let samples = if size > 128 { 5 } else { FRAMES };
+    median((0..samples).map(|_| frame(ticks)).collect())
+}
+
+/// The exact mesh as parry3d sees it, oriented so that its pseudo-normals tell inside from outside.
+fn exact_mesh(mesh: &ObjMesh) -> TriMesh {
+    let vertices = mesh.positions.iter().map(|&p| Vector::from(p)).collect();
+    let triangles = mesh.indices.chunks_exact(3).map(|t| [t[0], t[1], t[2]]).collect();
+    let flags =
+        TriMeshFlags::ORIENTED | TriMeshFlags::MERGE_DUPLICATE_VERTICES | TriMeshFlags::DELETE_DEGENERATE_TRIANGLES;
+    TriMesh::with_flags(vertices, triangles, flags).expect("the bundled models are valid triangle meshes")
+}
+
+/// The particle queries of one collision pass, single-threaded: which spheres hold each point
+/// (LBVH, and brute force over the same spheres), against parry3d's projection of each point on
+/// the exact mesh. Returns the CSV rows.
+fn queries(meshes: &[ObjMesh], parry: &[TriMesh]) -> String {
+    println!("\n## Particle queries, 1 thread: 4,096 positions of a cloth draped for 2 s on the n = 16 collider\n");
+    println!("LBVH and brute force list the spheres holding each point; parry3d projects it on the exact mesh.\n");
+    println!(
+        "| model | n | spheres | LBVH M/s | brute force M/s | parry3d TriMesh M/s | LBVH / parry3d | LBVH / brute force |"
+    );
+    println!("|---|---|---|---|---|---|---|---|");
+    let mut csv = String::from("model,n,spheres,lbvh_qps,brute_qps,parry_qps\n");
+    for ((name, mesh), exact) in MODELS.iter().zip(meshes).zip(parry) {
+        let points = drape(&collider(mesh, 16), 2.0).positions();
+        let rate = |seconds: f64| points.len() as f64 / seconds;
+        let parry_qps = rate(best_of(7, || {
+            for &p in &points {
+                std::hint::black_box(exact.project_local_point(Vector::from(p.to_array()), true));
+            }
+        }));
+        for n in RESOLUTIONS {
+            let c = collider(mesh, n);
+            let lbvh_qps = rate(best_of(7, || {
+                let mut hits = 0u32;
+                for &p in &points {
+                    c.lbvh.for_each_containing(p, 0.0, |_, _| hits += 1);
+                }
+                std::hint::black_box(hits);
+            }));
+            let brute_qps = rate(best_of(3, || {
+                let mut hits = 0u32;
+                for &p in &points {
+                    c.lbvh.brute_force_containing(p, 0.0, |_, _| hits += 1);
+                }
+                std::hint::black_box(hits);
+            }));
+            println!(
+                "| {name} | {n} | {} | {:.2} | {:.3} | {:.3} | {:.0}x | {:.1}x |",
+                c.sphere_count(),
+                lbvh_qps / 1e6,
+                brute_qps / 1e6,
+                parry_qps / 1e6,
+                lbvh_qps / parry_qps,
+                lbvh_qps / brute_qps
+            );
+            writeln!(csv, "{name},{n},{},{lbvh_qps:.0},{brute_qps:.0},{parry_qps:.0}", c.sphere_count()).unwrap();
+        }
+    }
+    csv
+}
+
+/// How far the sphere collider is from the true surface: a cloth rests on the spheres at each n,
+/// and every particle touching a sphere is measured against the exact mesh. Returns the CSV rows.
+fn fidelity(meshes: &[ObjMesh], parry: &[TriMesh]) -> String {
+    /// A particle within this distance (m) of a sphere's surface is resting on it.
+    const TOUCH: f32 = 2.0e-3;
+    println!("\n## Collider fidelity: a 64 x 64 cloth resting 3 s on the spheres, against the exact mesh (parry3d)\n");
+    println!("A particle touches when it lies within {} mm of a sphere's surface (margin 0 here).\n", TOUCH * 1e3);
+    println!(
+        "| model | n | spheres | fell past the model | touching | inside the true mesh | mean / max penetration mm | mean air gap mm |"
+    );
+    println!("|---|---|---|---|---|---|---|---|");
+    let mut csv =
+        String::from("model,n,spheres,fell,touching,inside,mean_penetration_mm,max_penetration_mm,mean_gap_mm\n");
+    for ((name, mesh), exact) in MODELS.iter().zip(meshes).zip(parry) {
+        for n in RESOLUTIONS {
+            let c = collider(mesh, n).with_margin(0.0);
+            let rested = drape(&c, 3.0);
+            let (mut touching, mut penetration, mut gaps) = (0usize, Vec::new(), Vec::new());
+            let positions = rested.positions();
+            let fell = positions.iter().filter(|p| p.y < 0.0).count();
+            for p in positions {
+                let gap =
+                    c.lbvh.spheres.iter().map(|s| p.distance(s.centre()) - s.radius).fold(f32::INFINITY, f32::min);
+                if gap.abs() > TOUCH {
+                    continue;
+                }
+                touching += 1;
+                let to_surface = exact.distance_to_local_point(Vector::from(p.to_array()), false).abs() * 1e3;
+                if inside(exact, p) { penetration.push(to_surface) } else { gaps.push(to_surface) }
+            }
+            let mean = |v: &[f32]| if v.is_empty() { 0.0 } else { v.iter().sum::<f32>() / v.len() as f32 };
+            let max = penetration.iter().copied().fold(0.0f32, f32::max);
+            println!(
+                "| {name} | {n} | {} | {fell} | {touching} | {} ({:.0}%) | {:.1} / {max:.1} | {:.1} |",
+                c.sphere_count(),
+                penetration.len(),
+                100.0 * penetration.len() as f64 / touching.max(1) as f64,
+                mean(&penetration),
+                mean(&gaps)
+            );
+            writeln!(
+                csv,
+                "{name},{n},{},{fell},{touching},{},{:.3},{max:.3},{:.3}",
+                c.sphere_count(),
+                penetration.len(),
+                mean(&penetration),
+                mean(&gaps)
+            )
+            .unwrap();
+        }
+    }
+    csv
+}
+
+/// Whether `p` is inside the exact mesh: the majority vote of the crossing parities of three
+/// rays. Parity needs no consistent orientation, and the vote outlasts a ray that slips through
+/// one of the scanned models' small holes.
+fn inside(mesh: &TriMesh, p: Vec3) -> bool {
+    const DIRECTIONS: [[f32; 3]; 3] = [[0.577, 0.613, 0.539], [-0.642, 0.298, -0.706], [0.331, -0.874, 0.355]];
+    let odd = |dir: [f32; 3]| {
+        let (dir, mut origin, mut crossings) = (Vec3::from(dir).normalize(), p, 0u32);
+        while crossings < 256 {
+            let ray = Ray::new(Vector::from(origin.to_array()), Vector::from(dir.to_array()));
+            let Some(t) = mesh.cast_local_ray(&ray, 10.0, false) else { break };
+            crossings += 1;
+            origin += dir * (t + 1.0e-5);
+        }
+        crossings % 2 == 1
+    };
+    DIRECTIONS.into_iter().filter(|&d| odd(d)).count() >= 2
+}
+
+/// Step time against cloth size: ns per particle per substep, on the bunny at n = 5.
+fn step_scaling(gpu: Option<&Gpu>, single: &rayon::ThreadPool, threads: usize) {
+    println!("\n## Scaling with cloth size: ns per particle per substep, falling onto the bunny (n = 5)\n");
+    println!("| integrator | cloth | CPU 1 thread | CPU {threads} threads | GPU |");
+    println!("|---|---|---|---|---|");
+    let bunny = [collider(&model("bunny"), 5)];
+    let gpu_sizes: &[u32] =
+        if gpu.is_some_and(|g| !g.software) { &[32, 64, 128, 256, 512, 1024] } else { &[32, 64, 128] };
+    for integrator in [Integrator::Rk4, Integrator::SemiImplicitEuler] {
+        for size in [32u32, 64, 128, 256, 512, 1024] {
+            let particles = f64::from(size * size);
+            let ns = |seconds: f64, substeps: f64| seconds * 1e9 / (particles * substeps);
+            let cpu = (size <= 256).then(|| {
+                let sim = cloth_above(&bunny[0], size, integrator);
+                let substeps = f64::from(sim.params().looper);
+                let run = |sim: &mut ClothSim| ns(best_of(5, || _ = sim.tick(TICK, &bunny)), substeps);
+                (single.install(|| run(&mut sim.clone())), run(&mut sim.clone()))
+            });
+            let gpu_ns = gpu.filter(|_| gpu_sizes.contains(&size) && integrator == Integrator::Rk4).map(|gpu| {
+                let looper = cloth_above(&bunny[0], size, integrator).params().looper;
+                ns(gpu_frame_ms(gpu, &bunny, size, 1) * 1e-3, f64::from(looper))
+            });
+            if cpu.is_none() && gpu_ns.is_none() {
+                continue;
+            }
+            let (one, all) = cpu.map_or(("-".into(), "-".into()), |(a, b)| (format!("{a:.1}"), format!("{b:.1}")));
+            let gpu_ns = gpu_ns.map_or("-".into(), |g| format!("{g:.2}"));
+            println!("| {integrator:?} | {size}x{size} | {one} | {all} | {gpu_ns} |");
+        }
+    }
+    println!(
+        "\n- means not run: the CPU stops at 256x256; the GPU runs RK4 only, up to 1024x1024 on a hardware GPU and 128x128 on a software one."
+    );
+}
+
+/// Collider build time (voxel spheres + LBVH, all threads) against n.
+fn build_scaling(meshes: &[ObjMesh]) {
+    println!("\n## Collider build (voxel spheres + LBVH), all threads, best of 9\n");
+    print!("| model | vertices |");
+    for n in RESOLUTIONS.iter().chain(&[128]) {
+        print!(" n = {n} |");
+    }
+    println!("\n|---|---|{}", "---|".repeat(RESOLUTIONS.len() + 1));
+    for (name, mesh) in MODELS.iter().zip(meshes) {
+        print!("| {name} | {} |", mesh.positions.len());
+        for &n in RESOLUTIONS.iter().chain(&[128]) {
+            let ms = best_of(9, || _ = std::hint::black_box(collider(mesh, n))) * 1e3;
+            print!(" {ms:.2} ms |");
+        }
+        println!();
+    }
+}
+
+/// The CPU's model name, from /proc/cpuinfo where there is one.
+fn cpu_name() -> String {
+    std::fs::read_to_string("/proc/cpuinfo")
+        .ok()
+        .and_then(|s| {
+            s.lines()
+                .find(|l| l.starts_with("model name"))
+                .and_then(|l| l.split(':').nth(1))
+                .map(|s| s.trim().to_owned())
+        })
+        .unwrap_or_else(|| "unknown".into())
+}

@@ -1,0 +1,74 @@
+"""Plots the collider curves of the benchmark report (docs/benchmarks/*.csv) into
+docs/benchmarks/colliders.png: query throughput and fit against the voxel resolution n.
+
+    cargo bench -p bvh_cloth_bench --bench report   # writes the CSV files
+    pip install matplotlib && python3 scripts/plot_benchmarks.py
+"""
+
+import csv
+from pathlib import Path
+
+import matplotlib
+
+matplotlib.use("Agg")
+import matplotlib.pyplot as plt  # noqa: E402
+
+DATA = Path(__file__).resolve().parent.parent / "docs" / "benchmarks"
+STYLE = {"bunny": "o-", "dragon": "s--"}
+
+
+def rows(name):
+    with open(DATA / name, newline="") as f:
+        return list(csv.DictReader(f))
+
+
+def by_model(table):
+    models = {}
+    for row in table:
+        models.setdefault(row["model"], []).append(row)
+    return models
+
+
+def main():
+    queries, fidelity = by_model(rows("queries.csv")), by_model(rows("fidelity.csv"))
+    fig, (left, right) = plt.subplots(1, 2, figsize=(12, 4.8))
+
+    for model, table in queries.items():
+        n = [int(r["n"]) for r in table]
+        for column, label, colour in [
+            ("lbvh_qps", "LBVH", "tab:blue"),
+            ("brute_qps", "brute force", "tab:orange"),
+            ("parry_qps", "parry3d exact TriMesh", "tab:green"),
+        ]:
+            left.plot(n, [float(r[column]) / 1e6 for r in table], STYLE[model], color=colour, label=f"{label} ({model})")
+    left.set_xscale("log", base=2)
+    left.set_yscale("log")
+    left.set_xlabel("voxel resolution n")
+    left.set_ylabel("particle queries per second (millions, 1 thread)")
+    left.set_title("Query throughput")
+    left.legend(fontsize=7)
+    left.grid(True, which="both", alpha=0.3)
+
+    for model, table in fidelity.items():
+        touching = [r for r in table if int(r["touching"]) > 0]
+        n = [int(r["n"]) for r in touching]
+        right.plot(n, [float(r["mean_gap_mm"]) for r in touching], STYLE[model], color="tab:blue", label=f"mean air gap ({model})")
+        right.plot(n, [float(r["mean_penetration_mm"]) for r in touching], STYLE[model], color="tab:red", label=f"mean penetration ({model})")
+        right.plot(n, [float(r["max_penetration_mm"]) for r in touching], STYLE[model], color="tab:purple", label=f"max penetration ({model})")
+    right.set_xscale("log", base=2)
+    right.set_yscale("symlog", linthresh=1.0)
+    right.set_ylim(bottom=0)
+    right.set_xlabel("voxel resolution n")
+    right.set_ylabel("mm, against the exact mesh")
+    right.set_title("Fit of a cloth resting on the spheres")
+    right.legend(fontsize=7)
+    right.grid(True, which="both", alpha=0.3)
+
+    fig.tight_layout()
+    out = DATA / "colliders.png"
+    fig.savefig(out, dpi=110)
+    print(f"wrote {out}")
+
+
+if __name__ == "__main__":
+    main()
