@@ -147,7 +147,20 @@ fn node_update(@builtin(global_invocation_id) id: vec3<u32>) {
             out.position = vec4(b.position.xyz + h * v * free, free);
         }
     }
+    // Quarantine: a particle whose substep went non-finite keeps its last finite state, at rest,
+    // so one bad particle cannot poison its neighbours through the springs.
+    if (STAGE >= 3u && !(all_finite(out.position.xyz) && all_finite(out.velocity.xyz))) {
+        out.position = b.position;
+        out.velocity = vec4(0.0);
+    }
     stage_out[i] = out;
+}
+
+/// Whether every component is finite, read from the exponent bits: WGSL lets an implementation
+/// assume that floats are never NaN or infinite, so `x != x` cannot be trusted.
+fn all_finite(v: vec3<f32>) -> bool {
+    let exponent = bitcast<vec3<u32>>(v) & vec3(0x7f800000u);
+    return all(exponent != vec3(0x7f800000u));
 }
 
 // ---------------------------------------------------------------------------------------------
