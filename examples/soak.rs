@@ -61,7 +61,8 @@ fn parameters(cloth: &mut Cloth, tick: u64) {
     cloth.damping = sweep(tick, 3_001, 0.0, 10.0, false);
     let f = |period| sweep(tick, period, -20.0, 20.0, false);
     cloth.external_force = Vec3::new(f(1_009), f(2_003), f(4_001));
-    cloth.integrator = if (tick / 25_000) % 2 == 0 { ClothIntegrator::Rk4 } else { ClothIntegrator::SemiImplicitEuler };
+    cloth.integrator =
+        if (tick / 25_000).is_multiple_of(2) { ClothIntegrator::Rk4 } else { ClothIntegrator::SemiImplicitEuler };
     match tick % 9_973 {
         0 => cloth.external_force.x = f32::NAN,
         1 => cloth.mass = -1.0,
@@ -97,11 +98,11 @@ fn main() {
         if let Some(mut c) = app.world_mut().get_mut::<Cloth>(cloth) {
             parameters(&mut c, tick);
         }
-        if tick % 5_000 == 0 {
+        if tick.is_multiple_of(5_000) {
             // Lifecycle under load: a new cloth with another grid, another collider mesh and n.
             app.world_mut().despawn(cloth);
             cloth = spawn_cloth(&mut app, size + (tick / 5_000 % 4) as u32);
-            let mesh = if (tick / 5_000) % 2 == 0 { bunny.clone() } else { ball.clone() };
+            let mesh = if (tick / 5_000).is_multiple_of(2) { bunny.clone() } else { ball.clone() };
             let n = [1, 3, 5, 8][(tick / 5_000 % 4) as usize];
             app.world_mut().entity_mut(collider).insert((Mesh3d(mesh), AutoCollider::new(n)));
         }
@@ -109,7 +110,7 @@ fn main() {
         if tick == 5_000 {
             memory_start = resident_mib();
         }
-        if tick % 100 == 0
+        if tick.is_multiple_of(100)
             && let Some(sim) = app.world().get::<ClothSimulation>(cloth)
         {
             let energy = sim.sim().energy();
