@@ -223,9 +223,10 @@ fn gpu_capability(app: &App) -> Option<backend::GpuCapability> {
         return Some(Err("the render device does not run compute shaders".into()));
     }
     let storage = device.limits().max_storage_buffers_per_shader_stage;
-    if storage < 5 {
+    let needed = bvh_cloth_gpu::STORAGE_BUFFERS_NEEDED;
+    if storage < needed {
         return Some(Err(format!(
-            "the render device allows {storage} storage buffers per shader stage, the kernels need 5"
+            "the render device allows {storage} storage buffers per shader stage, the kernels need {needed}"
         )));
     }
     Some(Ok(()))

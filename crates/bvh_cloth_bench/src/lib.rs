@@ -16,7 +16,7 @@ pub const MODELS: [&str; 2] = ["bunny", "dragon"];
 
 /// Loads `assets/models/{name}.obj`.
 pub fn model(name: &str) -> ObjMesh {
-    let path = format!("{}/../../assets/models/{name}.obj", env!("CARGO_MANIFEST_DIR"));
+    let path = format!("{}/../../assets/models/{name}.obj", std::env::var("CARGO_MANIFEST_DIR").expect("run by cargo"));
     let text = std::fs::read_to_string(&path).unwrap_or_else(|e| panic!("{path}: {e}"));
     parse_obj(&text).unwrap_or_else(|e| panic!("{path}: {e:?}"))
 }

@@ -9,7 +9,7 @@ use bvh_cloth_core::{Affine3A, ClothParams, ClothSim, Collider, Integrator, Vec3
 use criterion::{BenchmarkId, Criterion, Throughput, criterion_group, criterion_main};
 
 fn load(name: &str) -> ObjMesh {
-    let path = format!("{}/../../assets/models/{name}", env!("CARGO_MANIFEST_DIR"));
+    let path = format!("{}/../../assets/models/{name}", std::env::var("CARGO_MANIFEST_DIR").expect("run by cargo"));
     parse_obj(&std::fs::read_to_string(&path).expect("model file")).expect("valid OBJ")
 }
 

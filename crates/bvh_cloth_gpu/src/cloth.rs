@@ -14,7 +14,8 @@ use crate::kernels::{ClothKernels, KernelError};
 /// Four particle buffers: `base` holds the state at the start of a substep (the previous
 /// positions the collision response needs) and, after the collision dispatch, the state at its
 /// end; `stage_a` and `stage_b` take the RK4 intermediate states in turn; `slope_sum` holds
-/// `k1 + 2 k2 + 2 k3` of RK4.
+/// `k1 + 2 k2 + 2 k3` of RK4. A fifth, one-word buffer counts the particles `node_update`
+/// quarantined (a substep that went NaN or infinite); see [`crate::FaultReadback`].
 #[derive(Debug)]
 pub struct GpuCloth {
     grid: ClothGrid,
@@ -24,6 +25,7 @@ pub struct GpuCloth {
     params: Buffer,
     base: Buffer,
     stage_b: Buffer,
+    faults: Buffer,
     /// RK4 stages 1–4, then semi-implicit Euler.
     node_update_groups: [BindGroup; 5],
 }
@@ -60,6 +62,11 @@ impl GpuCloth {
             usage: BufferUsages::UNIFORM | BufferUsages::COPY_DST,
             mapped_at_creation: false,
         });
+        let faults = device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
+            label: Some("bvh_cloth_faults"),
+            contents: bytemuck::bytes_of(&0u32),
+            usage: BufferUsages::STORAGE | BufferUsages::COPY_DST | BufferUsages::COPY_SRC,
+        });
         let group = |source: &Buffer, target: &Buffer| {
             device.create_bind_group(&wgpu::BindGroupDescriptor {
                 label: Some("bvh_cloth_node_update"),
@@ -70,6 +77,7 @@ impl GpuCloth {
                     wgpu::BindGroupEntry { binding: 2, resource: source.as_entire_binding() },
                     wgpu::BindGroupEntry { binding: 3, resource: slope_sum.as_entire_binding() },
                     wgpu::BindGroupEntry { binding: 4, resource: target.as_entire_binding() },
+                    wgpu::BindGroupEntry { binding: 13, resource: faults.as_entire_binding() },
                 ],
             })
         };
@@ -89,6 +97,7 @@ impl GpuCloth {
             params,
             base,
             stage_b,
+            faults,
             node_update_groups,
         })
     }
@@ -231,6 +240,12 @@ impl GpuCloth {
     /// The particle state (`GpuParticle`s, `COPY_SRC`), for readback in tests.
     pub fn particles(&self) -> &Buffer {
         &self.base
+    }
+
+    /// The count of quarantined particles (one `u32`, `COPY_SRC | COPY_DST`): one per particle
+    /// and substep whose new state was not finite, since it was last cleared.
+    pub fn faults(&self) -> &Buffer {
+        &self.faults
     }
 
     /// The grid the buffers were made for.

@@ -1,5 +1,5 @@
-// Bindings: 0 is shared; node_update uses 1-4, collision_detection_with_bvh 5-9, normal_shader
-// 10-12, so every (group, binding) names one variable.
+// Bindings: 0 is shared; node_update uses 1-4 and 13, collision_detection_with_bvh 5-9,
+// normal_shader 10-12, so every (group, binding) names one variable.
 //
 // The paper's three compute kernels (Table I): node_update, collision_detection_with_bvh and
 // normal_shader. Each thread owns one particle of the rows x cols grid; workgroups are 8x8x1.
@@ -75,6 +75,8 @@ override STAGE: u32 = 0u;
 @group(0) @binding(2) var<storage, read> source: array<GpuParticle>;    // state the slope is taken at
 @group(0) @binding(3) var<storage, read_write> slope_sum: array<GpuParticle>;
 @group(0) @binding(4) var<storage, read_write> stage_out: array<GpuParticle>;
+// Particles quarantined since the host last read and cleared it (one per particle and substep).
+@group(0) @binding(13) var<storage, read_write> faults: atomic<u32>;
 
 // Acceleration of particle (r, c) at the `source` state; zero for a pinned particle.
 fn acceleration(r: i32, c: i32) -> vec3<f32> {
@@ -152,6 +154,7 @@ fn node_update(@builtin(global_invocation_id) id: vec3<u32>) {
     if (STAGE >= 3u && !(all_finite(out.position.xyz) && all_finite(out.velocity.xyz))) {
         out.position = b.position;
         out.velocity = vec4(0.0);
+        atomicAdd(&faults, 1u);
     }
     stage_out[i] = out;
 }

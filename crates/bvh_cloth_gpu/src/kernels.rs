@@ -12,8 +12,9 @@ pub const SHADER_SOURCE: &str = include_str!("cloth.wgsl");
 /// Threads per workgroup along each grid axis (workgroups are 8 x 8 x 1, paper Table I).
 pub const WORKGROUP_SIZE: u32 = 8;
 
-/// Storage buffers the busiest kernel (`collision_detection_with_bvh`) binds at once.
-const STORAGE_BUFFERS_NEEDED: u32 = 5;
+/// Storage buffers the busiest kernels (`node_update`, `collision_detection_with_bvh`) bind at
+/// once.
+pub const STORAGE_BUFFERS_NEEDED: u32 = 5;
 
 /// Why the kernels cannot run on a device.
 #[derive(Clone, Debug, PartialEq, Eq)]
@@ -104,7 +105,7 @@ impl ClothKernels {
         };
         let node_update_layout = layout(
             "bvh_cloth_node_update_layout",
-            &[params, storage(1, true), storage(2, true), storage(3, false), storage(4, false)],
+            &[params, storage(1, true), storage(2, true), storage(3, false), storage(4, false), storage(13, false)],
         );
         let collision_layout = layout(
             "bvh_cloth_collision_layout",

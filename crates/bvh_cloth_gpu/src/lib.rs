@@ -16,16 +16,19 @@
 //! | [`ClothKernels`] | the compiled pipelines and their bind group layouts (one per device) |
 //! | [`GpuColliders`] | every collider's frame, nodes and spheres |
 //! | [`GpuCloth`] | one cloth's particle buffers and parameters; encodes ticks and writeback |
+//! | [`FaultReadback`] | reads a cloth's count of quarantined particles without stalling |
 //! | [`headless`] | a device without a window, and blocking readback, for tests and benchmarks |
 
 #![deny(missing_docs)]
 
 mod cloth;
 mod colliders;
+mod faults;
 pub mod headless;
 mod kernels;
 
 pub use cloth::GpuCloth;
 pub use colliders::GpuColliders;
-pub use kernels::{ClothKernels, KernelError, SHADER_SOURCE, WORKGROUP_SIZE};
+pub use faults::FaultReadback;
+pub use kernels::{ClothKernels, KernelError, SHADER_SOURCE, STORAGE_BUFFERS_NEEDED, WORKGROUP_SIZE};
 pub use wgpu;

@@ -13,7 +13,7 @@ use bvh_cloth_core::{
 };
 use bvh_cloth_gpu::wgpu::util::DeviceExt;
 use bvh_cloth_gpu::wgpu::{self, Device, Queue};
-use bvh_cloth_gpu::{ClothKernels, GpuCloth, GpuColliders, headless};
+use bvh_cloth_gpu::{ClothKernels, FaultReadback, GpuCloth, GpuColliders, headless};
 
 struct Rig {
     device: Device,
@@ -117,7 +117,54 @@ fn node_update_quarantines_a_particle_that_overflows() {
             assert!(position(p).is_finite() && velocity(p).is_finite(), "{integrator:?} {i}: {p:?}");
             assert!(velocity(p).y < -9.0, "{integrator:?} {i}: the others fall as usual: {p:?}");
         }
+        let faults: Vec<u32> = headless::read(&rig.device, &rig.queue, cloth.faults());
+        assert_eq!(faults, [1], "{integrator:?}: one particle quarantined in one substep");
     }
+}
+
+/// The fault count reaches the host through a `FaultReadback` without a blocking wait: recorded
+/// with a frame's commands, mapped after the submit, taken once the device has been polled. The
+/// counter is cleared by the read, one read is in flight at a time, and a cloth that stays
+/// finite reads zero.
+#[test]
+fn fault_readback_reports_quarantined_particles_once() {
+    let Some(rig) = rig() else { return };
+    let mut sim = small(Integrator::SemiImplicitEuler, 0.0, Vec3::new(0.0, -10.0, 0.0), &[]);
+    let huge = Vec3::new(3.0e38, 0.0, 0.0);
+    sim.set_position(0, huge);
+    sim.set_velocity(0, huge);
+    let none = GpuColliders::new(&rig.device, &[]);
+    let cloth = rig.cloth(&sim, 1.0, &none);
+    let readback = FaultReadback::new(&rig.device);
+    // Each frame starts from the overflowing state: one fault per frame (after the quarantine,
+    // the particle rests at 3e38 and steps on finitely).
+    let frame = |record: bool| {
+        cloth.upload_state(&rig.queue, &sim);
+        let mut encoder = rig.device.create_command_encoder(&Default::default());
+        cloth.encode_ticks(&rig.device, &mut encoder, &rig.kernels, &none, 3);
+        let recorded = record && readback.record(&mut encoder, &cloth);
+        rig.queue.submit([encoder.finish()]);
+        readback.submitted();
+        recorded
+    };
+    assert_eq!(readback.take(), None, "nothing recorded yet");
+    assert!(frame(true));
+    assert!(!frame(true), "a second read waits for the first");
+    headless::wait(&rig.device);
+    assert_eq!(readback.take(), Some(1), "the first frame's fault (the second's stays in the counter)");
+    assert_eq!(readback.take(), None, "taken once");
+    assert!(frame(true));
+    headless::wait(&rig.device);
+    assert_eq!(readback.take(), Some(2), "the faults of the unread frame and this one");
+
+    let calm = rig.cloth(&small(Integrator::SemiImplicitEuler, 0.0, Vec3::ZERO, &[]), 1.0, &none);
+    let mut encoder = rig.device.create_command_encoder(&Default::default());
+    calm.encode_ticks(&rig.device, &mut encoder, &rig.kernels, &none, 3);
+    assert!(readback.record(&mut encoder, &calm));
+    rig.queue.submit([encoder.finish()]);
+    readback.submitted();
+    headless::wait(&rig.device);
+    assert_eq!(readback.take(), Some(0));
 }
 
 #[test]
@@ -315,8 +362,11 @@ fn hanging_cloth_agrees_with_the_cpu() {
 }
 
 fn bunny(n: u32) -> Collider {
-    let text =
-        std::fs::read_to_string(concat!(env!("CARGO_MANIFEST_DIR"), "/../../assets/models/bunny_low.obj")).unwrap();
+    let text = std::fs::read_to_string(format!(
+        "{}/../../assets/models/bunny_low.obj",
+        std::env::var("CARGO_MANIFEST_DIR").expect("run by cargo")
+    ))
+    .unwrap();
     let obj = parse_obj(&text).unwrap();
     Collider::from_mesh(MeshRef { positions: &obj.positions, indices: Some(&obj.indices) }, n)
         .unwrap()
