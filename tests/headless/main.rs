@@ -4,6 +4,7 @@
 mod harness;
 
 mod colliders;
+mod divergence;
 mod hanging;
 mod lifecycle;
 mod parameters;

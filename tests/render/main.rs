@@ -183,3 +183,61 @@ fn assert_draped(image: &Image, name: &str) {
     assert!(cloth_bottom > bunny_top + bunny_height / 4, "the cloth does not hang down the bunny's sides");
     assert!(cloth_top < bunny_top + bunny_height / 2, "the cloth fell through the bunny");
 }
+
+/// Every `Diverged` report, kept for the test.
+#[derive(Resource, Default)]
+struct DivergedReports(Vec<(Entity, u32)>);
+
+fn collect_diverged(mut reader: MessageReader<ClothMessage>, mut reports: ResMut<DivergedReports>) {
+    for message in reader.read() {
+        if let ClothMessage::Diverged { entity, particles } = message {
+            reports.0.push((*entity, *particles));
+        }
+    }
+}
+
+/// On the GPU backend a cloth whose springs overflow is held by the kernel's quarantine, its
+/// fault count reaches the main world without a blocking read, and it is reset and reported
+/// there; a cloth beside it is not.
+#[test]
+fn the_gpu_backend_resets_and_reports_a_diverged_cloth() {
+    if !adapter_present() {
+        return;
+    }
+    let mut app = render_app(ClothBackend::Gpu);
+    assert_eq!(*app.world().resource::<ActiveClothBackend>(), ActiveClothBackend::Gpu);
+    app.init_resource::<DivergedReports>().add_systems(Last, collect_diverged);
+    let hanging = |x: f32| {
+        (
+            Cloth { damping: 0.5, ..Cloth::new(16, 16, 1.0).with_pins(ClothPins::TwoEnds) },
+            Transform::from_xyz(x, 2.0, 0.0),
+        )
+    };
+    let calm = app.world_mut().spawn(hanging(0.0)).id();
+    let wild = app.world_mut().spawn(hanging(3.0)).id();
+    for _ in 0..10 {
+        app.update();
+    }
+    assert!(app.world().resource::<DivergedReports>().0.is_empty());
+
+    // Teleporting the entity drags the pins 3e38 m in one tick: the springs to them overflow.
+    app.world_mut().get_mut::<Transform>(wild).unwrap().translation.x = 3.0e38;
+    let mut frames = 0;
+    while app.world().resource::<DivergedReports>().0.is_empty() && frames < 60 {
+        app.update();
+        frames += 1;
+    }
+    // A few more frames: stale or repeated reports would show up here.
+    for _ in 0..30 {
+        app.update();
+    }
+    let reports = &app.world().resource::<DivergedReports>().0;
+    eprintln!("reported after {frames} frames: {reports:?}");
+    assert_eq!(reports.len(), 1, "one reset, then the cloth hangs finitely where it was sent: {reports:?}");
+    assert_eq!(reports[0].0, wild);
+    assert!(reports[0].1 > 0);
+    assert!(!reports.iter().any(|(entity, _)| *entity == calm));
+    // The main world's copy is the rest pose under the new transform.
+    let sim = app.world().get::<ClothSimulation>(wild).unwrap().sim();
+    assert!(sim.positions().iter().all(|p| p.is_finite() && p.x > 1e38));
+}

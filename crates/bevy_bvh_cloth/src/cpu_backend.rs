@@ -49,9 +49,10 @@ pub(crate) fn step_cloths(
         state.pose = to;
         state.dirty = true;
         if !state.sim.is_finite() {
-            warn!("Cloth on {entity}: its state became NaN or infinite; reset to its rest pose");
+            let particles = u32::try_from(state.sim.non_finite_particles()).unwrap_or(u32::MAX);
+            warn!("Cloth on {entity}: {particles} particles became NaN or infinite; reset to its rest pose");
             state.reset(to);
-            messages.write(ClothMessage::Diverged { entity });
+            messages.write(ClothMessage::Diverged { entity, particles });
         }
     }
     stats.step_time = start.elapsed();

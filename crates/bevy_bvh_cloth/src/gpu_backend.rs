@@ -1,6 +1,7 @@
 //! The GPU backend: the paper's kernels (from [`bvh_cloth_gpu`]) run in the render world every
 //! frame, and `normal_shader` writes positions and normals straight into each cloth mesh's
-//! vertex slab. Nothing is read back.
+//! vertex slab. The only thing read back is each cloth's four-byte count of quarantined
+//! particles, without waiting for it.
 //!
 //! Per frame:
 //! 1. [`extract_cloths`] (`ExtractSchedule`) copies the clock, every cloth's parameters, pins,
@@ -10,8 +11,12 @@
 //!    cloths and drops those of despawned ones, uploads the parameter uniforms (a SpringK
 //!    change is one 80-byte write), the pins, the collider frames, and where each mesh's
 //!    vertices lie in their slab.
-//! 3. [`simulate_cloths`] (`RenderGraph`, before the camera driver) records the ticks and the
-//!    writeback.
+//! 3. [`simulate_cloths`] (`RenderGraph`, before the camera driver) records the ticks, the
+//!    writeback and a copy of each cloth's fault count; [`request_fault_reads`] (`Cleanup`,
+//!    after the submit) asks for those copies to be mapped.
+//! 4. A later frame's [`report_faults`] (`ExtractSchedule`) sends the counts that have arrived
+//!    to the main world as [`GpuClothDiverged`], and [`reset_diverged_cloths`] resets those
+//!    cloths there, which the next extract uploads.
 
 use std::sync::Arc;
 
@@ -23,23 +28,42 @@ use bevy::render::mesh::RenderMesh;
 use bevy::render::mesh::allocator::MeshAllocator;
 use bevy::render::render_asset::RenderAssets;
 use bevy::render::renderer::{RenderContext, RenderDevice, RenderGraph, RenderQueue};
-use bevy::render::{Extract, ExtractSchedule, Render, RenderSystems};
+use bevy::render::{Extract, ExtractSchedule, MainWorld, Render, RenderSystems};
 use bvh_cloth_core::gpu_layout::GpuMeshWriteback;
 use bvh_cloth_core::{Affine3A, ClothParams, ClothSim, Collider, Lbvh};
 use bvh_cloth_gpu::wgpu::{self, BufferUsages};
-use bvh_cloth_gpu::{ClothKernels, GpuCloth, GpuColliders};
+use bvh_cloth_gpu::{ClothKernels, FaultReadback, GpuCloth, GpuColliders};
 
 use crate::clock::ClothClock;
 use crate::collider::ClothCollider;
+use crate::messages::ClothMessage;
 use crate::simulation::{ClothSimulation, rigid_pose};
 
 /// Adds the render-world systems. Called by the plugin when the GPU backend is active.
 pub(crate) fn add_render_systems(render_app: &mut SubApp) {
     render_app
         .init_resource::<GpuClothWorld>()
-        .add_systems(ExtractSchedule, extract_cloths)
-        .add_systems(Render, prepare_cloths.in_set(RenderSystems::PrepareResources))
+        .add_systems(ExtractSchedule, (report_faults, extract_cloths).chain())
+        .add_systems(
+            Render,
+            (
+                prepare_cloths.in_set(RenderSystems::PrepareResources),
+                request_fault_reads.in_set(RenderSystems::Cleanup),
+            ),
+        )
         .add_systems(RenderGraph, simulate_cloths.before(camera_driver));
+}
+
+/// A cloth whose particles went non-finite on the GPU, sent from the render world to the main
+/// world.
+#[derive(Message, Clone, Copy, Debug)]
+pub(crate) struct GpuClothDiverged {
+    entity: Entity,
+    /// The [`ClothSimulation::generation`] that diverged: a report that arrives after the cloth
+    /// was rebuilt or reset is stale.
+    generation: u64,
+    /// Particles quarantined, counted per substep.
+    particles: u32,
 }
 
 /// One cloth as extracted this frame.
@@ -67,6 +91,7 @@ struct RenderCloth {
     gpu: GpuCloth,
     generation: u64,
     writeback: Writeback,
+    faults: FaultReadback,
 }
 
 /// The render world's cloth state.
@@ -175,8 +200,10 @@ fn prepare_cloths(
         let render = match (existing, &cloth.fresh) {
             (Some(render), None) => Some(render),
             (Some(render), Some(sim)) if render.gpu.grid() == sim.grid() => {
+                // The upload clears the fault count; a read still in flight counts the old
+                // state's faults, so it is dropped with its readback.
                 render.gpu.upload_state(&queue, sim);
-                Some(RenderCloth { generation: cloth.generation, ..render })
+                Some(RenderCloth { generation: cloth.generation, faults: FaultReadback::new(device), ..render })
             }
             (_, Some(sim)) => match GpuCloth::new(device, kernels, sim) {
                 Ok(gpu) => Some(RenderCloth {
@@ -192,6 +219,7 @@ fn prepare_cloths(
                         }),
                         ready: false,
                     },
+                    faults: FaultReadback::new(device),
                 }),
                 Err(error) => {
                     error!("Cloth on {}: cannot run on the GPU: {error}; it stays at rest", cloth.entity);
@@ -229,6 +257,7 @@ fn simulate_cloths(mut render_context: RenderContext, world: Res<GpuClothWorld>,
     for render in world.cloths.values() {
         let encoder = render_context.command_encoder();
         render.gpu.encode_ticks(device, encoder, kernels, colliders, world.ticks);
+        render.faults.record(encoder, &render.gpu);
         if !render.writeback.ready {
             continue;
         }
@@ -240,5 +269,42 @@ fn simulate_cloths(mut render_context: RenderContext, world: Res<GpuClothWorld>,
             &render.writeback.uniform,
             slice.buffer.as_entire_buffer_binding(),
         );
+    }
+}
+
+/// Asks for this frame's fault-count copies to be mapped, now that they are submitted.
+fn request_fault_reads(world: Res<GpuClothWorld>) {
+    for render in world.cloths.values() {
+        render.faults.submitted();
+    }
+}
+
+/// Sends the fault counts that have arrived, where non-zero, to the main world.
+fn report_faults(mut main_world: ResMut<MainWorld>, world: Res<GpuClothWorld>) {
+    for (&entity, render) in &world.cloths {
+        if let Some(particles @ 1..) = render.faults.take() {
+            main_world.write_message(GpuClothDiverged { entity, generation: render.generation, particles });
+        }
+    }
+}
+
+/// Main world: resets each cloth the GPU reported (unless it was rebuilt or reset since) to its
+/// rest pose, and says so.
+pub(crate) fn reset_diverged_cloths(
+    mut reports: MessageReader<GpuClothDiverged>,
+    mut cloths: Query<(&mut ClothSimulation, &GlobalTransform)>,
+    mut messages: MessageWriter<ClothMessage>,
+) {
+    for report in reports.read() {
+        let Ok((mut state, transform)) = cloths.get_mut(report.entity) else { continue };
+        if state.generation != report.generation {
+            continue;
+        }
+        let (entity, particles) = (report.entity, report.particles);
+        warn!(
+            "Cloth on {entity}: {particles} particle substeps became NaN or infinite on the GPU; reset to its rest pose"
+        );
+        state.reset(rigid_pose(transform));
+        messages.write(ClothMessage::Diverged { entity, particles });
     }
 }

@@ -174,6 +174,7 @@ impl Plugin for BvhClothPlugin {
             .init_resource::<ActiveClothBackend>()
             .add_message::<ClothMessage>()
             .add_message::<ResetCloth>()
+            .add_message::<gpu_backend::GpuClothDiverged>()
             .configure_sets(
                 PostUpdate,
                 (ClothSystems::BuildColliders, ClothSystems::Prepare, ClothSystems::Step, ClothSystems::Writeback)
@@ -187,7 +188,15 @@ impl Plugin for BvhClothPlugin {
                     (collider::build_colliders, collider::update_collider_poses)
                         .chain()
                         .in_set(ClothSystems::BuildColliders),
-                    (clock::advance_clock, simulation::sync_cloths).in_set(ClothSystems::Prepare),
+                    (
+                        clock::advance_clock,
+                        (
+                            simulation::sync_cloths,
+                            gpu_backend::reset_diverged_cloths.run_if(not(backend::cpu_backend_active)),
+                        )
+                            .chain(),
+                    )
+                        .in_set(ClothSystems::Prepare),
                     (cpu_backend::step_cloths.run_if(backend::cpu_backend_active), stats::update_stats)
                         .chain()
                         .in_set(ClothSystems::Step),

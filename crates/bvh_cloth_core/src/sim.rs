@@ -204,6 +204,11 @@ impl ClothSim {
         self.state.iter().all(|v| v.is_finite())
     }
 
+    /// How many particles have a NaN or infinite position or velocity.
+    pub fn non_finite_particles(&self) -> usize {
+        (0..self.len()).filter(|&i| !(self.position(i).is_finite() && self.velocity(i).is_finite())).count()
+    }
+
     /// Total mechanical energy in joules: kinetic + spring potential − work of the uniform
     /// acceleration (gravity and external force, taken from the origin).
     pub fn energy(&self) -> f64 {

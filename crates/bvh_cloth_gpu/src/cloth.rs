@@ -124,9 +124,11 @@ impl GpuCloth {
         }
     }
 
-    /// Replaces the GPU state with `sim`'s (a reset, or pins moved by the caller).
+    /// Replaces the GPU state with `sim`'s (a reset, or pins moved by the caller), and clears
+    /// the fault count.
     pub fn upload_state(&self, queue: &Queue, sim: &ClothSim) {
         queue.write_buffer(&self.base, 0, bytemuck::cast_slice(&gpu_particles(sim)));
+        queue.write_buffer(&self.faults, 0, bytemuck::bytes_of(&0u32));
     }
 
     /// Records `ticks` ticks: per substep the integrator stages, then the collision response.

@@ -1,0 +1,54 @@
+//! A cloth whose state goes NaN or infinite is reset to its rest pose and reported; the other
+//! cloths do not notice.
+
+use bevy::prelude::*;
+use bevy_bvh_cloth::prelude::*;
+
+use crate::harness::{app, positions, run, sent};
+
+/// Far enough that a spring from a pin to its free neighbour overflows `f32` at once.
+const OUT_OF_RANGE: f32 = 3.0e38;
+
+fn hanging(x: f32) -> (Cloth, Transform) {
+    (Cloth { damping: 0.5, ..Cloth::new(12, 12, 1.0).with_pins(ClothPins::TwoEnds) }, Transform::from_xyz(x, 2.0, 0.0))
+}
+
+fn diverged(app: &App) -> Vec<(Entity, u32)> {
+    sent(app)
+        .iter()
+        .filter_map(|m| match m {
+            ClothMessage::Diverged { entity, particles } => Some((*entity, *particles)),
+            _ => None,
+        })
+        .collect()
+}
+
+#[test]
+fn a_diverged_cloth_is_reset_and_reported_and_the_others_go_on() {
+    // The calm cloth alone, as the reference for its trajectory.
+    let mut lone = app();
+    let reference = lone.world_mut().spawn(hanging(0.0)).id();
+
+    let mut app = app();
+    let calm = app.world_mut().spawn(hanging(0.0)).id();
+    let wild = app.world_mut().spawn(hanging(3.0)).id();
+    run(&mut app, 0.5);
+    run(&mut lone, 0.5);
+
+    // Teleporting the entity drags the pins 3e38 m in one tick; the springs to them overflow.
+    app.world_mut().get_mut::<Transform>(wild).unwrap().translation.x = OUT_OF_RANGE;
+    run(&mut app, 0.5);
+    run(&mut lone, 0.5);
+
+    let reports = diverged(&app);
+    assert_eq!(reports.len(), 1, "one reset, then the cloth hangs finitely where it was sent: {reports:?}");
+    let (entity, particles) = reports[0];
+    assert_eq!(entity, wild);
+    assert!(particles > 0 && particles <= 144, "{particles} particles reported non-finite");
+
+    // Reset to its rest pose under the new transform, and finite since.
+    let wild_positions = positions(&app, wild);
+    assert!(wild_positions.iter().all(|p| p.is_finite() && p.x > 1e38), "{:?}", &wild_positions[..3]);
+    // The calm cloth went on exactly as if alone.
+    assert_eq!(positions(&app, calm), positions(&lone, reference));
+}
