@@ -112,13 +112,15 @@ pub(crate) struct GpuClothWorld {
     tick_seconds: f32,
     extracted: Vec<ExtractedCloth>,
     extracted_colliders: Vec<Collider>,
+    /// Their entities, in the same order.
+    collider_entities: Vec<Entity>,
 }
 
 fn extract_cloths(
     mut world: ResMut<GpuClothWorld>,
     clock: Extract<Res<ClothClock>>,
     cloths: Extract<Query<(Entity, &ClothSimulation, &GlobalTransform, &Mesh3d)>>,
-    colliders: Extract<Query<&ClothCollider>>,
+    colliders: Extract<Query<(Entity, &ClothCollider)>>,
 ) {
     world.ticks = clock.ticks;
     world.tick_seconds = clock.tick_seconds;
@@ -140,7 +142,8 @@ fn extract_cloths(
         })
         .collect();
     world.extracted = extracted;
-    world.extracted_colliders = colliders.iter().map(|c| c.collider().clone()).collect();
+    (world.collider_entities, world.extracted_colliders) =
+        colliders.iter().map(|(entity, c)| (entity, c.collider().clone())).unzip();
 }
 
 /// Word offsets of the position and normal in a mesh's vertices, and its stride in words;
@@ -186,7 +189,17 @@ fn prepare_cloths(
         if old.len() == trees.len() && old.iter().zip(&trees).all(|(a, b)| Arc::ptr_eq(a, b)));
     match &mut world.colliders {
         Some((_, gpu)) if same_trees => gpu.update_frames(&queue, &world.extracted_colliders),
-        slot => *slot = Some((trees, GpuColliders::new(device, &world.extracted_colliders))),
+        slot => {
+            let gpu = GpuColliders::new(device, &world.extracted_colliders);
+            for &k in gpu.left_out() {
+                error!(
+                    "Collider on {}: its tree does not fit the device's storage bindings beside the others; \
+                     cloths on the GPU pass through it",
+                    world.collider_entities[k]
+                );
+            }
+            *slot = Some((trees, gpu));
+        }
     }
     let Some((_, colliders)) = &world.colliders else { return };
 

@@ -41,7 +41,7 @@ struct Gpu {
 fn main() {
     let threads = rayon::current_num_threads();
     let single = rayon::ThreadPoolBuilder::new().num_threads(1).build().expect("a one-thread pool");
-    let gpu = headless::device().map(|(adapter, device, queue)| {
+    let gpu = headless::device().map(|headless::HeadlessGpu { adapter, device, queue, .. }| {
         let info = adapter.get_info();
         println!("GPU adapter: {} ({:?}, driver {} {})", info.name, info.device_type, info.driver, info.driver_info);
         let kernels = ClothKernels::new(&device).expect("the kernels fit the device");

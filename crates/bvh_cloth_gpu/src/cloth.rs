@@ -7,7 +7,7 @@ use wgpu::util::DeviceExt;
 use wgpu::{BindGroup, Buffer, BufferUsages, CommandEncoder, Device, Queue};
 
 use crate::colliders::GpuColliders;
-use crate::kernels::{ClothKernels, KernelError};
+use crate::kernels::{ClothKernels, KernelError, storage_binding_limit};
 
 /// A cloth's GPU state.
 ///
@@ -37,7 +37,7 @@ impl GpuCloth {
         let (rows, cols) = (grid.rows as u32, grid.cols as u32);
         let workgroups = ClothKernels::workgroups(device, rows, cols)?;
         let bytes = (sim.len() * size_of::<GpuParticle>()) as u64;
-        let max = device.limits().max_storage_buffer_binding_size;
+        let max = storage_binding_limit(device);
         if bytes > max {
             return Err(KernelError::BufferTooLarge { bytes, max });
         }

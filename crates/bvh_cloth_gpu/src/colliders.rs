@@ -5,8 +5,14 @@ use bvh_cloth_core::{BvhNode, Collider, Sphere};
 use wgpu::util::DeviceExt;
 use wgpu::{Buffer, BufferUsages, Device, Queue};
 
+use crate::kernels::storage_binding_limit;
+
 /// The colliders' frames and trees. Trees are uploaded once; [`Self::update_frames`] moves the
 /// colliders without touching them.
+///
+/// The trees are concatenated into one node and one sphere buffer, each of which must fit one
+/// storage binding of the device: colliders that would overflow them are left out (see
+/// [`Self::left_out`]) rather than failing the rest.
 #[derive(Debug)]
 pub struct GpuColliders {
     pub(crate) frames: Buffer,
@@ -14,8 +20,10 @@ pub struct GpuColliders {
     pub(crate) spheres: Buffer,
     /// Colliders usable on the GPU (a collider with an invalid pose is left out).
     pub(crate) count: u32,
-    /// Offsets of each input collider's tree, in input order.
-    offsets: Vec<(u32, u32)>,
+    /// Offsets of each input collider's tree, in input order; `None` for one left out.
+    offsets: Vec<Option<(u32, u32)>>,
+    /// Input indices of the colliders whose trees did not fit.
+    left_out: Vec<usize>,
 }
 
 fn storage_buffer<T: bytemuck::Pod + Default>(device: &Device, label: &str, items: &[T]) -> Buffer {
@@ -30,15 +38,27 @@ fn storage_buffer<T: bytemuck::Pod + Default>(device: &Device, label: &str, item
 }
 
 impl GpuColliders {
-    /// Uploads `colliders`: trees and frames.
+    /// Uploads `colliders`: trees and frames. Colliders are taken in order while their trees
+    /// fit the device's storage bindings; the others are left out.
     pub fn new(device: &Device, colliders: &[Collider]) -> Self {
+        let max = storage_binding_limit(device);
+        let fits = |items: usize, size: usize| (items * size) as u64 <= max;
         let mut nodes: Vec<BvhNode> = Vec::new();
         let mut spheres: Vec<Sphere> = Vec::new();
         let mut offsets = Vec::with_capacity(colliders.len());
-        for collider in colliders {
-            offsets.push((nodes.len() as u32, spheres.len() as u32));
-            nodes.extend_from_slice(&collider.lbvh.nodes);
-            spheres.extend_from_slice(&collider.lbvh.spheres);
+        let mut left_out = Vec::new();
+        for (k, collider) in colliders.iter().enumerate() {
+            let tree = &collider.lbvh;
+            if !(fits(nodes.len() + tree.nodes.len(), size_of::<BvhNode>())
+                && fits(spheres.len() + tree.spheres.len(), size_of::<Sphere>()))
+            {
+                offsets.push(None);
+                left_out.push(k);
+                continue;
+            }
+            offsets.push(Some((nodes.len() as u32, spheres.len() as u32)));
+            nodes.extend_from_slice(&tree.nodes);
+            spheres.extend_from_slice(&tree.spheres);
         }
         let frames = Self::frames_of(colliders, &offsets);
         Self {
@@ -47,14 +67,15 @@ impl GpuColliders {
             nodes: storage_buffer(device, "bvh_cloth_bvh_nodes", &nodes),
             spheres: storage_buffer(device, "bvh_cloth_bvh_spheres", &spheres),
             offsets,
+            left_out,
         }
     }
 
-    fn frames_of(colliders: &[Collider], offsets: &[(u32, u32)]) -> Vec<GpuCollider> {
+    fn frames_of(colliders: &[Collider], offsets: &[Option<(u32, u32)>]) -> Vec<GpuCollider> {
         colliders
             .iter()
             .zip(offsets)
-            .filter_map(|(collider, &(node, sphere))| GpuCollider::new(collider, node, sphere))
+            .filter_map(|(collider, offset)| offset.and_then(|(node, sphere)| GpuCollider::new(collider, node, sphere)))
             .collect()
     }
 
@@ -76,6 +97,12 @@ impl GpuColliders {
     /// Whether there is none.
     pub fn is_empty(&self) -> bool {
         self.count == 0
+    }
+
+    /// Indices, into the slice given to [`Self::new`], of the colliders left out because their
+    /// trees did not fit the device's storage bindings.
+    pub fn left_out(&self) -> &[usize] {
+        &self.left_out
     }
 }
 

@@ -4,19 +4,38 @@
 use bytemuck::Pod;
 use wgpu::{Buffer, BufferUsages, Device, Queue};
 
-/// A device and queue on the first adapter `WGPU_BACKEND` (or the platform default) offers, or
-/// `None` when there is none.
-pub fn device() -> Option<(wgpu::Adapter, Device, Queue)> {
+/// A device without a window, with the instance and adapter it came from.
+#[derive(Debug)]
+pub struct HeadlessGpu {
+    /// The instance; its [`wgpu::Instance::generate_report`] counts live GPU resources.
+    pub instance: wgpu::Instance,
+    /// The adapter.
+    pub adapter: wgpu::Adapter,
+    /// The device.
+    pub device: Device,
+    /// Its queue.
+    pub queue: Queue,
+}
+
+/// A device on the first adapter `WGPU_BACKEND` (or the platform default) offers, with all of
+/// the adapter's limits, or `None` when there is none.
+pub fn device() -> Option<HeadlessGpu> {
+    device_with_limits(|limits| limits)
+}
+
+/// As [`device`], with the limits `limit` makes of the adapter's: lower ones stand in for a
+/// smaller device.
+pub fn device_with_limits(limit: impl FnOnce(wgpu::Limits) -> wgpu::Limits) -> Option<HeadlessGpu> {
     let instance = wgpu::Instance::new(wgpu::InstanceDescriptor::new_without_display_handle_from_env());
     let adapter =
         futures_lite::future::block_on(instance.request_adapter(&wgpu::RequestAdapterOptions::default())).ok()?;
     let (device, queue) = futures_lite::future::block_on(adapter.request_device(&wgpu::DeviceDescriptor {
         label: Some("bvh_cloth_headless"),
-        required_limits: adapter.limits(),
+        required_limits: limit(adapter.limits()),
         ..Default::default()
     }))
     .ok()?;
-    Some((adapter, device, queue))
+    Some(HeadlessGpu { instance, adapter, device, queue })
 }
 
 /// Copies `buffer` (which needs `COPY_SRC`) into memory, waiting for the GPU.

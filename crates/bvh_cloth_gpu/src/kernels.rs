@@ -16,6 +16,13 @@ pub const WORKGROUP_SIZE: u32 = 8;
 /// once.
 pub const STORAGE_BUFFERS_NEEDED: u32 = 5;
 
+/// The largest buffer the kernels may bind as storage on `device`: its largest storage binding,
+/// or its largest buffer where that is smaller.
+pub(crate) fn storage_binding_limit(device: &Device) -> u64 {
+    let limits = device.limits();
+    limits.max_storage_buffer_binding_size.min(limits.max_buffer_size)
+}
+
 /// Why the kernels cannot run on a device.
 #[derive(Clone, Debug, PartialEq, Eq)]
 pub enum KernelError {

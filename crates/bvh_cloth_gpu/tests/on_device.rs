@@ -22,7 +22,7 @@ struct Rig {
 }
 
 fn rig() -> Option<Rig> {
-    let Some((adapter, device, queue)) = headless::device() else {
+    let Some(headless::HeadlessGpu { adapter, device, queue, .. }) = headless::device() else {
         assert!(
             std::env::var_os("BVH_CLOTH_REQUIRE_GPU").is_none(),
             "no GPU adapter (install mesa-vulkan-drivers for lavapipe and set WGPU_BACKEND=vulkan)"
