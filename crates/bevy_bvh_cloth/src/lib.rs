@@ -57,8 +57,8 @@
 //! * **GPU** (where the render device runs compute shaders): the render world runs the paper's
 //!   kernels from [`bvh_cloth_gpu`] in Bevy's `RenderGraph` schedule, before the camera driver,
 //!   and `normal_shader` writes positions and normals straight into the cloth mesh's vertex
-//!   slab. Nothing is read back; [`ClothSimulation`] then holds the state as of the last
-//!   rebuild or reset.
+//!   slab. Only each cloth's count of non-finite particles is read back, without waiting for
+//!   it; [`ClothSimulation`] then holds the state as of the last rebuild or reset.
 //! * **CPU** (no compute shaders, no renderer, or asked for): the core's rayon stepper in
 //!   [`ClothSystems::Step`], writing the `Mesh` asset in [`ClothSystems::Writeback`].
 //!

@@ -1,5 +1,6 @@
 //! Property test: arbitrary meshes never make the collider builder panic, and on success every
-//! vertex lies inside the sphere of its voxel and the tree is sound.
+//! vertex lies inside the sphere of its voxel and the tree is sound. Then the named extremes: a
+//! single point, and millions of coincident vertices.
 
 use bvh_cloth_core::voxel_spheres::{MeshRef, voxel_spheres};
 use bvh_cloth_core::{Collider, ColliderError, Vec3};
@@ -92,4 +93,39 @@ proptest! {
             }
         }
     }
+}
+
+#[test]
+fn a_single_point_is_a_typed_error() {
+    let point = [[1.0, 2.0, 3.0]];
+    let alone = MeshRef { positions: &point, indices: None };
+    assert_eq!(Collider::from_mesh(alone, 5).unwrap_err(), ColliderError::IndicesNotTriangles { len: 1 });
+    let repeated = MeshRef { positions: &point, indices: Some(&[0, 0, 0]) };
+    assert_eq!(Collider::from_mesh(repeated, 5).unwrap_err(), ColliderError::ZeroExtent);
+}
+
+/// Three million vertices on one point: refused as having no extent; with one real triangle
+/// beside them, a valid tree whose coincident vertices all share one sphere.
+#[test]
+fn millions_of_coincident_vertices_build_or_fail_cleanly() {
+    const VERTICES: usize = 3_000_000;
+    let mut positions = vec![[0.25f32, 0.5, 0.75]; VERTICES];
+    let indices: Vec<u32> = (0..VERTICES as u32).collect();
+    let mesh = MeshRef { positions: &positions, indices: Some(&indices) };
+    assert_eq!(Collider::from_mesh(mesh, 32).unwrap_err(), ColliderError::ZeroExtent);
+    assert_eq!(
+        Collider::from_mesh(MeshRef { positions: &positions, indices: None }, 32).unwrap_err(),
+        ColliderError::ZeroExtent
+    );
+
+    positions.extend([[-1.0, 0.0, 0.0], [1.0, 0.0, 0.0], [0.0, 1.0, 1.0]]);
+    let indices: Vec<u32> = (0..positions.len() as u32).collect();
+    let mesh = MeshRef { positions: &positions, indices: Some(&indices) };
+    let voxels = voxel_spheres(mesh, 32).unwrap();
+    let shared = voxels.sphere_of(Vec3::from(positions[0])).expect("the point's voxel has a sphere");
+    assert!(Vec3::from(positions[0]).distance(shared.centre()) <= shared.radius);
+    // The point and the triangle's three corners: at most four non-empty voxels.
+    assert!(voxels.spheres.len() <= 4, "{} spheres", voxels.spheres.len());
+    let collider = Collider::from_mesh(mesh, 32).unwrap();
+    assert_eq!(collider.lbvh.nodes.len(), collider.lbvh.spheres.len() - 1);
 }
