@@ -52,3 +52,21 @@ fn a_diverged_cloth_is_reset_and_reported_and_the_others_go_on() {
     // The calm cloth went on exactly as if alone.
     assert_eq!(positions(&app, calm), positions(&lone, reference));
 }
+
+/// A force too large for `f32` makes the cloth diverge in every tick: it is reset and reported
+/// every tick, stays finite, and runs normally again once the force is fixed.
+#[test]
+fn a_cloth_that_diverges_every_tick_recovers_when_its_parameters_are_fixed() {
+    let mut app = app();
+    let (cloth, transform) = hanging(0.0);
+    let entity = app.world_mut().spawn((Cloth { external_force: Vec3::new(0.0, 0.0, 1e38), ..cloth }, transform)).id();
+    run(&mut app, 0.5);
+    assert_eq!(diverged(&app).len(), 30, "one reset per tick");
+    assert!(positions(&app, entity).iter().all(|p| p.is_finite()));
+
+    app.world_mut().get_mut::<Cloth>(entity).unwrap().external_force = Vec3::ZERO;
+    run(&mut app, 0.5);
+    assert_eq!(diverged(&app).len(), 30, "no reset once the force is fixed");
+    let lowest = positions(&app, entity).iter().map(|p| p.y).fold(f32::INFINITY, f32::min);
+    assert!(lowest < 1.9, "the cloth sags again: lowest particle at {lowest} m");
+}

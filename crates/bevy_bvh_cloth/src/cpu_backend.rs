@@ -32,27 +32,16 @@ pub(crate) fn step_cloths(
             continue;
         }
         let (from, to) = (state.pose, rigid_pose(transform));
-        let looper = state.sim.params().looper;
-        let mut substeps = looper;
         for k in 1..=ticks {
             let pose = interpolate(&from, &to, k as f32 / ticks as f32);
             state.sim.pin_to(&pose);
-            substeps = state.sim.tick(clock.tick_seconds, &colliders);
-        }
-        if substeps > looper && !state.guard_warned {
-            warn!(
-                "Cloth on {entity}: spring_k is too stiff for looper = {looper} at this tick rate; \
-                 running {substeps} substeps per tick to stay stable"
-            );
-            state.guard_warned = true;
+            state.sim.tick(clock.tick_seconds, &colliders);
         }
         state.pose = to;
         state.dirty = true;
         if !state.sim.is_finite() {
             let particles = u32::try_from(state.sim.non_finite_particles()).unwrap_or(u32::MAX);
-            warn!("Cloth on {entity}: {particles} particles became NaN or infinite; reset to its rest pose");
-            state.reset(to);
-            messages.write(ClothMessage::Diverged { entity, particles });
+            state.diverged(entity, particles, to, &mut messages);
         }
     }
     stats.step_time = start.elapsed();

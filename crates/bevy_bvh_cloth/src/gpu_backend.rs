@@ -313,11 +313,6 @@ pub(crate) fn reset_diverged_cloths(
         if state.generation != report.generation {
             continue;
         }
-        let (entity, particles) = (report.entity, report.particles);
-        warn!(
-            "Cloth on {entity}: {particles} particle substeps became NaN or infinite on the GPU; reset to its rest pose"
-        );
-        state.reset(rigid_pose(transform));
-        messages.write(ClothMessage::Diverged { entity, particles });
+        state.diverged(report.entity, report.particles, rigid_pose(transform), &mut messages);
     }
 }

@@ -141,7 +141,8 @@ pub enum ClothSystems {
     /// [`AutoCollider`]s are built (or their async builds polled) and placed at their
     /// entity's [`GlobalTransform`].
     BuildColliders,
-    /// The clock advances, and [`Cloth`] changes and [`ResetCloth`] requests are applied.
+    /// The clock advances; [`Cloth`] changes, [`ResetCloth`] requests and the GPU's divergence
+    /// reports are applied.
     Prepare,
     /// The cloths are stepped.
     Step,
@@ -190,12 +191,11 @@ impl Plugin for BvhClothPlugin {
                         .in_set(ClothSystems::BuildColliders),
                     (
                         clock::advance_clock,
-                        (
-                            simulation::sync_cloths,
-                            gpu_backend::reset_diverged_cloths.run_if(not(backend::cpu_backend_active)),
-                        )
-                            .chain(),
+                        simulation::sync_cloths,
+                        gpu_backend::reset_diverged_cloths.run_if(not(backend::cpu_backend_active)),
+                        simulation::warn_stiff_cloths,
                     )
+                        .chain()
                         .in_set(ClothSystems::Prepare),
                     (cpu_backend::step_cloths.run_if(backend::cpu_backend_active), stats::update_stats)
                         .chain()

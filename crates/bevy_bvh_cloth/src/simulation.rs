@@ -6,6 +6,7 @@ use bevy::camera::visibility::NoAutoAabb;
 use bevy::prelude::*;
 use bvh_cloth_core::{Affine3A, ClothSim};
 
+use crate::clock::ClothClock;
 use crate::cloth::Cloth;
 use crate::cloth_mesh::new_cloth_mesh;
 use crate::messages::{ClothMessage, ResetCloth};
@@ -29,6 +30,9 @@ pub struct ClothSimulation {
     pub(crate) dirty: bool,
     /// Whether the stability guard's warning was given for the current parameters.
     pub(crate) guard_warned: bool,
+    /// Whether a divergence was logged for the current parameters (each one is still sent as a
+    /// message): a cloth whose parameters make it diverge every tick logs once, not every frame.
+    pub(crate) divergence_warned: bool,
     /// Changes whenever the state is replaced (a new grid, a reset), so that the GPU backend
     /// knows to upload it. Unique across cloths.
     pub(crate) generation: u64,
@@ -49,6 +53,26 @@ impl ClothSimulation {
     /// The grid mesh the plugin made for this cloth.
     pub fn mesh(&self) -> &Handle<Mesh> {
         &self.mesh
+    }
+
+    /// The state went non-finite (`particles` of them): back to the rest pose under `pose`,
+    /// logged once per parameter set and reported every time.
+    pub(crate) fn diverged(
+        &mut self,
+        entity: Entity,
+        particles: u32,
+        pose: Affine3A,
+        messages: &mut MessageWriter<ClothMessage>,
+    ) {
+        if !self.divergence_warned {
+            warn!(
+                "Cloth on {entity}: {particles} particles became NaN or infinite; reset to its rest pose \
+                 (logged once until its parameters change, reported as ClothMessage::Diverged each time)"
+            );
+            self.divergence_warned = true;
+        }
+        self.reset(pose);
+        messages.write(ClothMessage::Diverged { entity, particles });
     }
 
     /// Back to the rest pose under `pose`.
@@ -93,6 +117,7 @@ pub(crate) fn sync_cloths(
                         Ok(()) => {
                             state.built_from = Cloth::clone(&cloth);
                             state.guard_warned = false;
+                            state.divergence_warned = false;
                         }
                         Err(error) => reject(error),
                     }
@@ -130,6 +155,7 @@ pub(crate) fn sync_cloths(
                         mesh: mesh.clone(),
                         dirty: true,
                         guard_warned: false,
+                        divergence_warned: false,
                         generation: next_generation(),
                     },
                     Mesh3d(mesh),
@@ -137,6 +163,26 @@ pub(crate) fn sync_cloths(
                 ));
             }
             _ => {}
+        }
+    }
+}
+
+/// Says once per parameter set when the stability guard runs a cloth at more substeps per tick
+/// than its Looper. Either backend runs the count [`bvh_cloth_core::ClothParams::substeps`]
+/// gives, so it is checked here, for both.
+pub(crate) fn warn_stiff_cloths(clock: Res<ClothClock>, mut cloths: Query<(Entity, &mut ClothSimulation)>) {
+    if clock.ticks == 0 {
+        return;
+    }
+    for (entity, mut state) in &mut cloths {
+        let params = state.sim.params();
+        let (looper, substeps) = (params.looper, params.substeps(clock.tick_seconds));
+        if substeps > looper && !state.guard_warned {
+            warn!(
+                "Cloth on {entity}: spring_k is too stiff for looper = {looper} at this tick rate; \
+                 running {substeps} substeps per tick to stay stable"
+            );
+            state.guard_warned = true;
         }
     }
 }
