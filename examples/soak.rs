@@ -24,13 +24,29 @@ struct Tally {
     diverged: u32,
     rejected: u32,
     collider_failed: u32,
+    /// When each divergence happened, and under which parameters.
+    divergences: Vec<String>,
 }
 
-fn count(mut reader: MessageReader<ClothMessage>, stats: Res<ClothStats>, mut tally: ResMut<Tally>) {
+fn count(
+    mut reader: MessageReader<ClothMessage>,
+    stats: Res<ClothStats>,
+    cloths: Query<&Cloth>,
+    mut tally: ResMut<Tally>,
+) {
     tally.ticks += u64::from(stats.ticks);
     for message in reader.read() {
         match message {
-            ClothMessage::Diverged { .. } => tally.diverged += 1,
+            ClothMessage::Diverged { entity, particles } => {
+                tally.diverged += 1;
+                if let Ok(c) = cloths.get(*entity) {
+                    let line = format!(
+                        "tick {}: {particles} particles; {:?}, looper {}, spring_k {:.0}, damping {:.2}, force {:.1?}",
+                        tally.ticks, c.integrator, c.looper, c.spring_k, c.damping, c.external_force
+                    );
+                    tally.divergences.push(line);
+                }
+            }
             ClothMessage::Rejected { .. } => tally.rejected += 1,
             ClothMessage::ColliderFailed { .. } => tally.collider_failed += 1,
         }
@@ -131,4 +147,7 @@ fn main() {
     println!("| energy: max / final (J) | {max_energy:.3} / {final_energy:.3} |");
     println!("| resident memory at tick 5,000 / at the end | {} / {} |", mib(memory_start), mib(resident_mib()));
     println!("| cloths / colliders alive at the end | {} / {} |", stats.cloths, stats.colliders);
+    for line in &tally.divergences {
+        println!("\ndiverged at {line}");
+    }
 }

@@ -93,15 +93,16 @@ fn moving_the_collider_moves_the_collision() {
 #[test]
 fn changing_n_rebuilds_with_the_expected_leaf_count() {
     let mut app = app();
-    // A cuboid's 24 vertices sit on its 8 corners: n = 1 gives one sphere, n >= 2 eight.
+    // A cuboid's faces pass through every voxel but the inner ones: n = 1 gives one sphere,
+    // n = 3 gives 3³ - 1 = 26.
     let mesh = add_mesh(&mut app, Cuboid::new(1.0, 2.0, 3.0));
     let collider = app.world_mut().spawn((Mesh3d(mesh), AutoCollider::new(1))).id();
     assert_eq!(wait_for_collider(&mut app, collider), (1, 0));
     app.world_mut().get_mut::<AutoCollider>(collider).unwrap().resolution = 3;
     run(&mut app, 0.05);
-    assert_eq!(wait_for_collider(&mut app, collider), (8, 7));
+    assert_eq!(wait_for_collider(&mut app, collider), (26, 25));
     let tree = &app.world().get::<ClothCollider>(collider).unwrap().collider().lbvh;
-    assert_eq!((tree.spheres.len(), tree.nodes.len()), (8, 7));
+    assert_eq!((tree.spheres.len(), tree.nodes.len()), (26, 25));
 }
 
 #[test]

@@ -55,6 +55,7 @@ pub mod obj;
 pub mod params;
 pub mod sim;
 pub mod traversal;
+mod voxel_grid;
 pub mod voxel_spheres;
 
 pub use collider::{Collider, ColliderPose};

@@ -1,5 +1,18 @@
 //! Voxel sphere fitting (paper section 2.4.1): the mesh's AABB is cut into `n x n x n` voxels
-//! and every voxel that holds at least one vertex gets a sphere enclosing all of its vertices.
+//! and every voxel the surface passes through gets a sphere enclosing the surface in it.
+//!
+//! # Which points a sphere encloses
+//!
+//! The paper fits each sphere to the vertices in its voxel. That covers the surface only while
+//! triangles are small next to voxels: once a triangle spans several voxels, the part of it near
+//! a voxel boundary may lie in no sphere (on the bunny at n = 64 a draped cloth fell straight
+//! through such gaps), and a voxel the triangle crosses without holding a vertex gets no sphere
+//! at all. So each voxel's points are its vertices plus, for every triangle that spans more than
+//! one voxel, the corners of the triangle's part in that voxel (found by clipping the triangle
+//! against the grid's planes).
+//! A sphere encloses the convex hull of its points, hence that whole part, and the union of the
+//! spheres covers every triangle. Where no triangle crosses a voxel boundary (low `n`, fine
+//! meshes) the spheres are exactly the paper's.
 //!
 //! # How a sphere is fitted
 //!
@@ -22,6 +35,7 @@ use rayon::prelude::*;
 
 use crate::error::ColliderError;
 use crate::lbvh::Sphere;
+use crate::voxel_grid::VoxelGrid;
 
 /// Largest voxel resolution accepted: 128³ voxels; beyond that the spheres are smaller than
 /// any sensible cloth spacing and the voxel table grows past 8 MiB.
@@ -123,7 +137,9 @@ pub fn voxel_spheres(mesh: MeshRef<'_>, n: u32) -> Result<VoxelSpheres, Collider
     }
 
     let grid = VoxelGrid::new(min, max, n);
-    // Counting sort of the used vertices by voxel: keys, counts, prefix sums, scatter.
+    let crossings = crossing_points(mesh, &grid);
+    // Counting sort of the used vertices and the crossing points by voxel: keys, counts, prefix
+    // sums, scatter.
     let cells = (n as usize).pow(3);
     let mut keys = vec![UNUSED; positions.len()];
     keys.par_chunks_mut(CHUNK).zip(positions.par_chunks(CHUNK)).enumerate().for_each(|(c, (keys, chunk))| {
@@ -134,7 +150,7 @@ pub fn voxel_spheres(mesh: MeshRef<'_>, n: u32) -> Result<VoxelSpheres, Collider
         }
     });
     let mut start = vec![0u32; cells + 1];
-    for &k in keys.iter().filter(|&&k| k != UNUSED) {
+    for &k in keys.iter().filter(|&&k| k != UNUSED).chain(crossings.iter().map(|(k, _)| k)) {
         start[k as usize + 1] += 1;
     }
     for i in 0..cells {
@@ -142,9 +158,10 @@ pub fn voxel_spheres(mesh: MeshRef<'_>, n: u32) -> Result<VoxelSpheres, Collider
     }
     let mut cursor = start.clone();
     let mut grouped = vec![Vec3::ZERO; start[cells] as usize];
-    for (&k, &p) in keys.iter().zip(positions).filter(|&(&k, _)| k != UNUSED) {
+    let vertices = keys.iter().zip(positions).filter(|&(&k, _)| k != UNUSED).map(|(&k, &p)| (k, Vec3::from(p)));
+    for (k, p) in vertices.chain(crossings) {
         let slot = &mut cursor[k as usize];
-        grouped[*slot as usize] = Vec3::from(p);
+        grouped[*slot as usize] = p;
         *slot += 1;
     }
 
@@ -156,37 +173,32 @@ pub fn voxel_spheres(mesh: MeshRef<'_>, n: u32) -> Result<VoxelSpheres, Collider
     Ok(VoxelSpheres { spheres, voxels, mesh_min: min, mesh_max: max, resolution: n })
 }
 
+/// For every triangle that spans more than one voxel, the corners of its part in each voxel it
+/// passes through, keyed by voxel; in triangle order, whatever the thread count.
+fn crossing_points(mesh: MeshRef<'_>, grid: &VoxelGrid) -> Vec<(u32, Vec3)> {
+    let corner = |i: usize| Vec3::from(mesh.positions[i]);
+    let (count, triangle): (usize, Box<dyn Fn(usize) -> [Vec3; 3] + Sync>) = match mesh.indices {
+        Some(indices) => (indices.len() / 3, Box::new(move |t| [0, 1, 2].map(|k| corner(indices[3 * t + k] as usize)))),
+        None => (mesh.positions.len() / 3, Box::new(move |t| [0, 1, 2].map(|k| corner(3 * t + k)))),
+    };
+    (0..count)
+        .into_par_iter()
+        .with_min_len(CHUNK / 4)
+        .fold(Vec::new, |mut out, t| {
+            grid.for_each_piece(triangle(t), |key, piece| out.extend(piece.corners().iter().map(|&p| (key, p))));
+            out
+        })
+        .reduce(Vec::new, |mut a, mut b| {
+            a.append(&mut b);
+            a
+        })
+}
+
 /// Vertices per parallel task in the passes over the whole mesh.
 const CHUNK: usize = 1 << 14;
 
 /// The voxel key of a vertex no triangle uses.
 const UNUSED: u32 = u32::MAX;
-
-/// The voxel grid over a mesh's AABB.
-#[derive(Clone, Copy, Debug)]
-struct VoxelGrid {
-    min: Vec3,
-    /// Voxels per unit length on each axis (0 on a flat axis).
-    inv_cell: Vec3,
-    n: u32,
-}
-
-impl VoxelGrid {
-    fn new(min: Vec3, max: Vec3, n: u32) -> Self {
-        let extent = max - min;
-        let inv_cell = Vec3::select(extent.cmpgt(Vec3::ZERO), Vec3::splat(n as f32) / extent, Vec3::ZERO);
-        Self { min, inv_cell, n }
-    }
-
-    /// The voxel holding `p`, as `x + n (y + n z)`; points on the far faces go to the last layer.
-    fn voxel_of(&self, p: Vec3) -> u32 {
-        // `as` truncates, which is `floor` here because the offset is not negative (and it
-        // saturates, should rounding push a point a hair outside the box).
-        let q = ((p - self.min) * self.inv_cell).max(Vec3::ZERO);
-        let cell = |x: f32| (x as u32).min(self.n - 1);
-        cell(q.x) + self.n * (cell(q.y) + self.n * cell(q.z))
-    }
-}
 
 impl VoxelSpheres {
     /// The voxel a point of the mesh falls in, in the numbering of [`Self::voxels`].
@@ -239,12 +251,33 @@ mod tests {
         assert!((s.radius - 0.75f32.sqrt()).abs() < 1e-5);
     }
 
+    /// Every point of a triangle lies in the sphere of the voxel that holds it (up to rounding).
+    fn assert_covered(v: &VoxelSpheres, triangles: &[[Vec3; 3]]) {
+        for (t, [a, b, c]) in triangles.iter().enumerate() {
+            for i in 0..=12 {
+                for j in 0..=12 - i {
+                    let p = *a + (i as f32 / 12.0) * (*b - *a) + (j as f32 / 12.0) * (*c - *a);
+                    let s = v.sphere_of(p).unwrap_or_else(|| panic!("triangle {t}: the voxel of {p} has no sphere"));
+                    assert!(p.distance(s.centre()) <= s.radius + 1e-6, "triangle {t}: {p} outside its voxel's sphere");
+                }
+            }
+        }
+    }
+
     #[test]
-    fn corners_fall_in_corner_voxels() {
+    fn the_cube_surface_gives_every_boundary_voxel_a_sphere_that_covers_it() {
         let (p, idx) = cube();
         let v = voxel_spheres(MeshRef { positions: &p, indices: Some(&idx) }, 3).unwrap();
-        assert_eq!(v.spheres.len(), 8);
-        assert!(v.spheres.iter().all(|s| s.radius < 1e-5));
+        // Every voxel but the middle one holds part of a face.
+        assert_eq!(v.spheres.len(), 26);
+        assert!(v.voxels.binary_search(&13).is_err());
+        let triangles: Vec<[Vec3; 3]> =
+            idx.chunks(3).map(|t| [0, 1, 2].map(|k| Vec3::from(p[t[k] as usize]))).collect();
+        assert_covered(&v, &triangles);
+        // A face voxel's sphere is about its face patch (a third of the face on a side), not the
+        // whole voxel.
+        let corner = v.sphere_of(Vec3::ZERO).unwrap();
+        assert!(corner.radius < 0.5 * (3.0f32 / 9.0).sqrt() + 1e-5, "{corner:?}");
     }
 
     #[test]
@@ -278,6 +311,9 @@ mod tests {
         let quad = [[0.0, 0.0, 0.0], [1.0, 0.0, 0.0], [1.0, 0.0, 1.0], [0.0, 0.0, 1.0]];
         let m = MeshRef { positions: &quad, indices: Some(&[0, 1, 2, 0, 2, 3]) };
         let v = voxel_spheres(m, 4).unwrap();
-        assert_eq!(v.spheres.len(), 4);
+        // One layer of 4 x 4 cells, all crossed by the quad.
+        assert_eq!(v.spheres.len(), 16);
+        let corners = quad.map(Vec3::from);
+        assert_covered(&v, &[[corners[0], corners[1], corners[2]], [corners[0], corners[2], corners[3]]]);
     }
 }

@@ -1,5 +1,6 @@
 //! Property test: arbitrary meshes never make the collider builder panic, and on success every
-//! vertex lies inside the sphere of its voxel and the tree is sound. Then the named extremes: a
+//! vertex and every sampled point of every triangle lies inside the sphere of its voxel, and the
+//! tree is sound. Then the named extremes: a
 //! single point, and millions of coincident vertices.
 
 use bvh_cloth_core::voxel_spheres::{MeshRef, voxel_spheres};
@@ -81,6 +82,22 @@ proptest! {
                     let s = voxels.sphere_of(p).expect("a vertex's voxel has a sphere");
                     prop_assert!(p.distance(s.centre()) <= s.radius, "vertex {} outside its sphere", i);
                 }
+                // The surface, not only the vertices: points inside each triangle lie in a
+                // sphere, up to rounding relative to the mesh's size. (In some sphere, not
+                // necessarily their own voxel's: a point exactly on a voxel corner may be
+                // numbered into a voxel the triangle only touches there.)
+                let tolerance = 1e-5 * (voxels.mesh_max - voxels.mesh_min).max_element();
+                let corner = |t: usize, k: usize| {
+                    Vec3::from(positions[indices.as_ref().map_or(3 * t + k, |idx| idx[3 * t + k] as usize)])
+                };
+                let triangles = indices.as_ref().map_or(positions.len(), |idx| idx.len()) / 3;
+                for t in 0..triangles {
+                    let [a, b, c] = [0, 1, 2].map(|k| corner(t, k));
+                    for p in [(a + b + c) / 3.0, (a + b) / 2.0, (b + c) / 2.0, (a + c) / 2.0] {
+                        let covered = voxels.spheres.iter().any(|s| p.distance(s.centre()) <= s.radius + tolerance);
+                        prop_assert!(covered, "triangle {}: {} is in no sphere", t, p);
+                    }
+                }
                 let collider = Collider::from_mesh(mesh, n).unwrap();
                 prop_assert_eq!(collider.lbvh.spheres.len(), voxels.spheres.len());
                 prop_assert_eq!(collider.lbvh.nodes.len(), voxels.spheres.len() - 1);
@@ -105,7 +122,8 @@ fn a_single_point_is_a_typed_error() {
 }
 
 /// Three million vertices on one point: refused as having no extent; with one real triangle
-/// beside them, a valid tree whose coincident vertices all share one sphere.
+/// beside them, a valid tree whose coincident vertices all share one point-sized sphere, and
+/// whose other spheres cover the triangle.
 #[test]
 fn millions_of_coincident_vertices_build_or_fail_cleanly() {
     const VERTICES: usize = 3_000_000;
@@ -124,8 +142,13 @@ fn millions_of_coincident_vertices_build_or_fail_cleanly() {
     let voxels = voxel_spheres(mesh, 32).unwrap();
     let shared = voxels.sphere_of(Vec3::from(positions[0])).expect("the point's voxel has a sphere");
     assert!(Vec3::from(positions[0]).distance(shared.centre()) <= shared.radius);
-    // The point and the triangle's three corners: at most four non-empty voxels.
-    assert!(voxels.spheres.len() <= 4, "{} spheres", voxels.spheres.len());
+    assert!(shared.radius < 1e-6, "{shared:?}");
+    let [a, b, c] = [VERTICES, VERTICES + 1, VERTICES + 2].map(|i| Vec3::from(positions[i]));
+    for (u, v) in [(0.0, 0.0), (0.5, 0.0), (0.0, 0.5), (0.5, 0.5), (0.3, 0.3), (0.9, 0.05)] {
+        let p = a + u * (b - a) + v * (c - a);
+        let s = voxels.sphere_of(p).expect("the triangle's voxels have spheres");
+        assert!(p.distance(s.centre()) <= s.radius + 1e-6, "{p} is outside its voxel's sphere");
+    }
     let collider = Collider::from_mesh(mesh, 32).unwrap();
     assert_eq!(collider.lbvh.nodes.len(), collider.lbvh.spheres.len() - 1);
 }
