@@ -10,8 +10,8 @@
 
 use glam::Vec3;
 
-/// Most corners a triangle clipped by six planes can have (3 + 6), with room to spare.
-const MAX_CORNERS: usize = 12;
+/// Most corners a triangle clipped by six planes can have: each cut adds at most one.
+const MAX_CORNERS: usize = 9;
 
 /// A convex polygon with at most [`MAX_CORNERS`] corners.
 #[derive(Clone, Copy, Debug)]
@@ -60,11 +60,6 @@ impl Piece {
         out
     }
 
-    /// The part between the planes `lo` and `hi` on `axis`.
-    fn between(&self, axis: usize, lo: f32, hi: f32) -> Self {
-        self.keep(axis, lo, 1.0).keep(axis, hi, -1.0)
-    }
-
     /// The smallest and largest coordinate on `axis`.
     fn span(&self, axis: usize) -> (f32, f32) {
         self.corners().iter().fold((f32::INFINITY, f32::NEG_INFINITY), |(lo, hi), p| (lo.min(p[axis]), hi.max(p[axis])))
@@ -98,6 +93,11 @@ impl VoxelGrid {
         (((x - self.min[axis]) * self.inv_cell[axis]).max(0.0) as u32).min(self.n - 1)
     }
 
+    /// Whether the whole grid is one voxel (`n = 1`).
+    pub(crate) fn is_single_voxel(&self) -> bool {
+        self.n == 1
+    }
+
     /// The key `x + n (y + n z)` of cell `(x, y, z)`.
     #[inline]
     fn key(&self, x: u32, y: u32, z: u32) -> u32 {
@@ -123,12 +123,21 @@ impl VoxelGrid {
             visit(first, piece);
             return;
         }
-        for i in first..=last {
-            let part = piece.between(axis, self.plane(axis, i), self.plane(axis, i + 1));
+        // Each cut peels the lowest cell off what is left, so each plane is clipped against
+        // once from each side.
+        let mut rest = *piece;
+        for i in first..last {
+            let plane = self.plane(axis, i + 1);
+            let part = rest.keep(axis, plane, -1.0);
             if part.len > 0 {
                 visit(i, &part);
             }
+            rest = rest.keep(axis, plane, 1.0);
+            if rest.len == 0 {
+                return;
+            }
         }
+        visit(last, &rest);
     }
 
     /// Calls `visit(voxel, piece)` for every voxel triangle `abc` passes through, with the part of

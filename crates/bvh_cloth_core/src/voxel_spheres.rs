@@ -137,10 +137,6 @@ pub fn voxel_spheres(mesh: MeshRef<'_>, n: u32) -> Result<VoxelSpheres, Collider
     }
 
     let grid = VoxelGrid::new(min, max, n);
-    let crossings = crossing_points(mesh, &grid);
-    // Counting sort of the used vertices and the crossing points by voxel: keys, counts, prefix
-    // sums, scatter.
-    let cells = (n as usize).pow(3);
     let mut keys = vec![UNUSED; positions.len()];
     keys.par_chunks_mut(CHUNK).zip(positions.par_chunks(CHUNK)).enumerate().for_each(|(c, (keys, chunk))| {
         for (j, (key, &p)) in keys.iter_mut().zip(chunk).enumerate() {
@@ -149,6 +145,10 @@ pub fn voxel_spheres(mesh: MeshRef<'_>, n: u32) -> Result<VoxelSpheres, Collider
             }
         }
     });
+    let crossings = crossing_points(mesh, &grid, &keys);
+    // Counting sort of the used vertices and the crossing points by voxel: counts, prefix sums,
+    // scatter.
+    let cells = (n as usize).pow(3);
     let mut start = vec![0u32; cells + 1];
     for &k in keys.iter().filter(|&&k| k != UNUSED).chain(crossings.iter().map(|(k, _)| k)) {
         start[k as usize + 1] += 1;
@@ -174,18 +174,43 @@ pub fn voxel_spheres(mesh: MeshRef<'_>, n: u32) -> Result<VoxelSpheres, Collider
 }
 
 /// For every triangle that spans more than one voxel, the corners of its part in each voxel it
-/// passes through, keyed by voxel; in triangle order, whatever the thread count.
-fn crossing_points(mesh: MeshRef<'_>, grid: &VoxelGrid) -> Vec<(u32, Vec3)> {
-    let corner = |i: usize| Vec3::from(mesh.positions[i]);
-    let (count, triangle): (usize, Box<dyn Fn(usize) -> [Vec3; 3] + Sync>) = match mesh.indices {
-        Some(indices) => (indices.len() / 3, Box::new(move |t| [0, 1, 2].map(|k| corner(indices[3 * t + k] as usize)))),
-        None => (mesh.positions.len() / 3, Box::new(move |t| [0, 1, 2].map(|k| corner(3 * t + k)))),
-    };
+/// passes through, keyed by voxel; in triangle order, whatever the thread count. `keys` are the
+/// vertices' voxels: a triangle whose corners share one is skipped without reading positions.
+fn crossing_points(mesh: MeshRef<'_>, grid: &VoxelGrid, keys: &[u32]) -> Vec<(u32, Vec3)> {
+    if grid.is_single_voxel() {
+        return Vec::new();
+    }
+    match mesh.indices {
+        Some(indices) => crossings_of(mesh.positions, indices.len() / 3, grid, keys, |t| {
+            [0, 1, 2].map(|k| indices[3 * t + k] as usize)
+        }),
+        None => crossings_of(mesh.positions, mesh.positions.len() / 3, grid, keys, |t| [0, 1, 2].map(|k| 3 * t + k)),
+    }
+}
+
+/// [`crossing_points`] over `count` triangles whose vertex indices `corners` gives.
+fn crossings_of(
+    positions: &[[f32; 3]],
+    count: usize,
+    grid: &VoxelGrid,
+    keys: &[u32],
+    corners: impl Fn(usize) -> [usize; 3] + Sync,
+) -> Vec<(u32, Vec3)> {
     (0..count)
         .into_par_iter()
         .with_min_len(CHUNK / 4)
         .fold(Vec::new, |mut out, t| {
-            grid.for_each_piece(triangle(t), |key, piece| out.extend(piece.corners().iter().map(|&p| (key, p))));
+            let vertices = corners(t);
+            let [a, b, c] = vertices.map(|i| keys[i]);
+            if a != b || a != c {
+                let triangle = vertices.map(|i| Vec3::from(positions[i]));
+                grid.for_each_piece(triangle, |key, piece| {
+                    // A corner that is one of the triangle's vertices, in that vertex's own
+                    // voxel, is among the voxel's points already.
+                    let known = |p: Vec3| (0..3).any(|k| triangle[k] == p && keys[vertices[k]] == key);
+                    out.extend(piece.corners().iter().filter(|&&p| !known(p)).map(|&p| (key, p)));
+                });
+            }
             out
         })
         .reduce(Vec::new, |mut a, mut b| {
