@@ -21,8 +21,9 @@ pub const ASYNC_BUILD_MIN_VERTICES: usize = 20_000;
 
 /// Makes the entity's [`Mesh3d`] a collider for every cloth.
 ///
-/// The mesh is cut into `resolution³` voxels over its bounding box; every voxel that holds a
-/// vertex becomes a bounding sphere, and the spheres are arranged in a Morton-code LBVH. The
+/// The mesh is cut into `resolution³` voxels over its bounding box; every voxel the surface
+/// passes through gets a sphere around the part of the surface in it, and the spheres are
+/// arranged in a Morton-code LBVH. The
 /// collider follows the entity's transform (rotation, translation and uniform scale; with a
 /// non-uniform scale the largest axis is used, and a warning says so).
 #[derive(Component, Clone, Debug, PartialEq, Reflect)]
