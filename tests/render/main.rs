@@ -88,6 +88,16 @@ fn adapter_present() -> bool {
     false
 }
 
+/// A render app on the GPU backend, or `None` (with a note) where there is no adapter.
+fn gpu_backend_app() -> Option<App> {
+    if !adapter_present() {
+        return None;
+    }
+    let app = render_app(ClothBackend::Gpu);
+    assert_eq!(*app.world().resource::<ActiveClothBackend>(), ActiveClothBackend::Gpu);
+    Some(app)
+}
+
 #[test]
 fn the_gpu_backend_drapes_the_cloth_over_the_bunny() {
     if !adapter_present() {
@@ -213,11 +223,7 @@ fn collect_diverged(mut reader: MessageReader<ClothMessage>, mut reports: ResMut
 /// there; a cloth beside it is not.
 #[test]
 fn the_gpu_backend_resets_and_reports_a_diverged_cloth() {
-    if !adapter_present() {
-        return;
-    }
-    let mut app = render_app(ClothBackend::Gpu);
-    assert_eq!(*app.world().resource::<ActiveClothBackend>(), ActiveClothBackend::Gpu);
+    let Some(mut app) = gpu_backend_app() else { return };
     app.init_resource::<DivergedReports>().add_systems(Last, collect_diverged);
     let hanging = |x: f32| {
         (
@@ -284,11 +290,7 @@ fn gpu_round(app: &mut App, round: u32, meshes: &[Handle<Mesh>; 2]) -> (usize, u
 /// further rounds end with exactly as many live wgpu buffers and bind groups as they began.
 #[test]
 fn gpu_cloths_spawned_changed_and_despawned_leave_no_gpu_resource() {
-    if !adapter_present() {
-        return;
-    }
-    let mut app = render_app(ClothBackend::Gpu);
-    assert_eq!(*app.world().resource::<ActiveClothBackend>(), ActiveClothBackend::Gpu);
+    let Some(mut app) = gpu_backend_app() else { return };
     let meshes = {
         let mut assets = app.world_mut().resource_mut::<Assets<Mesh>>();
         [assets.add(Sphere::new(0.5).mesh().uv(16, 8)), assets.add(Cuboid::new(0.8, 0.3, 0.8))]
