@@ -23,9 +23,9 @@ pub const ASYNC_BUILD_MIN_VERTICES: usize = 20_000;
 ///
 /// The mesh is cut into `resolution³` voxels over its bounding box; every voxel the surface
 /// passes through gets a sphere around the part of the surface in it, and the spheres are
-/// arranged in a Morton-code LBVH. The
-/// collider follows the entity's transform (rotation, translation and uniform scale; with a
-/// non-uniform scale the largest axis is used, and a warning says so).
+/// arranged in a Morton-code LBVH. The collider follows the entity's transform (rotation,
+/// translation and uniform scale; with a non-uniform scale the largest axis is used, and a
+/// warning says so).
 #[derive(Component, Clone, Debug, PartialEq, Reflect)]
 #[reflect(Component, Default, Debug)]
 #[require(Transform, ColliderStatus)]
