@@ -175,9 +175,12 @@ pub(crate) fn warn_stiff_cloths(clock: Res<ClothClock>, mut cloths: Query<(Entit
         return;
     }
     for (entity, mut state) in &mut cloths {
+        if state.guard_warned {
+            continue;
+        }
         let params = state.sim.params();
         let (looper, substeps) = (params.looper, params.substeps(clock.tick_seconds));
-        if substeps > looper && !state.guard_warned {
+        if substeps > looper {
             warn!(
                 "Cloth on {entity}: spring_k is too stiff for looper = {looper} at this tick rate; \
                  running {substeps} substeps per tick to stay stable"
