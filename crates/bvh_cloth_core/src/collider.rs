@@ -101,12 +101,7 @@ impl Collider {
 
     /// Whether the world-space point `p` lies inside any sphere grown by the margin.
     pub fn contains(&self, p: Vec3) -> bool {
-        let frame = crate::collision::ColliderFrame::new(self);
-        let mut inside = false;
-        if let Some(frame) = frame {
-            let local = frame.to_local(p);
-            self.lbvh.for_each_containing(local, frame.margin_local, |_, _| inside = true);
-        }
-        inside
+        crate::collision::ColliderFrame::new(self)
+            .is_some_and(|frame| self.lbvh.any_containing(frame.to_local(p), frame.margin_local))
     }
 }

@@ -1,51 +1,57 @@
 //! Collision response between a particle and a collider's spheres (paper section 2.4.4).
 //!
-//! A particle that ends a substep inside a sphere is moved to the first point where its path
-//! (the segment from its previous position) meets the sphere, and only the tangential part of
-//! its velocity is kept. The paper leaves some cases open; here is what happens in each:
+//! The paper moves a particle that ends a substep inside a sphere back to where its path entered
+//! the sphere and keeps only the tangential part of its velocity. Its spheres only cover the
+//! surface: at high `n` they form a thin shell around a hollow inside. So the response here
+//! looks at the whole path, not only its end, and works in three steps (in the collider's local
+//! frame, so a moving collider needs no rebuild):
 //!
-//! * **Previous position already inside** (the collider moved onto the particle, or the particle
-//!   was left inside last time): there is no entry point, so the particle is pushed out along
-//!   the sphere's normal through its current position.
-//! * **Previous position on the surface** (within [`CONTACT_BAND`] of it: a particle resting or
-//!   sliding in contact, which the last response put exactly there): handled like "inside".
-//!   The segment's entry point would be the previous position itself, so a particle pressed
-//!   against a sphere could never slide along it, while the tangential velocity it keeps would
-//!   build up unseen and fling it off when the contact ends. Projecting the end point instead
-//!   lets it slide, so its position and velocity agree.
-//! * **Several overlapping spheres**: among the spheres that contain the particle, the one the
-//!   segment enters first wins. The particle moves to that entry point, and the test repeats
-//!   on the shortened segment (at most [`MAX_PASSES`] times), so when that entry point lies
-//!   inside another sphere the particle stops where the path entered that one instead. A sphere
-//!   the path crosses completely within one substep, without ending inside it, is not seen:
-//!   at cloth speeds a substep moves a particle millimetres, so only spheres thinner than that
-//!   could be tunnelled through.
-//! * **Zero velocity / zero-length segment**: handled as "previous position inside": pushed out
-//!   along the normal.
-//! * **Exactly on the surface**: not inside (see [`crate::traversal::SURFACE_TOLERANCE`]), so
-//!   untouched; a resting particle stays at rest.
-//! * **At a sphere's centre**: the normal is undefined; the previous position's direction is
-//!   used, then world up.
+//! 1. **Contacts.** Every sphere whose surface the previous position touches (within
+//!    [`CONTACT_BAND`] of its radius) holds the particle on its outer side: the end point is
+//!    moved back onto the plane tangent to the sphere below the previous position, when it went
+//!    past it. A tangent plane meets its sphere in one point, so a particle pressed against a
+//!    sphere slides along it, and its whole path stays outside. Each contact that held the end
+//!    point takes the normal part, along the normal at the previous position, off the velocity.
+//! 2. **Sweep.** The path from the previous position to the (held) end point is tested against
+//!    every sphere near it, the ones it passes straight through included. If it enters one, the
+//!    particle stops where it enters the first, on that sphere's surface, and that contact
+//!    takes the normal part off the velocity.
+//! 3. **Guard.** If rounding leaves that entry point inside a sphere, the particle stays at its
+//!    previous position.
+//!
+//! # The guarantee
+//!
+//! For a collider that does not move during the substep and a particle that starts the substep
+//! outside every sphere, the particle ends the substep outside every sphere, and the straight
+//! path between its two positions passes through no sphere. It cannot cross the shell: a cloth
+//! that starts outside a collider stays outside, at any `n`, however thin the spheres.
+//! "Outside" is [`crate::traversal::sphere_contains`]'s test, which allows
+//! [`SURFACE_TOLERANCE`](crate::traversal::SURFACE_TOLERANCE) of the radius for rounding.
+//!
+//! A particle that starts the substep inside a sphere (the collider moved onto it, or it was
+//! placed there) has no outside path to keep to. It is pushed out along the normal of the sphere
+//! it is deepest in, at most [`MAX_PASSES`] times: the paper's response to a penetration.
+//!
+//! # Friction
 //!
 //! The paper keeps the whole tangential velocity, so its cloth is frictionless and slides off
 //! any rounded collider. A collider may add Coulomb friction with coefficient `mu`: each contact
 //! takes `mu` times the normal speed it removes off the tangential speed, never past zero, so a
 //! resting particle stays put on any slope below `atan(mu)`. With `mu = 0` the response is the
 //! paper's.
-//!
-//! The test runs in the collider's local frame, so a moving collider needs no rebuild.
 
 use glam::{Affine3A, Quat, Vec3};
 
 use crate::collider::Collider;
 use crate::lbvh::{Lbvh, Sphere};
+use crate::traversal::sphere_contains;
 
 /// Relative distance above a sphere's surface within which a previous position counts as in
-/// contact (see the module docs). Far above f32 rounding of a projected point (about 1e-7),
-/// far below a substep's travel at any speed worth resolving.
-pub const CONTACT_BAND: f32 = 1.0e-4;
+/// contact (see the module docs): ten times [`SURFACE_TOLERANCE`](crate::traversal::SURFACE_TOLERANCE), so that a particle the last
+/// response put on a surface is always in contact with it on the next substep.
+pub const CONTACT_BAND: f32 = 1.0e-2;
 
-/// How many times one particle is resolved against one collider per substep.
+/// How many times a particle that starts a substep inside a sphere is pushed out.
 pub const MAX_PASSES: usize = 4;
 
 /// A collider's frame, prepared once per substep: the world-to-local transform and the margin
@@ -61,6 +67,9 @@ pub struct ColliderFrame<'a> {
     pub margin_local: f32,
     /// The friction coefficient (0 when the collider's is negative or not finite).
     pub friction: f32,
+    /// How far beyond a node's box (grown by the margin) a contact can be: the contact band of
+    /// the largest sphere.
+    pub contact_reach: f32,
 }
 
 impl<'a> ColliderFrame<'a> {
@@ -72,13 +81,15 @@ impl<'a> ColliderFrame<'a> {
         }
         let local_to_world = pose.to_affine();
         let usable = |v: f32| if v.is_finite() { v.max(0.0) } else { 0.0 };
+        let margin_local = usable(collider.margin) / pose.scale;
         Some(Self {
             lbvh: &collider.lbvh,
             world_to_local: local_to_world.inverse(),
             local_to_world,
             rotation: pose.rotation.normalize(),
-            margin_local: usable(collider.margin) / pose.scale,
+            margin_local,
             friction: usable(collider.friction),
+            contact_reach: contact_reach(collider.lbvh.max_radius, margin_local),
         })
     }
 
@@ -89,24 +100,21 @@ impl<'a> ColliderFrame<'a> {
     }
 
     /// Resolves one particle (world space): moves `position` out of the spheres and removes the
-    /// normal part of `velocity`. Returns whether anything was touched.
+    /// normal part of `velocity` at each contact. `prev` is where the particle started the
+    /// substep. Returns whether anything was touched.
     #[inline]
     pub fn resolve(&self, prev: Vec3, position: &mut Vec3, velocity: &mut Vec3) -> bool {
         let prev_local = self.to_local(prev);
-        let mut p = self.to_local(*position);
-        let mut hit = false;
-        for _ in 0..MAX_PASSES {
-            let Some((moved, normal)) = respond(self.lbvh, prev_local, p, self.margin_local) else {
-                break;
-            };
-            p = moved;
-            hit = true;
+        let p = self.to_local(*position);
+        let response = respond(self.lbvh, prev_local, p, self.margin_local, self.contact_reach, |normal| {
             *velocity = self.contact_velocity(*velocity, self.rotation * normal);
+        });
+        match response {
+            Response::Free => return false,
+            Response::Moved(local) => *position = self.local_to_world.transform_point3(local),
+            Response::Stay => *position = prev,
         }
-        if hit {
-            *position = self.local_to_world.transform_point3(p);
-        }
-        hit
+        true
     }
 }
 
@@ -126,8 +134,14 @@ impl ColliderFrame<'_> {
     }
 }
 
-/// The segment parameter `t` in `[0, 1]` where `prev + t (p - prev)` enters the sphere of radius
-/// `r` around `c`, given that `prev` is outside and `p` inside.
+/// How far beyond a node's box (grown by `margin`) a sphere's contact band can reach, for a
+/// tree whose largest radius is `max_radius`.
+pub fn contact_reach(max_radius: f32, margin: f32) -> f32 {
+    CONTACT_BAND * (max_radius + margin)
+}
+
+/// The segment parameter `t` in `[0, 1]` where `prev + t (p - prev)` first meets the sphere of
+/// radius `r` around `c` (0 when `prev` is already inside it).
 fn entry_parameter(prev: Vec3, p: Vec3, c: Vec3, r: f32) -> f32 {
     let d = p - prev;
     let f = prev - c;
@@ -138,42 +152,117 @@ fn entry_parameter(prev: Vec3, p: Vec3, c: Vec3, r: f32) -> f32 {
     ((-b - disc.sqrt()) / a).clamp(0.0, 1.0)
 }
 
+/// Whether the segment from `prev` (outside the sphere) to `p` enters `sphere` grown by
+/// `margin`, with [`sphere_contains`]'s tolerance: its end point is inside, or its closest
+/// point to the centre is.
+fn segment_enters(sphere: &Sphere, prev: Vec3, p: Vec3, margin: f32) -> bool {
+    if sphere_contains(sphere, p, margin) {
+        return true;
+    }
+    let c = sphere.centre();
+    let d = p - prev;
+    let a = d.length_squared();
+    if a == 0.0 {
+        return false;
+    }
+    let t = ((c - prev).dot(d) / a).clamp(0.0, 1.0);
+    sphere_contains(sphere, prev + t * d, margin)
+}
+
 /// The outward unit normal of a sphere around `c` at `p`, with fallbacks at the centre.
 fn outward_normal(p: Vec3, prev: Vec3, c: Vec3) -> Vec3 {
     (p - c).try_normalize().or_else(|| (prev - c).try_normalize()).unwrap_or(Vec3::Y)
 }
 
-/// One response pass in the collider's local frame: `None` when `p` is in no sphere, otherwise
-/// the corrected position and the contact normal.
-pub fn respond(lbvh: &Lbvh, prev: Vec3, p: Vec3, margin: f32) -> Option<(Vec3, Vec3)> {
-    // Earliest entry along the segment among spheres `prev` is outside of...
-    let mut entry: Option<(f32, Sphere)> = None;
-    // ...and, failing that, the deepest penetration among spheres `prev` is inside of (or in
-    // contact with).
-    let mut deepest: Option<(f32, Sphere)> = None;
-    let moving = p.distance_squared(prev) > 0.0;
-    lbvh.for_each_containing(p, margin, |_, s| {
+/// What the response did to a particle, in the collider's local frame.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum Response {
+    /// Nothing touched: the particle keeps its integrated position.
+    Free,
+    /// The particle moves to this point.
+    Moved(Vec3),
+    /// The particle stays at its previous position (the guard of the module docs).
+    Stay,
+}
+
+/// The response of the module docs for a particle going from `prev` to `p` (the collider's
+/// local frame). `touch(normal)` is called for each contact, in order, with the outward normal.
+pub fn respond(
+    lbvh: &Lbvh,
+    prev: Vec3,
+    p: Vec3,
+    margin: f32,
+    contact_reach: f32,
+    mut touch: impl FnMut(Vec3),
+) -> Response {
+    // 1. Contacts: the spheres whose surface `prev` touches hold the end point on their side.
+    let mut target = p;
+    let mut touched = false;
+    let mut inside = false;
+    let reach = Vec3::splat(contact_reach);
+    lbvh.for_each_overlapping(prev - reach, prev + reach, margin, |_, s| {
         let (c, r) = (s.centre(), s.radius + margin);
-        let contact = r * (1.0 + CONTACT_BAND);
-        if moving && prev.distance_squared(c) >= contact * contact {
-            let t = entry_parameter(prev, p, c, r);
-            if entry.is_none_or(|(best, _)| t < best) {
-                entry = Some((t, *s));
-            }
-        } else {
-            let depth = r - p.distance(c);
-            if deepest.is_none_or(|(best, _)| depth > best) {
-                deepest = Some((depth, *s));
+        let band = r * (1.0 + CONTACT_BAND);
+        if prev.distance_squared(c) >= band * band {
+            return;
+        }
+        if sphere_contains(s, prev, margin) {
+            inside = true;
+            return;
+        }
+        let n = outward_normal(prev, prev, c);
+        let below = (target - (c + n * r)).dot(n);
+        if below < 0.0 {
+            target -= below * n;
+            touched = true;
+            touch(n);
+        }
+    });
+    if inside {
+        return push_out(lbvh, prev, p, margin, touch);
+    }
+
+    // 2. Sweep: the first sphere the path to the held end point enters.
+    let mut first: Option<(f32, Sphere)> = None;
+    lbvh.for_each_overlapping(prev.min(target), prev.max(target), margin, |_, s| {
+        if segment_enters(s, prev, target, margin) {
+            let t = entry_parameter(prev, target, s.centre(), s.radius + margin);
+            if first.is_none_or(|(best, _)| t < best) {
+                first = Some((t, *s));
             }
         }
     });
-    let (target, s) = match (entry, deepest) {
-        (Some((t, s)), _) => (prev.lerp(p, t), s),
-        (None, Some((_, s))) => (p, s),
-        (None, None) => return None,
+    let Some((t, s)) = first else {
+        return if touched { Response::Moved(target) } else { Response::Free };
     };
     let c = s.centre();
-    let normal = outward_normal(target, prev, c);
-    // Re-project onto the surface so rounding never leaves the point inside.
-    Some((c + normal * (s.radius + margin), normal))
+    let normal = outward_normal(prev.lerp(target, t), prev, c);
+    // On the surface, whatever the rounding of the interpolation.
+    let entry = c + normal * (s.radius + margin);
+    touch(normal);
+
+    // 3. Guard.
+    if lbvh.any_containing(entry, margin) { Response::Stay } else { Response::Moved(entry) }
+}
+
+/// The paper's response for a particle that starts inside a sphere: `p` is pushed out along the
+/// normal of the sphere it is deepest in, at most [`MAX_PASSES`] times.
+fn push_out(lbvh: &Lbvh, prev: Vec3, mut p: Vec3, margin: f32, mut touch: impl FnMut(Vec3)) -> Response {
+    let mut moved = false;
+    for _ in 0..MAX_PASSES {
+        let mut deepest: Option<(f32, Sphere)> = None;
+        lbvh.for_each_containing(p, margin, |_, s| {
+            let depth = s.radius + margin - p.distance(s.centre());
+            if deepest.is_none_or(|(best, _)| depth > best) {
+                deepest = Some((depth, *s));
+            }
+        });
+        let Some((_, s)) = deepest else { break };
+        let c = s.centre();
+        let normal = outward_normal(p, prev, c);
+        p = c + normal * (s.radius + margin);
+        moved = true;
+        touch(normal);
+    }
+    if moved { Response::Moved(p) } else { Response::Free }
 }

@@ -96,6 +96,12 @@ pub enum ColliderError {
         /// Length of the index list.
         len: usize,
     },
+    /// A mesh without indices (every three vertices a triangle) whose vertex count is not a
+    /// multiple of three.
+    VerticesNotTriangles {
+        /// Number of vertices.
+        vertices: usize,
+    },
     /// A vertex position is NaN or infinite.
     NonFiniteVertex {
         /// Index of the first such vertex.
@@ -128,6 +134,11 @@ pub enum ColliderError {
         /// The largest accepted resolution.
         max: u32,
     },
+    /// The memory the voxelisation needs could not be allocated.
+    OutOfMemory {
+        /// The size of the allocation that failed, in bytes.
+        bytes: usize,
+    },
 }
 
 impl fmt::Display for ColliderError {
@@ -138,6 +149,10 @@ impl fmt::Display for ColliderError {
             Self::IndicesNotTriangles { len } => {
                 write!(f, "collider mesh has {len} indices, which is not a whole number of triangles")
             }
+            Self::VerticesNotTriangles { vertices } => write!(
+                f,
+                "collider mesh has no indices and {vertices} vertices, which is not a whole number of triangles"
+            ),
             Self::NonFiniteVertex { vertex } => {
                 write!(f, "collider mesh vertex {vertex} has a NaN or infinite coordinate")
             }
@@ -152,6 +167,9 @@ impl fmt::Display for ColliderError {
             Self::ZeroResolution => write!(f, "collider voxel resolution `n` must be at least 1"),
             Self::ResolutionTooHigh { n, max } => {
                 write!(f, "collider voxel resolution n = {n} is above the maximum of {max}")
+            }
+            Self::OutOfMemory { bytes } => {
+                write!(f, "collider voxelisation could not allocate {bytes} bytes")
             }
         }
     }

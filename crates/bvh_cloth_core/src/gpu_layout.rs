@@ -92,8 +92,10 @@ pub struct GpuCollider {
     pub node_count: u32,
     /// Number of spheres.
     pub sphere_count: u32,
+    /// How far beyond a node's box a contact can be (see [`ColliderFrame::contact_reach`]).
+    pub contact_reach: f32,
     /// Padding.
-    pub _pad: [u32; 2],
+    pub _pad: u32,
 }
 
 impl GpuCollider {
@@ -113,7 +115,8 @@ impl GpuCollider {
             sphere_offset,
             node_count: collider.lbvh.nodes.len() as u32,
             sphere_count: collider.lbvh.spheres.len() as u32,
-            _pad: [0; 2],
+            contact_reach: frame.contact_reach,
+            _pad: 0,
         })
     }
 }

@@ -65,6 +65,8 @@ pub struct Lbvh {
     pub spheres: Vec<Sphere>,
     /// Number of inner levels on the longest root-to-leaf path (0 for a single leaf).
     pub depth: u32,
+    /// The largest sphere radius (0 for an empty tree).
+    pub max_radius: f32,
 }
 
 /// Length of the longest common prefix of keys `i` and `j`, where equal Morton codes are made
@@ -140,7 +142,8 @@ impl Lbvh {
             (0..inner).map(|i| build_inner_node(&codes, i)).collect()
         };
         let depth = fit_bounds(&mut nodes, &sorted);
-        Self { nodes, spheres: sorted, depth }
+        let max_radius = sorted.iter().fold(0.0f32, |r, s| r.max(s.radius));
+        Self { nodes, spheres: sorted, depth, max_radius }
     }
 
     /// The reference to start a traversal from: inner node 0, or the only leaf.

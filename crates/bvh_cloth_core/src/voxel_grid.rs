@@ -93,6 +93,11 @@ impl VoxelGrid {
         (((x - self.min[axis]) * self.inv_cell[axis]).max(0.0) as u32).min(self.n - 1)
     }
 
+    /// The length of a voxel's diagonal.
+    pub(crate) fn cell_diagonal(&self) -> f32 {
+        self.cell.length()
+    }
+
     /// Whether the whole grid is one voxel (`n = 1`).
     pub(crate) fn is_single_voxel(&self) -> bool {
         self.n == 1

@@ -136,8 +136,30 @@ fn a_particle_pressed_against_a_sphere_slides_along_it() {
     let end = Vec3::new(0.01, 0.995, 0.0);
     let (hit, p, v) = resolve(&ball, prev, end, Vec3::new(1.0, -0.5, 0.0));
     assert!(hit);
-    assert!(p.x > 0.009 && (p.length() - 1.0).abs() < EPS, "it slid to {p}");
-    let n = p.normalize();
-    assert!(v.dot(n).abs() < 1e-3, "no normal velocity is left: {v}");
+    // Held on the plane tangent at the previous position: outside, a hair above the surface
+    // (the plane rises 0.01^2 / 2 over a 0.01 slide on a unit ball).
+    assert!(p.x > 0.009 && (p.y - 1.0).abs() < EPS, "it slid to {p}");
+    assert!(!ball.contains(p) && p.length() - 1.0 < 1e-4, "{p}");
+    assert!(v.dot(Vec3::Y).abs() < EPS, "no normal velocity is left: {v}");
     assert!(v.x > 0.9, "the tangential velocity is kept: {v}");
+    // A slide across two touching balls stops where the path meets the second, on its surface.
+    let pair = sphere_collider(&[Sphere::new(Vec3::ZERO, 1.0), Sphere::new(Vec3::new(1.5, 0.5, 0.0), 1.0)]);
+    let (hit, p, _) = resolve(&pair, Vec3::Y, Vec3::new(1.0, 0.9, 0.0), Vec3::X);
+    assert!(hit);
+    assert!(!pair.contains(p), "{p}");
+    assert!((p.distance(Vec3::new(1.5, 0.5, 0.0)) - 1.0).abs() < EPS && (p.y - 1.0).abs() < EPS, "{p}");
+}
+
+/// The path is tested whole: a substep that passes straight through a thin sphere, ending
+/// outside it, is caught where it enters.
+#[test]
+fn a_path_through_a_thin_sphere_stops_at_its_surface() {
+    let thin = sphere_collider(&[Sphere::new(Vec3::ZERO, 0.01)]);
+    let (hit, p, v) = resolve(&thin, Vec3::new(0.0, 0.5, 0.0), Vec3::new(0.0, -0.5, 0.0), Vec3::new(0.2, -60.0, 0.0));
+    assert!(hit);
+    assert!(p.distance(Vec3::new(0.0, 0.01, 0.0)) < EPS, "{p}");
+    assert!(v.distance(Vec3::new(0.2, 0.0, 0.0)) < EPS, "{v}");
+    // Passing beside it touches nothing.
+    let (hit, ..) = resolve(&thin, Vec3::new(0.02, 0.5, 0.0), Vec3::new(0.02, -0.5, 0.0), Vec3::NEG_Y);
+    assert!(!hit);
 }

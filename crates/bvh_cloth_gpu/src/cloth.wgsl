@@ -35,7 +35,8 @@ struct GpuCollider {
     sphere_offset: u32,
     node_count: u32,
     sphere_count: u32,
-    _pad: vec2<u32>,
+    contact_reach: f32,
+    _pad: u32,
 }
 
 // bvh_cloth_core::BvhNode: child references with LEAF_BIT set name spheres.
@@ -57,8 +58,8 @@ struct GpuMeshWriteback {
 
 const LEAF_BIT: u32 = 0x80000000u;
 const STACK_SIZE: u32 = 64u;          // bvh_cloth_core::traversal::STACK_SIZE
-const SURFACE_TOLERANCE: f32 = 1.0e-5; // bvh_cloth_core::traversal::SURFACE_TOLERANCE
-const CONTACT_BAND: f32 = 1.0e-4;      // bvh_cloth_core::collision::CONTACT_BAND
+const SURFACE_TOLERANCE: f32 = 1.0e-3; // bvh_cloth_core::traversal::SURFACE_TOLERANCE
+const CONTACT_BAND: f32 = 1.0e-2;      // bvh_cloth_core::collision::CONTACT_BAND
 const MAX_PASSES: u32 = 4u;            // bvh_cloth_core::collision::MAX_PASSES
 
 // Which integrator stage a node_update pipeline runs: 0..3 are the four RK4 stages, 4 is
@@ -183,56 +184,141 @@ fn sphere_contains(sphere: vec4<f32>, p: vec3<f32>, margin: f32) -> bool {
     return dot(d, d) < shrunk * shrunk;
 }
 
-fn box_contains(node: BvhNode, p: vec3<f32>, margin: f32) -> bool {
-    return all(p >= node.aabb_min - margin) && all(p <= node.aabb_max + margin);
-}
+// The exact test a query makes on each sphere whose box it reaches (bvh_cloth_core::collision):
+// QUERY_CONTACTS gathers the contacts at the previous position, QUERY_SWEEP finds the first
+// sphere the path enters, QUERY_INSIDE whether a point is inside any sphere, QUERY_DEEPEST the
+// sphere a point is deepest in.
+const QUERY_CONTACTS: u32 = 0u;
+const QUERY_SWEEP: u32 = 1u;
+const QUERY_INSIDE: u32 = 2u;
+const QUERY_DEEPEST: u32 = 3u;
 
-// The best sphere one response pass found: an entry along the segment (kind 1) or, failing
-// that, the deepest penetration (kind 2); kind 0 when the point is in no sphere.
-struct Candidate {
+// One query's input and what it found. `target` is the path's end (held by contacts);
+// `found` is 0 when nothing was found; `value` the entry parameter or the depth; `sphere` the
+// sphere found; `touched`/`inside` what the contact query saw; `velocity` has each contact's
+// normal part removed as it is found.
+struct Query {
     kind: u32,
+    prev: vec3<f32>,
+    target: vec3<f32>,
+    found: u32,
     value: f32,
     sphere: vec4<f32>,
+    touched: bool,
+    inside: bool,
+    velocity: vec3<f32>,
 }
 
-fn consider(best: ptr<function, Candidate>, sphere: vec4<f32>, prev: vec3<f32>, p: vec3<f32>, margin: f32) {
+fn entry_parameter(prev: vec3<f32>, p: vec3<f32>, c: vec3<f32>, r: f32) -> f32 {
+    let d = p - prev;
+    let f = prev - c;
+    let a = dot(d, d);
+    let b = dot(f, d);
+    let k = dot(f, f) - r * r;
+    let disc = max(b * b - a * k, 0.0);
+    return clamp((-b - sqrt(disc)) / a, 0.0, 1.0);
+}
+
+fn segment_enters(sphere: vec4<f32>, prev: vec3<f32>, p: vec3<f32>, margin: f32) -> bool {
+    if (sphere_contains(sphere, p, margin)) {
+        return true;
+    }
+    let d = p - prev;
+    let a = dot(d, d);
+    if (a == 0.0) {
+        return false;
+    }
+    let t = clamp(dot(sphere.xyz - prev, d) / a, 0.0, 1.0);
+    return sphere_contains(sphere, prev + t * d, margin);
+}
+
+fn outward_normal(p: vec3<f32>, prev: vec3<f32>, c: vec3<f32>) -> vec3<f32> {
+    let a = p - c;
+    if (dot(a, a) > 0.0) {
+        return normalize(a);
+    }
+    let b = prev - c;
+    if (dot(b, b) > 0.0) {
+        return normalize(b);
+    }
+    return vec3<f32>(0.0, 1.0, 0.0);
+}
+
+fn consider(q: ptr<function, Query>, col: GpuCollider, sphere: vec4<f32>) {
+    let margin = col.margin_local;
     let c = sphere.xyz;
     let r = sphere.w + margin;
-    let contact = r * (1.0 + CONTACT_BAND);
-    let moving = dot(p - prev, p - prev) > 0.0;
-    let fp = prev - c;
-    if (moving && dot(fp, fp) >= contact * contact) {
-        let d = p - prev;
-        let a = dot(d, d);
-        let b = dot(fp, d);
-        let k = dot(fp, fp) - r * r;
-        let disc = max(b * b - a * k, 0.0);
-        let t = clamp((-b - sqrt(disc)) / a, 0.0, 1.0);
-        if ((*best).kind != 1u || t < (*best).value) {
-            *best = Candidate(1u, t, sphere);
+    switch (*q).kind {
+        case QUERY_CONTACTS: {
+            let band = r * (1.0 + CONTACT_BAND);
+            let f = (*q).prev - c;
+            if (dot(f, f) >= band * band) {
+                return;
+            }
+            if (sphere_contains(sphere, (*q).prev, margin)) {
+                (*q).inside = true;
+                return;
+            }
+            let n = outward_normal((*q).prev, (*q).prev, c);
+            let below = dot((*q).target - (c + n * r), n);
+            if (below < 0.0) {
+                (*q).target = (*q).target - below * n;
+                (*q).touched = true;
+                (*q).velocity = contact_velocity((*q).velocity, rotate(col.rotation, n), col.friction);
+            }
         }
-    } else if ((*best).kind != 1u) {
-        let depth = r - distance(p, c);
-        if ((*best).kind == 0u || depth > (*best).value) {
-            *best = Candidate(2u, depth, sphere);
+        case QUERY_SWEEP: {
+            if (segment_enters(sphere, (*q).prev, (*q).target, margin)) {
+                let t = entry_parameter((*q).prev, (*q).target, c, r);
+                if ((*q).found == 0u || t < (*q).value) {
+                    (*q).found = 1u;
+                    (*q).value = t;
+                    (*q).sphere = sphere;
+                }
+            }
+        }
+        case QUERY_INSIDE: {
+            if (sphere_contains(sphere, (*q).target, margin)) {
+                (*q).found = 1u;
+            }
+        }
+        default: {
+            if (sphere_contains(sphere, (*q).target, margin)) {
+                let depth = r - distance((*q).target, c);
+                if ((*q).found == 0u || depth > (*q).value) {
+                    (*q).found = 1u;
+                    (*q).value = depth;
+                    (*q).sphere = sphere;
+                }
+            }
         }
     }
 }
 
-// One response pass in the collider's local frame: every sphere containing p, in the CPU's
-// depth-first order (right child pushed first, so the left subtree is visited first).
-fn find_contact(col: GpuCollider, prev: vec3<f32>, p: vec3<f32>) -> Candidate {
-    var best = Candidate(0u, 0.0, vec4<f32>(0.0));
+fn boxes_overlap(node_min: vec3<f32>, node_max: vec3<f32>, lo: vec3<f32>, hi: vec3<f32>, margin: f32) -> bool {
+    return all(hi >= node_min - margin) && all(lo <= node_max + margin);
+}
+
+fn sphere_box_overlaps(sphere: vec4<f32>, lo: vec3<f32>, hi: vec3<f32>, margin: f32) -> bool {
+    let r = sphere.w + margin;
+    return all(hi >= sphere.xyz - r) && all(lo <= sphere.xyz + r);
+}
+
+// Runs query `q` on every sphere whose box (grown by the margin) overlaps [lo, hi], in the CPU's
+// depth-first order (bvh_cloth_core::Lbvh::for_each_overlapping: right child pushed first, so
+// the left subtree is visited first).
+fn run_query(q: ptr<function, Query>, col: GpuCollider, lo: vec3<f32>, hi: vec3<f32>) {
     let margin = col.margin_local;
     if (col.node_count == 0u) {
         let s = spheres[col.sphere_offset];
-        if (sphere_contains(s, p, margin)) {
-            consider(&best, s, prev, p, margin);
+        if (sphere_box_overlaps(s, lo, hi, margin)) {
+            consider(q, col, s);
         }
-        return best;
+        return;
     }
-    if (!box_contains(nodes[col.node_offset], p, margin)) {
-        return best;
+    let root = nodes[col.node_offset];
+    if (!boxes_overlap(root.aabb_min, root.aabb_max, lo, hi, margin)) {
+        return;
     }
     var stack: array<u32, STACK_SIZE>;
     var top = 1u;
@@ -245,16 +331,77 @@ fn find_contact(col: GpuCollider, prev: vec3<f32>, p: vec3<f32>) -> Candidate {
             let child = children[k];
             if ((child & LEAF_BIT) != 0u) {
                 let s = spheres[col.sphere_offset + (child & ~LEAF_BIT)];
-                if (sphere_contains(s, p, margin)) {
-                    consider(&best, s, prev, p, margin);
+                if (sphere_box_overlaps(s, lo, hi, margin)) {
+                    consider(q, col, s);
                 }
-            } else if (top < STACK_SIZE && box_contains(nodes[col.node_offset + child], p, margin)) {
-                stack[top] = child;
-                top += 1u;
+            } else if (top < STACK_SIZE) {
+                let inner = nodes[col.node_offset + child];
+                if (boxes_overlap(inner.aabb_min, inner.aabb_max, lo, hi, margin)) {
+                    stack[top] = child;
+                    top += 1u;
+                }
             }
         }
     }
-    return best;
+}
+
+fn point_query(kind: u32, col: GpuCollider, prev: vec3<f32>, p: vec3<f32>) -> Query {
+    var q = Query(kind, prev, p, 0u, 0.0, vec4<f32>(0.0), false, false, vec3<f32>(0.0));
+    run_query(&q, col, p, p);
+    return q;
+}
+
+// The result of the response against one collider (bvh_cloth_core::collision::Response):
+// kind 0 free, 1 moved to `position` (local), 2 stay at the previous position.
+struct Response {
+    kind: u32,
+    position: vec3<f32>,
+    velocity: vec3<f32>,
+}
+
+fn respond(col: GpuCollider, prev: vec3<f32>, p: vec3<f32>, velocity: vec3<f32>) -> Response {
+    // 1. Contacts at the previous position.
+    let reach = vec3<f32>(col.contact_reach);
+    var q = Query(QUERY_CONTACTS, prev, p, 0u, 0.0, vec4<f32>(0.0), false, false, velocity);
+    run_query(&q, col, prev - reach, prev + reach);
+    if (q.inside) {
+        return push_out(col, prev, p, q.velocity);
+    }
+    // 2. Sweep.
+    let target = q.target;
+    var v = q.velocity;
+    var sweep = Query(QUERY_SWEEP, prev, target, 0u, 0.0, vec4<f32>(0.0), false, false, v);
+    run_query(&sweep, col, min(prev, target), max(prev, target));
+    if (sweep.found == 0u) {
+        return Response(select(0u, 1u, q.touched), target, v);
+    }
+    let c = sweep.sphere.xyz;
+    let normal = outward_normal(mix(prev, target, sweep.value), prev, c);
+    let entry = c + normal * (sweep.sphere.w + col.margin_local);
+    v = contact_velocity(v, rotate(col.rotation, normal), col.friction);
+    // 3. Guard.
+    if (point_query(QUERY_INSIDE, col, prev, entry).found != 0u) {
+        return Response(2u, entry, v);
+    }
+    return Response(1u, entry, v);
+}
+
+fn push_out(col: GpuCollider, prev: vec3<f32>, start: vec3<f32>, velocity: vec3<f32>) -> Response {
+    var p = start;
+    var v = velocity;
+    var moved = false;
+    for (var round = 0u; round < MAX_PASSES; round++) {
+        let deepest = point_query(QUERY_DEEPEST, col, prev, p);
+        if (deepest.found == 0u) {
+            break;
+        }
+        let c = deepest.sphere.xyz;
+        let normal = outward_normal(p, prev, c);
+        p = c + normal * (deepest.sphere.w + col.margin_local);
+        moved = true;
+        v = contact_velocity(v, rotate(col.rotation, normal), col.friction);
+    }
+    return Response(select(0u, 1u, moved), p, v);
 }
 
 fn rotate(q: vec4<f32>, v: vec3<f32>) -> vec3<f32> {
@@ -276,18 +423,6 @@ fn contact_velocity(velocity: vec3<f32>, n: vec3<f32>, friction: f32) -> vec3<f3
     return vec3<f32>(0.0);
 }
 
-fn outward_normal(p: vec3<f32>, prev: vec3<f32>, c: vec3<f32>) -> vec3<f32> {
-    let a = p - c;
-    if (dot(a, a) > 0.0) {
-        return normalize(a);
-    }
-    let b = prev - c;
-    if (dot(b, b) > 0.0) {
-        return normalize(b);
-    }
-    return vec3<f32>(0.0, 1.0, 0.0);
-}
-
 @compute @workgroup_size(8, 8, 1)
 fn collision_detection_with_bvh(@builtin(global_invocation_id) id: vec3<u32>) {
     if (id.x >= params.cols || id.y >= params.rows) {
@@ -302,25 +437,13 @@ fn collision_detection_with_bvh(@builtin(global_invocation_id) id: vec3<u32>) {
         for (var c = 0u; c < params.collider_count; c++) {
             let col = colliders[c];
             let prev = (col.local_from_world * vec4(prev_world, 1.0)).xyz;
-            var p = (col.local_from_world * vec4(position, 1.0)).xyz;
-            var hit = false;
-            for (var round = 0u; round < MAX_PASSES; round++) {
-                let best = find_contact(col, prev, p);
-                if (best.kind == 0u) {
-                    break;
-                }
-                var contact_point = p;
-                if (best.kind == 1u) {
-                    contact_point = mix(prev, p, best.value);
-                }
-                let centre = best.sphere.xyz;
-                let normal = outward_normal(contact_point, prev, centre);
-                p = centre + normal * (best.sphere.w + col.margin_local);
-                hit = true;
-                velocity = contact_velocity(velocity, rotate(col.rotation, normal), col.friction);
-            }
-            if (hit) {
-                position = (col.world_from_local * vec4(p, 1.0)).xyz;
+            let p = (col.local_from_world * vec4(position, 1.0)).xyz;
+            let response = respond(col, prev, p, velocity);
+            velocity = response.velocity;
+            if (response.kind == 1u) {
+                position = (col.world_from_local * vec4(response.position, 1.0)).xyz;
+            } else if (response.kind == 2u) {
+                position = prev_world;
             }
         }
         out.position = vec4(position, out.position.w);

@@ -69,6 +69,7 @@ fn wgsl_structs_match_the_rust_layouts() {
             sphere_offset,
             node_count,
             sphere_count,
+            contact_reach,
             _pad
         ]
     );
