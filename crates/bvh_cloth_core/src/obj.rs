@@ -39,8 +39,10 @@ impl fmt::Display for ObjError {
 impl std::error::Error for ObjError {}
 
 /// Parses OBJ text. Index validity against the vertex count is left to the collider builder,
-/// except that indices must be non-zero integers that resolve to a non-negative position.
+/// except that indices must be non-zero integers that resolve to a non-negative position. A
+/// UTF-8 byte-order mark at the start (as some Windows tools write) is skipped.
 pub fn parse_obj(text: &str) -> Result<ObjMesh, ObjError> {
+    let text = text.strip_prefix('\u{feff}').unwrap_or(text);
     let mut mesh = ObjMesh::default();
     let mut face = Vec::new();
     for (number, line) in text.lines().enumerate() {
@@ -94,6 +96,14 @@ mod tests {
         let m = parse_obj("# quad\nv 0 0 0\nv 1 0 0\nv 1 1 0\nv 0 1 0\nvn 0 0 1\nf 1//1 2//1 3//1 -1//1\n").unwrap();
         assert_eq!(m.positions.len(), 4);
         assert_eq!(m.indices, vec![0, 1, 2, 0, 2, 3]);
+    }
+
+    #[test]
+    fn a_byte_order_mark_is_skipped() {
+        let plain = "v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n";
+        let marked = format!("\u{feff}{plain}");
+        assert_eq!(parse_obj(&marked).unwrap(), parse_obj(plain).unwrap());
+        assert_eq!(parse_obj(&marked).unwrap().positions.len(), 3);
     }
 
     #[test]

@@ -179,55 +179,55 @@ pub fn voxel_spheres(mesh: MeshRef<'_>, n: u32) -> Result<VoxelSpheres, Collider
     let cells = (n as usize).pow(3);
     let fixed = FixedPoint::new(min, extent);
     let boxes = VoxelBoxes::new(cells)?;
-    points.for_each(|key, p| boxes.add(key as usize, p, &fixed));
+    points.for_each(|key, run| boxes.add(key as usize, run, &fixed));
     let VoxelBoxes { lo, hi, count, sum } = boxes;
 
-    // The occupied voxels in key order, and the two candidate centres of each. `count` becomes
-    // each voxel's slot among them.
-    let mut slots: Vec<u32> = count.into_iter().map(AtomicU32::into_inner).collect();
-    let mut voxels = Vec::new();
-    for (key, slot) in slots.iter_mut().enumerate() {
-        if *slot > 0 {
-            try_grow(&mut voxels)?;
-            voxels.push((key as u32, *slot));
-            *slot = voxels.len() as u32 - 1;
+    // Each occupied voxel's two candidate centres take the place of its box (as plain `f32`
+    // bits), and its sums are cleared to hold each centre's largest squared distance.
+    let load =
+        |a: &[AtomicU32; 3], decode: fn(u32) -> f32| Vec3::from_array(a.each_ref().map(|x| decode(x.load(Relaxed))));
+    let store =
+        |a: &[AtomicU32; 3], v: Vec3| a.iter().zip(v.to_array()).for_each(|(x, c)| x.store(c.to_bits(), Relaxed));
+    lo.par_iter().zip(&hi).zip(&count).zip(&sum).for_each(|(((lo, hi), count), sum)| {
+        let points = count.load(Relaxed);
+        if points == 0 {
+            return;
         }
-    }
-    let load = |a: &[AtomicU32; 3]| Vec3::from_array(a.each_ref().map(|x| from_ordered(x.load(Relaxed))));
-    let centres: Vec<[Vec3; 2]> = voxels
-        .par_iter()
-        .map(|&(key, points)| {
-            let key = key as usize;
-            let box_centre = 0.5 * (load(&lo[key]) + load(&hi[key]));
-            let total = sum[key].each_ref().map(|x| x.load(Relaxed));
-            (box_centre, fixed.mean(total, points))
-        })
-        .map(|(box_centre, centroid)| [box_centre, centroid])
-        .collect();
-    drop((lo, hi, sum));
+        let box_centre = 0.5 * (load(lo, from_ordered) + load(hi, from_ordered));
+        let centroid = fixed.mean(sum.each_ref().map(|x| x.load(Relaxed)), points);
+        store(lo, box_centre);
+        store(hi, centroid);
+        sum.iter().for_each(|x| x.store(0, Relaxed));
+    });
 
     // Second pass: the largest squared distance from each candidate centre.
-    let mut reach = Vec::new();
-    reach.try_reserve_exact(voxels.len()).map_err(|_| out_of_memory::<[AtomicU32; 2]>(voxels.len()))?;
-    reach.resize_with(voxels.len(), || [AtomicU32::new(0), AtomicU32::new(0)]);
-    points.for_each(|key, p| {
-        let slot = slots[key as usize] as usize;
-        for (far, centre) in reach[slot].iter().zip(centres[slot]) {
+    points.for_each(|key, run| {
+        let key = key as usize;
+        let centres = [load(&lo[key], f32::from_bits), load(&hi[key], f32::from_bits)];
+        for (far, centre) in sum[key].iter().zip(centres) {
+            let d2 = run.iter().fold(0.0f32, |d2, &p| d2.max(p.distance_squared(centre)));
             // Non-negative floats order like their bits.
-            far.fetch_max(p.distance_squared(centre).to_bits(), Relaxed);
+            far.fetch_max(i64::from(d2.to_bits()), Relaxed);
         }
     });
+
+    // The smaller candidate of each occupied voxel, in key order.
     let clearance = SURFACE_CLEARANCE * grid.cell_diagonal();
-    let spheres = centres
-        .iter()
-        .zip(&reach)
-        .map(|(&[box_centre, centroid], far)| {
-            let [r_box, r_centroid] = far.each_ref().map(|f| f32::from_bits(f.load(Relaxed)).sqrt());
-            let (centre, radius) = if r_centroid < r_box { (centroid, r_centroid) } else { (box_centre, r_box) };
-            Sphere::new(centre, radius + clearance)
-        })
-        .collect();
-    let voxels = voxels.into_iter().map(|(key, _)| key).collect();
+    let occupied = count.par_iter().filter(|c| c.load(Relaxed) > 0).count();
+    let mut spheres = Vec::new();
+    spheres.try_reserve_exact(occupied).map_err(|_| out_of_memory::<Sphere>(occupied))?;
+    let mut voxels = Vec::new();
+    voxels.try_reserve_exact(occupied).map_err(|_| out_of_memory::<u32>(occupied))?;
+    for key in (0..cells).filter(|&key| count[key].load(Relaxed) > 0) {
+        let [r_box, r_centroid, _] = sum[key].each_ref().map(|far| f32::from_bits(far.load(Relaxed) as u32).sqrt());
+        let (centre, radius) = if r_centroid < r_box {
+            (load(&hi[key], f32::from_bits), r_centroid)
+        } else {
+            (load(&lo[key], f32::from_bits), r_box)
+        };
+        spheres.push(Sphere::new(centre, radius + clearance));
+        voxels.push(key as u32);
+    }
     Ok(VoxelSpheres { spheres, voxels, mesh_min: min, mesh_max: max, resolution: n })
 }
 
@@ -241,14 +241,29 @@ struct Points<'a> {
 }
 
 impl Points<'_> {
-    /// Calls `visit(voxel, point)` for every point, on the rayon pool, in no fixed order.
-    fn for_each(&self, visit: impl Fn(u32, Vec3) + Sync) {
+    /// Calls `visit(voxel, points)` for every point, a few points of one voxel at a time, on the
+    /// rayon pool, in no fixed order.
+    fn for_each(&self, visit: impl Fn(u32, &[Vec3]) + Sync) {
         let positions = self.mesh.positions;
         self.keys.par_chunks(CHUNK).zip(positions.par_chunks(CHUNK)).for_each(|(keys, chunk)| {
+            // Runs of neighbouring vertices in one voxel are handed over together.
+            let mut run = [Vec3::ZERO; RUN];
+            let (mut run_key, mut len) = (UNUSED, 0);
             for (&key, &p) in keys.iter().zip(chunk) {
-                if key != UNUSED {
-                    visit(key, Vec3::from(p));
+                if key == UNUSED {
+                    continue;
                 }
+                if key != run_key || len == RUN {
+                    if len > 0 {
+                        visit(run_key, &run[..len]);
+                    }
+                    (run_key, len) = (key, 0);
+                }
+                run[len] = Vec3::from(p);
+                len += 1;
+            }
+            if len > 0 {
+                visit(run_key, &run[..len]);
             }
         });
         if self.grid.is_single_voxel() {
@@ -262,16 +277,17 @@ impl Points<'_> {
         }
     }
 
-    /// The corners of the pieces of `count` triangles whose vertex indices `corners` gives. A
-    /// triangle whose corners share one voxel is skipped without reading positions.
+    /// The corners of the pieces of `count` triangles whose vertex indices `corners` gives, one
+    /// piece at a time. A triangle whose corners share one voxel is skipped without reading
+    /// positions.
     fn for_each_crossing(
         &self,
         count: usize,
         corners: impl Fn(usize) -> [usize; 3] + Sync,
-        visit: &(impl Fn(u32, Vec3) + Sync),
+        visit: &(impl Fn(u32, &[Vec3]) + Sync),
     ) {
         let (positions, keys) = (self.mesh.positions, self.keys);
-        (0..count).into_par_iter().with_min_len(CHUNK / 4).for_each(|t| {
+        (0..count).into_par_iter().with_min_len(CHUNK / 64).for_each(|t| {
             let vertices = corners(t);
             let [a, b, c] = vertices.map(|i| keys[i]);
             if a == b && a == c {
@@ -282,16 +298,25 @@ impl Points<'_> {
                 // A corner that is one of the triangle's vertices, in that vertex's own voxel,
                 // is among the voxel's points already.
                 let known = |p: Vec3| (0..3).any(|k| triangle[k] == p && keys[vertices[k]] == key);
+                let mut new = [Vec3::ZERO; RUN];
+                let mut len = 0;
                 for &p in piece.corners().iter().filter(|&&p| !known(p)) {
-                    visit(key, p);
+                    new[len] = p;
+                    len += 1;
+                }
+                if len > 0 {
+                    visit(key, &new[..len]);
                 }
             });
         });
     }
 }
 
+/// Most points handed over at once: at least the corners of a clipped piece.
+const RUN: usize = 16;
+
 /// Per-voxel running figures of the first pass: the box (as ordered bits, see [`ordered`]),
-/// the point count and the fixed-point coordinate sum.
+/// the point count and the fixed-point coordinate sum. The second pass reuses them.
 struct VoxelBoxes {
     lo: Vec<[AtomicU32; 3]>,
     hi: Vec<[AtomicU32; 3]>,
@@ -317,13 +342,15 @@ impl VoxelBoxes {
         Ok(Self { lo, hi, count, sum })
     }
 
-    fn add(&self, key: usize, p: Vec3, fixed: &FixedPoint) {
+    /// Adds `points`, all in voxel `key`.
+    fn add(&self, key: usize, points: &[Vec3], fixed: &FixedPoint) {
+        let (lo, hi) = points.iter().fold((Vec3::INFINITY, Vec3::NEG_INFINITY), |(lo, hi), &p| (lo.min(p), hi.max(p)));
         for axis in 0..3 {
-            self.lo[key][axis].fetch_min(ordered(p[axis]), Relaxed);
-            self.hi[key][axis].fetch_max(ordered(p[axis]), Relaxed);
-            self.sum[key][axis].fetch_add(fixed.to_fixed(p, axis), Relaxed);
+            self.lo[key][axis].fetch_min(ordered(lo[axis]), Relaxed);
+            self.hi[key][axis].fetch_max(ordered(hi[axis]), Relaxed);
+            self.sum[key][axis].fetch_add(points.iter().map(|&p| fixed.to_fixed(p, axis)).sum(), Relaxed);
         }
-        self.count[key].fetch_add(1, Relaxed);
+        self.count[key].fetch_add(points.len() as u32, Relaxed);
     }
 }
 
@@ -371,12 +398,6 @@ fn filled<T: Clone>(len: usize, value: T) -> Result<Vec<T>, ColliderError> {
     v.try_reserve_exact(len).map_err(|_| out_of_memory::<T>(len))?;
     v.resize(len, value);
     Ok(v)
-}
-
-/// Room for one more element, or [`ColliderError::OutOfMemory`].
-fn try_grow<T>(v: &mut Vec<T>) -> Result<(), ColliderError> {
-    let extra = v.len().max(16);
-    v.try_reserve(extra).map_err(|_| out_of_memory::<T>(v.len() + extra))
 }
 
 fn out_of_memory<T>(len: usize) -> ColliderError {
