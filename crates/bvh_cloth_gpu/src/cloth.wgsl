@@ -193,14 +193,14 @@ const QUERY_SWEEP: u32 = 1u;
 const QUERY_INSIDE: u32 = 2u;
 const QUERY_DEEPEST: u32 = 3u;
 
-// One query's input and what it found. `target` is the path's end (held by contacts);
+// One query's input and what it found. `end_point` is the path's end (held by contacts);
 // `found` is 0 when nothing was found; `value` the entry parameter or the depth; `sphere` the
 // sphere found; `touched`/`inside` what the contact query saw; `velocity` has each contact's
 // normal part removed as it is found.
 struct Query {
     kind: u32,
     prev: vec3<f32>,
-    target: vec3<f32>,
+    end_point: vec3<f32>,
     found: u32,
     value: f32,
     sphere: vec4<f32>,
@@ -260,16 +260,16 @@ fn consider(q: ptr<function, Query>, col: GpuCollider, sphere: vec4<f32>) {
                 return;
             }
             let n = outward_normal((*q).prev, (*q).prev, c);
-            let below = dot((*q).target - (c + n * r), n);
+            let below = dot((*q).end_point - (c + n * r), n);
             if (below < 0.0) {
-                (*q).target = (*q).target - below * n;
+                (*q).end_point = (*q).end_point - below * n;
                 (*q).touched = true;
                 (*q).velocity = contact_velocity((*q).velocity, rotate(col.rotation, n), col.friction);
             }
         }
         case QUERY_SWEEP: {
-            if (segment_enters(sphere, (*q).prev, (*q).target, margin)) {
-                let t = entry_parameter((*q).prev, (*q).target, c, r);
+            if (segment_enters(sphere, (*q).prev, (*q).end_point, margin)) {
+                let t = entry_parameter((*q).prev, (*q).end_point, c, r);
                 if ((*q).found == 0u || t < (*q).value) {
                     (*q).found = 1u;
                     (*q).value = t;
@@ -278,13 +278,13 @@ fn consider(q: ptr<function, Query>, col: GpuCollider, sphere: vec4<f32>) {
             }
         }
         case QUERY_INSIDE: {
-            if (sphere_contains(sphere, (*q).target, margin)) {
+            if (sphere_contains(sphere, (*q).end_point, margin)) {
                 (*q).found = 1u;
             }
         }
         default: {
-            if (sphere_contains(sphere, (*q).target, margin)) {
-                let depth = r - distance((*q).target, c);
+            if (sphere_contains(sphere, (*q).end_point, margin)) {
+                let depth = r - distance((*q).end_point, c);
                 if ((*q).found == 0u || depth > (*q).value) {
                     (*q).found = 1u;
                     (*q).value = depth;
@@ -368,15 +368,15 @@ fn respond(col: GpuCollider, prev: vec3<f32>, p: vec3<f32>, velocity: vec3<f32>)
         return push_out(col, prev, p, q.velocity);
     }
     // 2. Sweep.
-    let target = q.target;
+    let end_point = q.end_point;
     var v = q.velocity;
-    var sweep = Query(QUERY_SWEEP, prev, target, 0u, 0.0, vec4<f32>(0.0), false, false, v);
-    run_query(&sweep, col, min(prev, target), max(prev, target));
+    var sweep = Query(QUERY_SWEEP, prev, end_point, 0u, 0.0, vec4<f32>(0.0), false, false, v);
+    run_query(&sweep, col, min(prev, end_point), max(prev, end_point));
     if (sweep.found == 0u) {
-        return Response(select(0u, 1u, q.touched), target, v);
+        return Response(select(0u, 1u, q.touched), end_point, v);
     }
     let c = sweep.sphere.xyz;
-    let normal = outward_normal(mix(prev, target, sweep.value), prev, c);
+    let normal = outward_normal(mix(prev, end_point, sweep.value), prev, c);
     let entry = c + normal * (sweep.sphere.w + col.margin_local);
     v = contact_velocity(v, rotate(col.rotation, normal), col.friction);
     // 3. Guard.
