@@ -50,11 +50,9 @@ def main():
     left.grid(True, which="both", alpha=0.3)
 
     for model, table in fidelity.items():
-        touching = [r for r in table if int(r["touching"]) > 0]
-        n = [int(r["n"]) for r in touching]
-        right.plot(n, [float(r["mean_gap_mm"]) for r in touching], STYLE[model], color="tab:blue", label=f"mean air gap ({model})")
-        right.plot(n, [float(r["mean_penetration_mm"]) for r in touching], STYLE[model], color="tab:red", label=f"mean penetration ({model})")
-        right.plot(n, [float(r["max_penetration_mm"]) for r in touching], STYLE[model], color="tab:purple", label=f"max penetration ({model})")
+        resting = [r for r in table if int(r["resting"]) > 0]
+        right.plot([int(r["n"]) for r in resting], [float(r["mean_gap_mm"]) for r in resting], STYLE[model], color="tab:blue", label=f"mean air gap, resting ({model})")
+        right.plot([int(r["n"]) for r in table], [float(r["deepest_mm"]) for r in table], STYLE[model], color="tab:red", label=f"deepest inside the mesh, any check ({model})")
     right.set_xscale("log", base=2)
     right.set_yscale("symlog", linthresh=1.0)
     right.set_ylim(bottom=0)

@@ -23,9 +23,12 @@ pub const ASYNC_BUILD_MIN_VERTICES: usize = 20_000;
 ///
 /// The mesh is cut into `resolution³` voxels over its bounding box; every voxel the surface
 /// passes through gets a sphere around the part of the surface in it, and the spheres are
-/// arranged in a Morton-code LBVH. The collider follows the entity's transform (rotation,
-/// translation and uniform scale; with a non-uniform scale the largest axis is used, and a
-/// warning says so).
+/// arranged in a Morton-code LBVH. Every sphere reaches a little past the surface part it
+/// holds, so the spheres form a closed shell, and the collision response tests each particle's
+/// whole path: a cloth that starts outside a still collider never crosses its surface, at any
+/// resolution (see `bvh_cloth_core::collision`). The collider follows the entity's transform
+/// (rotation, translation and uniform scale; with a non-uniform scale the largest axis is used,
+/// and a warning says so).
 #[derive(Component, Clone, Debug, PartialEq, Reflect)]
 #[reflect(Component, Default, Debug)]
 #[require(Transform, ColliderStatus)]
@@ -36,10 +39,11 @@ pub struct AutoCollider {
     /// Extra thickness in world units added to every sphere, so that the cloth rests a little
     /// above the surface instead of on it.
     pub margin: f32,
-    /// Coulomb friction coefficient of the surface. The paper's response is frictionless
-    /// (0), and a frictionless cloth slides off anything rounded. The default, 1.0 (a rough
-    /// surface), holds a resting cloth on slopes up to 45°, which keeps a cloth dropped on the
-    /// bunny or the dragon draped over it instead of sliding off one side.
+    /// Coulomb friction coefficient of the surface. The default, 1.0 (a rough surface), holds a
+    /// resting cloth on slopes up to 45°, which keeps a cloth dropped on the bunny or the dragon
+    /// draped over it instead of sliding off one side. 0 is the paper's response, which keeps
+    /// the whole tangential velocity: that is the paper's model, not a fault, but such a cloth
+    /// slides off any rounded collider within a few seconds.
     pub friction: f32,
 }
 
