@@ -105,22 +105,23 @@ fn assert_holds(name: &str, drop: &Drop) {
     assert_eq!(drop.inside_solid, 0, "{name}: particles ended inside the solid");
 }
 
-#[test]
-fn the_cloth_never_crosses_the_bunny_shell() {
-    let mesh = model("bunny");
+/// The bundled model `name` at n = 32, 64 and 128.
+fn assert_model_shell_holds(name: &str) {
+    let mesh = model(name);
     for n in [32, 64, 128] {
-        let collider = Collider::from_mesh(mesh.as_mesh_ref(), n).expect("the bunny voxelises");
-        assert_holds(&format!("bunny n = {n}"), &drop_on(&collider, 4.0, None));
+        let collider = Collider::from_mesh(mesh.as_mesh_ref(), n).expect("a bundled model voxelises");
+        assert_holds(&format!("{name} n = {n}"), &drop_on(&collider, 4.0, None));
     }
 }
 
 #[test]
+fn the_cloth_never_crosses_the_bunny_shell() {
+    assert_model_shell_holds("bunny");
+}
+
+#[test]
 fn the_cloth_never_crosses_the_dragon_shell() {
-    let mesh = model("dragon");
-    for n in [32, 64, 128] {
-        let collider = Collider::from_mesh(mesh.as_mesh_ref(), n).expect("the dragon voxelises");
-        assert_holds(&format!("dragon n = {n}"), &drop_on(&collider, 4.0, None));
-    }
+    assert_model_shell_holds("dragon");
 }
 
 /// A closed box `[lo, hi]` as twelve triangles.
