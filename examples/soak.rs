@@ -106,7 +106,8 @@ fn main() {
         // Pinned at two corners, over the bunny: a free cloth under a swept upward force flies
         // off, and tens of kilometres from the origin f32 positions are too coarse for its
         // springs (see the README's "When things go wrong").
-        let cloth = Cloth { pins: ClothPins::TwoEnds, ..Cloth::new(rows, size, 1.4) };
+        let depth = 1.4 * (rows - 1) as f32 / (size - 1) as f32;
+        let cloth = Cloth { pins: ClothPins::TwoEnds, ..Cloth::grid(Vec2::new(1.4, depth), UVec2::new(size, rows)) };
         app.world_mut().spawn((cloth, Transform::from_xyz(0.0, 1.2, 0.0))).id()
     };
     let mut cloth = spawn_cloth(&mut app, size);

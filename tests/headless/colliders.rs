@@ -40,7 +40,10 @@ fn cloth_drapes_over_the_low_resolution_bunny() {
     // box (the top spheres are at -0.4 < x < 0). Drop a 1.2 m cloth over it from 1.2 m.
     let cloth = app
         .world_mut()
-        .spawn((Cloth { damping: 1.0, ..Cloth::new(32, 32, 1.2) }, Transform::from_xyz(-0.2, 1.2, 0.0)))
+        .spawn((
+            Cloth { damping: 1.0, ..Cloth::grid(Vec2::splat(1.2), UVec2::splat(32)) },
+            Transform::from_xyz(-0.2, 1.2, 0.0),
+        ))
         .id();
     let top = reference.lbvh.bounds().unwrap().1.y;
     for _ in 0..5 {
@@ -75,7 +78,10 @@ fn moving_the_collider_moves_the_collision() {
     wait_for_collider(&mut app, collider);
     let cloth = app
         .world_mut()
-        .spawn((Cloth { damping: 2.0, ..Cloth::new(16, 16, 0.6) }, Transform::from_xyz(0.0, 1.0, 0.0)))
+        .spawn((
+            Cloth { damping: 2.0, ..Cloth::grid(Vec2::splat(0.6), UVec2::splat(16)) },
+            Transform::from_xyz(0.0, 1.0, 0.0),
+        ))
         .id();
     run(&mut app, 1.0);
     let centre = |app: &App| positions(app, cloth)[8 * 16 + 8];
@@ -180,7 +186,10 @@ fn a_broken_collider_reports_and_a_valid_one_still_works() {
     // The valid collider still catches a cloth.
     let cloth = app
         .world_mut()
-        .spawn((Cloth { damping: 2.0, ..Cloth::new(16, 16, 0.6) }, Transform::from_xyz(0.0, 1.0, 0.0)))
+        .spawn((
+            Cloth { damping: 2.0, ..Cloth::grid(Vec2::splat(0.6), UVec2::splat(16)) },
+            Transform::from_xyz(0.0, 1.0, 0.0),
+        ))
         .id();
     run(&mut app, 1.0);
     assert!(positions(&app, cloth)[8 * 16 + 8].y > 0.45);

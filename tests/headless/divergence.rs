@@ -10,7 +10,10 @@ use crate::harness::{app, positions, run, sent};
 const OUT_OF_RANGE: f32 = 3.0e38;
 
 fn hanging(x: f32) -> (Cloth, Transform) {
-    (Cloth { damping: 0.5, ..Cloth::new(12, 12, 1.0).with_pins(ClothPins::TwoEnds) }, Transform::from_xyz(x, 2.0, 0.0))
+    (
+        Cloth { damping: 0.5, ..Cloth::grid(Vec2::splat(1.0), UVec2::splat(12)).with_pins(ClothPins::TwoEnds) },
+        Transform::from_xyz(x, 2.0, 0.0),
+    )
 }
 
 fn diverged(app: &App) -> Vec<(Entity, u32)> {

@@ -22,17 +22,21 @@ fn thousands_of_spawn_change_despawn_rounds_leave_nothing_behind() {
     let (entities_at_start, meshes_at_start) = (entities(&mut app), app.world().resource::<Assets<Mesh>>().len());
     for round in 0..ROUNDS {
         let collider = app.world_mut().spawn((Mesh3d(ball.clone()), AutoCollider::new(1 + round % 4))).id();
-        let cloth = app.world_mut().spawn((Cloth::new(4 + round % 5, 6, 1.0), Transform::from_xyz(0.0, 1.0, 0.0))).id();
+        let cloth = app
+            .world_mut()
+            .spawn((Cloth::grid(Vec2::ONE, UVec2::new(6, 4 + round % 5)), Transform::from_xyz(0.0, 1.0, 0.0)))
+            .id();
         app.update();
 
         // Change the grid (a rebuild) and swap the collider's mesh, then run a frame.
-        app.world_mut().get_mut::<Cloth>(cloth).unwrap().rows += 1;
+        app.world_mut().get_mut::<Cloth>(cloth).unwrap().shape =
+            ClothShape::Grid { size: Vec2::ONE, particles: UVec2::new(6, 5 + round % 5) };
         app.world_mut().entity_mut(collider).insert(Mesh3d(block.clone()));
         app.update();
         let stats = app.world().resource::<ClothStats>();
         assert_eq!((stats.cloths, stats.colliders), (1, 1), "round {round}");
-        let rows = app.world().get::<ClothSimulation>(cloth).expect("the cloth is simulated").sim().grid().rows;
-        assert_eq!(rows as u32, 5 + round % 5, "round {round}: the grid change was not applied");
+        let particles = app.world().get::<ClothSimulation>(cloth).expect("the cloth is simulated").sim().len();
+        assert_eq!(particles as u32, 6 * (5 + round % 5), "round {round}: the grid change was not applied");
 
         app.world_mut().despawn(cloth);
         app.world_mut().despawn(collider);

@@ -3,6 +3,7 @@
 
 mod harness;
 
+mod authored;
 mod colliders;
 mod divergence;
 mod hanging;

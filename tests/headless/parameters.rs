@@ -9,7 +9,7 @@ use crate::harness::{app, max_distance, positions, run, sent};
 /// A hanging cloth run for one second, `edit` applied to its component, then one more second.
 fn run_with(edit: impl FnOnce(&mut Cloth)) -> Vec<Vec3> {
     let mut app = app();
-    let cloth = Cloth { damping: 0.5, ..Cloth::new(12, 12, 1.0).with_pins(ClothPins::TwoEnds) };
+    let cloth = Cloth { damping: 0.5, ..Cloth::grid(Vec2::splat(1.0), UVec2::splat(12)).with_pins(ClothPins::TwoEnds) };
     let entity = app.world_mut().spawn((cloth, Transform::from_xyz(0.0, 2.0, 0.0))).id();
     run(&mut app, 1.0);
     edit(&mut app.world_mut().get_mut::<Cloth>(entity).unwrap());
@@ -40,8 +40,11 @@ fn each_live_parameter_changes_the_result() {
 #[test]
 fn invalid_parameters_are_refused_and_the_cloth_keeps_running() {
     let mut app = app();
-    let good = app.world_mut().spawn((Cloth::new(8, 8, 1.0), Transform::from_xyz(0.0, 2.0, 0.0))).id();
-    let bad = app.world_mut().spawn(Cloth::new(1, 8, 1.0)).id();
+    let good = app
+        .world_mut()
+        .spawn((Cloth::grid(Vec2::splat(1.0), UVec2::splat(8)), Transform::from_xyz(0.0, 2.0, 0.0)))
+        .id();
+    let bad = app.world_mut().spawn(Cloth::grid(Vec2::splat(1.0), UVec2::new(8, 1))).id();
     run(&mut app, 0.5);
     assert!(app.world().get::<ClothSimulation>(bad).is_none());
     assert!(
@@ -64,7 +67,8 @@ fn invalid_parameters_are_refused_and_the_cloth_keeps_running() {
     )));
 
     // Fixing the bad cloth brings it to life.
-    app.world_mut().get_mut::<Cloth>(bad).unwrap().rows = 8;
+    app.world_mut().get_mut::<Cloth>(bad).unwrap().shape =
+        ClothShape::Grid { size: Vec2::ONE, particles: UVec2::splat(8) };
     run(&mut app, 0.1);
     assert_eq!(app.world().get::<ClothSimulation>(bad).unwrap().sim().len(), 64);
 }
@@ -72,10 +76,11 @@ fn invalid_parameters_are_refused_and_the_cloth_keeps_running() {
 #[test]
 fn changing_the_grid_rebuilds_the_cloth_and_its_mesh() {
     let mut app = app();
-    let cloth = app.world_mut().spawn(Cloth::new(8, 8, 1.0)).id();
+    let cloth = app.world_mut().spawn(Cloth::grid(Vec2::splat(1.0), UVec2::splat(8))).id();
     run(&mut app, 0.2);
     let handle = app.world().get::<Mesh3d>(cloth).unwrap().0.clone();
-    app.world_mut().get_mut::<Cloth>(cloth).unwrap().cols = 20;
+    app.world_mut().get_mut::<Cloth>(cloth).unwrap().shape =
+        ClothShape::Grid { size: Vec2::new(2.5, 1.0), particles: UVec2::new(20, 8) };
     run(&mut app, 0.2);
     assert_eq!(app.world().get::<ClothSimulation>(cloth).unwrap().sim().len(), 8 * 20);
     assert_eq!(app.world().get::<Mesh3d>(cloth).unwrap().0, handle, "the mesh handle is kept");
@@ -87,7 +92,10 @@ fn changing_the_grid_rebuilds_the_cloth_and_its_mesh() {
 fn reset_puts_the_cloth_back_at_rest() {
     let mut app = app();
     app.world_mut().resource_mut::<ClothSettings>().paused = true;
-    let cloth = app.world_mut().spawn((Cloth::new(8, 8, 1.0), Transform::from_xyz(0.0, 2.0, 0.0))).id();
+    let cloth = app
+        .world_mut()
+        .spawn((Cloth::grid(Vec2::splat(1.0), UVec2::splat(8)), Transform::from_xyz(0.0, 2.0, 0.0)))
+        .id();
     app.update();
     let rest = positions(&app, cloth);
     app.world_mut().resource_mut::<ClothSettings>().paused = false;

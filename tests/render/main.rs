@@ -150,7 +150,7 @@ fn render_bunny_scene(app: &mut App) -> Image {
     let world = app.world_mut();
     let cloth_material = unlit(&mut world.resource_mut::<Assets<StandardMaterial>>(), CLOTH);
     world.spawn((
-        Cloth { damping: 1.0, ..Cloth::new(48, 48, 1.2) },
+        Cloth { damping: 1.0, ..Cloth::grid(Vec2::splat(1.2), UVec2::splat(48)) },
         cloth_material,
         Transform::from_xyz(-0.2, 1.3, 0.0),
     ));
@@ -227,7 +227,7 @@ fn the_gpu_backend_resets_and_reports_a_diverged_cloth() {
     app.init_resource::<DivergedReports>().add_systems(Last, collect_diverged);
     let hanging = |x: f32| {
         (
-            Cloth { damping: 0.5, ..Cloth::new(16, 16, 1.0).with_pins(ClothPins::TwoEnds) },
+            Cloth { damping: 0.5, ..Cloth::grid(Vec2::splat(1.0), UVec2::splat(16)).with_pins(ClothPins::TwoEnds) },
             Transform::from_xyz(x, 2.0, 0.0),
         )
     };
@@ -272,9 +272,11 @@ fn live_gpu_resources(app: &App) -> (usize, usize) {
 fn gpu_round(app: &mut App, round: u32, meshes: &[Handle<Mesh>; 2]) -> (usize, usize) {
     let world = app.world_mut();
     let collider = world.spawn((Mesh3d(meshes[0].clone()), AutoCollider::new(1 + round % 4))).id();
-    let cloth = world.spawn((Cloth::new(4 + round % 5, 6, 1.0), Transform::from_xyz(0.0, 1.0, 0.0))).id();
+    let cloth =
+        world.spawn((Cloth::grid(Vec2::ONE, UVec2::new(6, 4 + round % 5)), Transform::from_xyz(0.0, 1.0, 0.0))).id();
     app.update();
-    app.world_mut().get_mut::<Cloth>(cloth).unwrap().rows += 1;
+    app.world_mut().get_mut::<Cloth>(cloth).unwrap().shape =
+        ClothShape::Grid { size: Vec2::ONE, particles: UVec2::new(6, 5 + round % 5) };
     app.world_mut().entity_mut(collider).insert(Mesh3d(meshes[1].clone()));
     app.update();
     app.update();

@@ -1,38 +1,37 @@
 //! The `Cloth` component: the paper's parameters (Table V) as a Bevy component.
 
 use bevy::prelude::*;
-use bvh_cloth_core::{ClothError, ClothGrid, ClothParams, Integrator, Pins, SpringStiffness};
+use bvh_cloth_core::{ClothError, ClothGrid, ClothParams, ClothTopology, Integrator, Pins, SpringStiffness};
 
-/// A simulated cloth. Put it on an entity with a material, and the plugin gives the entity a
-/// grid [`Mesh3d`] and simulates it every frame.
+/// A simulated cloth. Put it on an entity with a material: either with a generated sheet
+/// ([`Cloth::grid`]), for which the plugin makes the mesh, or on an entity with an authored
+/// triangle [`Mesh3d`] ([`Cloth::mesh`]), which then moves as cloth.
 ///
-/// The cloth is a flat `rows x cols` sheet in the entity's local XZ plane, centred on its origin
-/// and facing local +Y, at the moment it is spawned (or rebuilt). Pinned particles stay at their
-/// rest position under the entity's transform, so moving the entity drags them; the free
-/// particles are simulated in world space.
+/// The cloth starts in its rest shape under the entity's transform, at the moment it is spawned
+/// (or rebuilt). Pinned particles stay at their rest position under the entity's transform,
+/// so moving the entity drags them, tick by tick; the free particles are simulated in world
+/// space.
 ///
 /// Editing `looper`, `spring_k`, `damping`, `external_force`, `mass`, `stiffness` or
-/// `integrator` takes effect on the next tick and keeps the cloth's state. Editing `rows`,
-/// `cols`, `size` or `pins` rebuilds the cloth at rest. Invalid values are refused with an
-/// error (see [`ClothMessage::Rejected`](crate::ClothMessage)), and the cloth keeps running
-/// with its last valid parameters.
+/// `integrator` takes effect on the next tick and keeps the cloth's state. Editing `shape` or
+/// `pins` rebuilds the cloth at rest. Invalid values are refused with an error (see
+/// [`ClothMessage::Rejected`](crate::ClothMessage)), and the cloth keeps running with its last
+/// valid parameters.
 #[derive(Component, Clone, Debug, PartialEq, Reflect)]
 #[reflect(Component, Default, Debug)]
 #[require(Transform, Visibility)]
 pub struct Cloth {
-    /// Number of particle rows ("Vertex Row"), along the entity's local +Z.
-    pub rows: u32,
-    /// Number of particle columns ("Vertex Column"), along the entity's local +X.
-    pub cols: u32,
-    /// Width of the cloth along its columns, in metres ("Cloth Size"); cells are square.
-    pub size: f32,
-    /// Total mass in kilograms ("Cloth Mass").
+    /// What the cloth is made of: a generated grid, or the entity's own mesh.
+    pub shape: ClothShape,
+    /// Total mass in kilograms ("Cloth Mass"). On a mesh each particle carries the share of
+    /// the surface its triangles give it; on the grid the particles share it equally.
     pub mass: f32,
     /// Simulation substeps per tick ("Looper"). When `spring_k` is too stiff for substeps this
     /// long, more are run (and a warning says so), so that no slider setting can make the
     /// cloth explode; see [`ClothParams::max_stable_substep`].
     pub looper: u32,
-    /// Spring stiffness in N/m ("SpringK", paper eq. 1).
+    /// Stiffness of the fabric in N/m ("SpringK", paper eq. 1), the same material at any
+    /// resolution: see [`ClothParams::spring_k`].
     pub spring_k: f32,
     /// Velocity damping rate in 1/s ("Damping", paper eq. 2).
     pub damping: f32,
@@ -46,13 +45,38 @@ pub struct Cloth {
     pub pins: ClothPins,
 }
 
+/// What a [`Cloth`] is made of.
+#[derive(Clone, Debug, PartialEq, Reflect)]
+#[reflect(Default, Debug)]
+pub enum ClothShape {
+    /// A flat sheet the plugin generates, in the entity's local XZ plane, centred on its origin
+    /// and facing local +Y: `particles.x` columns along local +X and `particles.y` rows along
+    /// local +Z, spanning `size` metres (`x` by `y`).
+    Grid {
+        /// Extent in metres from the first to the last column (`x`) and row (`y`).
+        size: Vec2,
+        /// Particle columns (`x`) and rows (`y`), at least 2 each.
+        particles: UVec2,
+    },
+    /// The entity's own [`Mesh3d`], as authored (a triangle list with `Float32x3` positions,
+    /// from glTF, OBJ or code). Vertices at the same position (split at UV or normal seams)
+    /// become one particle, so seams stay closed. The entity's scale at build time is applied to
+    /// the rest shape. The plugin simulates a copy of the mesh and puts it in [`Mesh3d`]; the
+    /// original is kept for rebuilds.
+    Mesh,
+}
+
+impl Default for ClothShape {
+    fn default() -> Self {
+        Self::Grid { size: Vec2::splat(2.0), particles: UVec2::splat(64) }
+    }
+}
+
 impl Default for Cloth {
     fn default() -> Self {
         let core = ClothParams::default();
         Self {
-            rows: core.rows,
-            cols: core.cols,
-            size: core.size,
+            shape: ClothShape::default(),
             mass: core.mass,
             looper: core.looper,
             spring_k: core.spring_k,
@@ -66,9 +90,15 @@ impl Default for Cloth {
 }
 
 impl Cloth {
-    /// A `rows x cols` cloth `size` metres wide, with every other parameter at its default.
-    pub fn new(rows: u32, cols: u32, size: f32) -> Self {
-        Self { rows, cols, size, ..default() }
+    /// A generated sheet `size` metres across (`x` along the columns, `y` along the rows) of
+    /// `particles.x` columns by `particles.y` rows, with every other parameter at its default.
+    pub fn grid(size: Vec2, particles: UVec2) -> Self {
+        Self { shape: ClothShape::Grid { size, particles }, ..default() }
+    }
+
+    /// The entity's own [`Mesh3d`] as cloth, with every other parameter at its default.
+    pub fn mesh() -> Self {
+        Self { shape: ClothShape::Mesh, ..default() }
     }
 
     /// Sets which particles are pinned.
@@ -77,17 +107,9 @@ impl Cloth {
         self
     }
 
-    /// Number of particles.
-    pub fn particle_count(&self) -> usize {
-        self.rows as usize * self.cols as usize
-    }
-
     /// The core parameters under the given gravity, validated.
     pub fn to_params(&self, gravity: Vec3) -> Result<ClothParams, ClothError> {
         let params = ClothParams {
-            rows: self.rows,
-            cols: self.cols,
-            size: self.size,
             mass: self.mass,
             looper: self.looper,
             spring_k: self.spring_k,
@@ -101,11 +123,16 @@ impl Cloth {
         Ok(params)
     }
 
-    /// Whether going from `self` to `other` needs a new grid (and a new mesh).
+    /// Whether going from `self` to `other` needs a new topology (and a new mesh).
     pub(crate) fn shape_differs(&self, other: &Cloth) -> bool {
-        (self.rows, self.cols, self.size.to_bits()) != (other.rows, other.cols, other.size.to_bits())
-            || self.pins != other.pins
+        self.shape != other.shape || self.pins != other.pins
     }
+}
+
+/// The generated grid of a [`ClothShape::Grid`], validated.
+pub(crate) fn grid_of(size: Vec2, particles: UVec2) -> Result<(ClothGrid, ClothTopology), ClothError> {
+    let grid = ClothGrid::new(size, particles);
+    Ok((grid, ClothTopology::grid(grid)?))
 }
 
 /// Per-kind stiffness scales applied on top of [`Cloth::spring_k`] (paper section 2.1).
@@ -160,24 +187,37 @@ pub enum ClothPins {
     /// Nothing: the cloth falls freely.
     #[default]
     None,
-    /// The two corners of the first row (paper Fig. 5, "two ends fixed").
+    /// The two corners of a grid's first row (paper Fig. 5, "two ends fixed").
     TwoEnds,
-    /// The whole first row, like a curtain.
+    /// A grid's whole first row, like a curtain.
     FirstRow,
-    /// Explicit row-major particle indices (`row * cols + col`).
+    /// Vertex indices of the cloth's mesh (on the grid, `row * cols + col`). Every vertex
+    /// welded to the same particle is held with it.
     Indices(Vec<u32>),
 }
 
 impl ClothPins {
-    /// The pinned indices for a `rows x cols` grid.
-    pub(crate) fn indices(&self, rows: u32, cols: u32) -> Vec<u32> {
-        let grid = ClothGrid { rows: rows as usize, cols: cols as usize, spacing: 1.0 };
-        let pins = match self {
-            ClothPins::None => Pins::None,
-            ClothPins::TwoEnds => Pins::TwoEnds,
-            ClothPins::FirstRow => Pins::FirstRow,
-            ClothPins::Indices(indices) => Pins::Indices(indices.clone()),
-        };
-        pins.indices(&grid)
+    /// The pinned particles of `topology` (`grid` when it is a generated grid).
+    pub(crate) fn particles(&self, topology: &ClothTopology, grid: Option<&ClothGrid>) -> Result<Vec<u32>, ClothError> {
+        let by_grid = |pins: Pins| grid.map(|grid| pins.indices(grid)).ok_or(ClothError::PinsNeedGrid);
+        match self {
+            ClothPins::None => Ok(Vec::new()),
+            ClothPins::TwoEnds => by_grid(Pins::TwoEnds),
+            ClothPins::FirstRow => by_grid(Pins::FirstRow),
+            ClothPins::Indices(vertices) => {
+                let map = topology.vertex_particle();
+                let mut particles = vertices
+                    .iter()
+                    .map(|&v| {
+                        map.get(v as usize)
+                            .copied()
+                            .ok_or(ClothError::PinOutOfRange { index: v, particles: map.len() as u32 })
+                    })
+                    .collect::<Result<Vec<u32>, _>>()?;
+                particles.sort_unstable();
+                particles.dedup();
+                Ok(particles)
+            }
+        }
     }
 }

@@ -1,28 +1,57 @@
-//! The cloth's grid mesh: built once per grid, then rewritten from the simulation.
+//! The cloth's render mesh: the generated grid's, or a copy of the authored one, rewritten from
+//! the simulation through the vertex-to-particle map, so that split vertices move together.
 
 use bevy::asset::RenderAssetUsages;
 use bevy::camera::primitives::Aabb;
 use bevy::mesh::{Indices, PrimitiveTopology, VertexAttributeValues};
 use bevy::prelude::*;
-use bvh_cloth_core::ClothSim;
-use bvh_cloth_core::normals::vertex_normal;
+use bvh_cloth_core::normals::particle_normal;
+use bvh_cloth_core::{ClothError, ClothGrid, ClothSim, ClothTopology, MeshRef};
 
-/// A new mesh for `sim`: positions and normals in the frame of `transform`, UVs over the grid,
-/// two triangles per cell.
-pub(crate) fn new_cloth_mesh(sim: &ClothSim, transform: &GlobalTransform) -> Mesh {
+/// The topology of an authored mesh, its positions scaled by `scale` (the entity's scale when
+/// the cloth is built).
+pub(crate) fn authored_topology(mesh: &Mesh, scale: Vec3) -> Result<ClothTopology, ClothError> {
+    if mesh.primitive_topology() != PrimitiveTopology::TriangleList {
+        return Err(ClothError::NoTriangleMesh);
+    }
+    let Some(VertexAttributeValues::Float32x3(positions)) = mesh.attribute(Mesh::ATTRIBUTE_POSITION) else {
+        return Err(ClothError::NoTriangleMesh);
+    };
+    let positions: Vec<[f32; 3]> = positions.iter().map(|&p| (Vec3::from(p) * scale).to_array()).collect();
+    let indices: Option<Vec<u32>> = mesh.indices().map(|i| i.iter().map(|i| i as u32).collect());
+    ClothTopology::from_mesh(MeshRef { positions: &positions, indices: indices.as_deref() })
+}
+
+/// A new mesh for a grid cloth: positions and normals in the frame of `transform`, UVs over the
+/// grid, two triangles per cell.
+pub(crate) fn new_grid_mesh(grid: &ClothGrid, sim: &ClothSim, transform: &GlobalTransform) -> Mesh {
     let n = sim.len();
     let mut mesh = Mesh::new(PrimitiveTopology::TriangleList, RenderAssetUsages::default())
         .with_inserted_attribute(Mesh::ATTRIBUTE_POSITION, vec![[0.0f32; 3]; n])
         .with_inserted_attribute(Mesh::ATTRIBUTE_NORMAL, vec![[0.0f32, 1.0, 0.0]; n])
-        .with_inserted_attribute(Mesh::ATTRIBUTE_UV_0, sim.grid().uvs())
-        .with_inserted_indices(Indices::U32(sim.grid().triangle_indices()));
+        .with_inserted_attribute(Mesh::ATTRIBUTE_UV_0, grid.uvs())
+        .with_inserted_indices(Indices::U32(grid.triangle_indices()));
+    write_cloth_mesh(&mut mesh, sim, transform);
+    mesh
+}
+
+/// The mesh a cloth built from `source` draws: a copy of it (UVs, colours and any other
+/// attribute kept) that both worlds hold, with normals, written from `sim`.
+pub(crate) fn new_authored_mesh(source: &Mesh, sim: &ClothSim, transform: &GlobalTransform) -> Mesh {
+    let mut mesh = source.clone();
+    mesh.asset_usage = RenderAssetUsages::default();
+    let vertices = sim.topology().vertex_particle().len();
+    if !matches!(mesh.attribute(Mesh::ATTRIBUTE_NORMAL), Some(VertexAttributeValues::Float32x3(n)) if n.len() == vertices)
+    {
+        mesh.insert_attribute(Mesh::ATTRIBUTE_NORMAL, vec![[0.0f32, 1.0, 0.0]; vertices]);
+    }
     write_cloth_mesh(&mut mesh, sim, transform);
     mesh
 }
 
 /// Writes the simulated positions and normals into `mesh`, in the local frame of `transform`,
-/// and returns their bounds. `None` (and nothing written) when the transform cannot be
-/// inverted or the mesh is not the cloth's.
+/// each vertex from its particle, and returns their bounds. `None` (and nothing written) when
+/// the transform cannot be inverted or the mesh is not the cloth's.
 pub(crate) fn write_cloth_mesh(mesh: &mut Mesh, sim: &ClothSim, transform: &GlobalTransform) -> Option<Aabb> {
     let local_to_world = transform.affine();
     if !local_to_world.is_finite() || local_to_world.matrix3.determinant().abs() < f32::MIN_POSITIVE {
@@ -32,30 +61,31 @@ pub(crate) fn write_cloth_mesh(mesh: &mut Mesh, sim: &ClothSim, transform: &Glob
     // Normals go world -> local by the transpose of the local -> world linear part (the inverse
     // transpose of world -> local), which is right for any scale.
     let normal_to_local = local_to_world.matrix3.transpose();
-    let grid = *sim.grid();
+    let topology = sim.topology();
+    let map = topology.vertex_particle();
+    let local: Vec<Vec3> = (0..sim.len()).map(|i| world_to_local.transform_point3(sim.position(i))).collect();
     let (mut lo, mut hi) = (Vec3::INFINITY, Vec3::NEG_INFINITY);
     {
         let Some(VertexAttributeValues::Float32x3(positions)) = mesh.attribute_mut(Mesh::ATTRIBUTE_POSITION) else {
             return None;
         };
-        if positions.len() != sim.len() {
+        if positions.len() != map.len() {
             return None;
         }
-        for (i, out) in positions.iter_mut().enumerate() {
-            let local = world_to_local.transform_point3(sim.position(i));
-            (lo, hi) = (lo.min(local), hi.max(local));
-            *out = local.to_array();
+        for (out, &p) in positions.iter_mut().zip(map) {
+            let p = local[p as usize];
+            (lo, hi) = (lo.min(p), hi.max(p));
+            *out = p.to_array();
         }
     }
-    let Some(VertexAttributeValues::Float32x3(normals)) = mesh.attribute_mut(Mesh::ATTRIBUTE_NORMAL) else {
+    let normals: Vec<Vec3> = (0..sim.len())
+        .map(|i| (normal_to_local * particle_normal(topology, i, |p| sim.position(p))).normalize_or(Vec3::Y))
+        .collect();
+    let Some(VertexAttributeValues::Float32x3(out)) = mesh.attribute_mut(Mesh::ATTRIBUTE_NORMAL) else {
         return None;
     };
-    for r in 0..grid.rows {
-        for c in 0..grid.cols {
-            let world = vertex_normal(&grid, r, c, |i| sim.position(i));
-            let local = (normal_to_local * world).normalize_or(Vec3::Y);
-            normals[grid.index(r, c)] = local.to_array();
-        }
+    for (out, &p) in out.iter_mut().zip(map) {
+        *out = normals[p as usize].to_array();
     }
     Some(Aabb::from_min_max(lo, hi))
 }

@@ -5,7 +5,7 @@ use std::time::Instant;
 
 use bevy::camera::primitives::Aabb;
 use bevy::prelude::*;
-use bvh_cloth_core::{Affine3A, Collider};
+use bvh_cloth_core::Collider;
 
 use crate::clock::ClothClock;
 use crate::cloth_mesh::write_cloth_mesh;
@@ -14,8 +14,8 @@ use crate::messages::ClothMessage;
 use crate::simulation::{ClothSimulation, rigid_pose};
 use crate::stats::ClothStats;
 
-/// Runs this frame's ticks for every cloth. Within a frame the pins move smoothly from last
-/// frame's pose to this frame's, one step per tick.
+/// Runs this frame's ticks for every cloth, each tick after moving the pins where
+/// [`plan_anchors`](crate::simulation::plan_anchors) put them for it.
 pub(crate) fn step_cloths(
     clock: Res<ClothClock>,
     colliders: Query<&ClothCollider>,
@@ -31,27 +31,20 @@ pub(crate) fn step_cloths(
         if ticks == 0 {
             continue;
         }
-        let (from, to) = (state.pose, rigid_pose(transform));
-        for k in 1..=ticks {
-            let pose = interpolate(&from, &to, k as f32 / ticks as f32);
-            state.sim.pin_to(&pose);
+        let state = &mut *state;
+        for k in 0..ticks as usize {
+            if let Some(targets) = state.anchor_targets.get(k) {
+                state.sim.move_pins(targets);
+            }
             state.sim.tick(clock.tick_seconds, &colliders);
         }
-        state.pose = to;
         state.dirty = true;
         if !state.sim.is_finite() {
             let particles = u32::try_from(state.sim.non_finite_particles()).unwrap_or(u32::MAX);
-            state.diverged(entity, particles, to, &mut messages);
+            state.diverged(entity, particles, rigid_pose(transform), &mut messages);
         }
     }
     stats.step_time = start.elapsed();
-}
-
-/// The rigid pose a fraction `t` of the way from `from` to `to`.
-fn interpolate(from: &Affine3A, to: &Affine3A, t: f32) -> Affine3A {
-    let (_, r0, t0) = from.to_scale_rotation_translation();
-    let (_, r1, t1) = to.to_scale_rotation_translation();
-    Affine3A::from_rotation_translation(r0.slerp(r1, t), t0.lerp(t1, t))
 }
 
 /// Writes every cloth that moved into its mesh, and sets its bounds for frustum culling.

@@ -4,13 +4,14 @@
 //! particles, without waiting for it.
 //!
 //! Per frame:
-//! 1. [`extract_cloths`] (`ExtractSchedule`) copies the clock, every cloth's parameters, pins,
-//!    transform and mesh, and every collider's pose into [`GpuClothWorld`]; a cloth's whole
-//!    state only when it was rebuilt or reset.
+//! 1. [`extract_cloths`] (`ExtractSchedule`) copies the clock, every cloth's parameters, the
+//!    targets of its pins for each tick of the frame, its transform and mesh, and every
+//!    collider's pose into [`GpuClothWorld`]; a cloth's whole state only when it was rebuilt or
+//!    reset.
 //! 2. [`prepare_cloths`] (`Render`, `PrepareResources`) creates buffers for new or resized
 //!    cloths and drops those of despawned ones, uploads the parameter uniforms (a SpringK
-//!    change is one 80-byte write), the pins, the collider frames, and where each mesh's
-//!    vertices lie in their slab.
+//!    change is one 64-byte write), the pins' targets, the collider frames, and where each
+//!    mesh's vertices lie in their slab.
 //! 3. [`simulate_cloths`] (`RenderGraph`, before the camera driver) records the ticks, the
 //!    writeback and a copy of each cloth's fault count; [`request_fault_reads`] (`Cleanup`,
 //!    after the submit) asks for those copies to be mapped.
@@ -73,7 +74,8 @@ struct ExtractedCloth {
     /// The whole state, when the render world does not have this generation yet.
     fresh: Option<ClothSim>,
     params: ClothParams,
-    pins: Vec<(u32, Vec3)>,
+    /// Where the pins go in each of this frame's ticks.
+    anchor_targets: Vec<Vec<(u32, Vec3)>>,
     mesh: AssetId<Mesh>,
     mesh_to_world: Affine3A,
 }
@@ -129,13 +131,12 @@ fn extract_cloths(
         .map(|(entity, state, transform, mesh)| {
             let known = world.cloths.get(&entity).map(|c| c.generation).or(world.refused.get(&entity).copied());
             let sim = state.sim();
-            let pins = sim.pin_targets(&rigid_pose(transform)).collect();
             ExtractedCloth {
                 entity,
                 generation: state.generation,
                 fresh: (known != Some(state.generation)).then(|| sim.clone()),
                 params: sim.params().clone(),
-                pins,
+                anchor_targets: state.anchor_targets.clone(),
                 mesh: mesh.id(),
                 mesh_to_world: transform.affine(),
             }
@@ -212,7 +213,7 @@ fn prepare_cloths(
         let existing = world.cloths.remove(&cloth.entity);
         let render = match (existing, &cloth.fresh) {
             (Some(render), None) => Some(render),
-            (Some(render), Some(sim)) if render.gpu.grid() == sim.grid() => {
+            (Some(render), Some(sim)) if Arc::ptr_eq(render.gpu.topology(), sim.topology()) => {
                 // The upload clears the fault count; a read still in flight counts the old
                 // state's faults, so it is dropped with its readback.
                 render.gpu.upload_state(&queue, sim);
@@ -244,7 +245,7 @@ fn prepare_cloths(
         };
         let Some(mut render) = render else { continue };
         render.gpu.set_params(&queue, &cloth.params, world.tick_seconds.max(f32::MIN_POSITIVE), colliders);
-        render.gpu.write_pins(&queue, &cloth.pins);
+        render.gpu.write_anchor_targets(device, &queue, kernels, &cloth.anchor_targets);
 
         // Where the mesh's vertices are this frame (slabs can move).
         render.writeback.mesh = cloth.mesh;

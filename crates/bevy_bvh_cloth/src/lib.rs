@@ -30,9 +30,10 @@
 //!         MeshMaterial3d(materials.add(Color::WHITE)),
 //!         AutoCollider::new(5),
 //!     ));
-//!     // A 64 x 64 cloth, 2 m wide, one metre above the ball. The plugin gives it its mesh.
+//!     // A 2 m x 2 m cloth of 64 x 64 particles, one metre above the ball. The plugin gives it
+//!     // its mesh. (`Cloth::mesh()` on an entity with a `Mesh3d` simulates that mesh instead.)
 //!     commands.spawn((
-//!         Cloth::new(64, 64, 2.0),
+//!         Cloth::grid(Vec2::splat(2.0), UVec2::splat(64)),
 //!         MeshMaterial3d(materials.add(StandardMaterial {
 //!             base_color: Color::srgb(0.8, 0.2, 0.2),
 //!             double_sided: true,
@@ -104,7 +105,7 @@ use bevy::transform::TransformSystems;
 pub use backend::{ActiveClothBackend, ClothBackend};
 pub use bvh_cloth_core;
 pub use clock::ClothClock;
-pub use cloth::{Cloth, ClothIntegrator, ClothPins, SpringScales};
+pub use cloth::{Cloth, ClothIntegrator, ClothPins, ClothShape, SpringScales};
 pub use collider::{ASYNC_BUILD_MIN_VERTICES, AutoCollider, ClothCollider, ColliderStatus};
 pub use collider_mesh::{ColliderFailure, collider_from_mesh};
 pub use messages::{ClothMessage, ResetCloth};
@@ -118,8 +119,8 @@ pub mod prelude {
     pub use crate::panel::ClothPanelPlugin;
     pub use crate::{
         ActiveClothBackend, AutoCollider, BvhClothPlugin, BvhClothPlugins, Cloth, ClothBackend, ClothClock,
-        ClothDebugViewPlugin, ClothIntegrator, ClothMessage, ClothPins, ClothSettings, ClothSimulation, ClothStats,
-        ClothSystems, ColliderStatus, ResetCloth, SpringScales,
+        ClothDebugViewPlugin, ClothIntegrator, ClothMessage, ClothPins, ClothSettings, ClothShape, ClothSimulation,
+        ClothStats, ClothSystems, ColliderStatus, ResetCloth, SpringScales,
     };
 }
 
@@ -144,7 +145,8 @@ pub enum ClothSystems {
     /// The clock advances; [`Cloth`] changes, [`ResetCloth`] requests and the GPU's divergence
     /// reports are applied.
     Prepare,
-    /// The cloths are stepped.
+    /// Each cloth's pins are planned tick by tick, and the cloths are stepped (on the GPU
+    /// backend, in the render world).
     Step,
     /// The results are written into the cloth meshes.
     Writeback,
@@ -197,7 +199,11 @@ impl Plugin for BvhClothPlugin {
                     )
                         .chain()
                         .in_set(ClothSystems::Prepare),
-                    (cpu_backend::step_cloths.run_if(backend::cpu_backend_active), stats::update_stats)
+                    (
+                        simulation::plan_anchors,
+                        cpu_backend::step_cloths.run_if(backend::cpu_backend_active),
+                        stats::update_stats,
+                    )
                         .chain()
                         .in_set(ClothSystems::Step),
                     (

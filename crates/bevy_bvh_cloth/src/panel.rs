@@ -6,7 +6,7 @@ use core::ops::DerefMut;
 use bevy::prelude::*;
 use bevy_egui::{EguiContexts, EguiPlugin, EguiPrimaryContextPass, egui};
 
-use crate::{AutoCollider, Cloth, ClothIntegrator, ClothSettings, ClothStats, ColliderStatus, ResetCloth};
+use crate::{AutoCollider, Cloth, ClothIntegrator, ClothSettings, ClothShape, ClothStats, ColliderStatus, ResetCloth};
 
 /// Adds the panel (and [`EguiPlugin`] if the app has none).
 pub struct ClothPanelPlugin;
@@ -67,7 +67,13 @@ fn cloth_panel(
 
         for (entity, mut cloth) in &mut cloths {
             ui.separator();
-            ui.label(format!("Cloth {entity}: {} x {}", cloth.rows, cloth.cols));
+            let shape = match &cloth.shape {
+                ClothShape::Grid { size, particles } => {
+                    format!("{} x {} particles, {:.2} x {:.2} m", particles.x, particles.y, size.x, size.y)
+                }
+                ClothShape::Mesh => "its mesh".into(),
+            };
+            ui.label(format!("Cloth {entity}: {shape}"));
             edit_in_place(&mut cloth, |c| {
                 ui.add(egui::Slider::new(&mut c.looper, 1..=64).text("Looper"));
                 ui.add(egui::Slider::new(&mut c.spring_k, 10.0..=400.0).logarithmic(true).text("SpringK (N/m)"));

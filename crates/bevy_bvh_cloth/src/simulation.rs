@@ -2,21 +2,27 @@
 
 use std::sync::atomic::{AtomicU64, Ordering};
 
+use std::sync::Arc;
+
 use bevy::camera::visibility::NoAutoAabb;
+use bevy::ecs::entity::EntityHashSet;
 use bevy::prelude::*;
-use bvh_cloth_core::{Affine3A, ClothSim};
+use bvh_cloth_core::{Affine3A, ClothError, ClothSim, Vec3};
 
 use crate::clock::ClothClock;
-use crate::cloth::Cloth;
-use crate::cloth_mesh::new_cloth_mesh;
+use crate::cloth::{Cloth, ClothShape, grid_of};
+use crate::cloth_mesh::{authored_topology, new_authored_mesh, new_grid_mesh};
 use crate::messages::{ClothMessage, ResetCloth};
 use crate::settings::ClothSettings;
 
 /// The running simulation of a [`Cloth`] entity, added by the plugin.
 ///
 /// Particle positions are in world space. The entity's [`Mesh3d`] shows them in the entity's
-/// local frame. On the CPU backend this is the live state; on the GPU backend the live state
-/// stays on the GPU, and this holds the state as of the last rebuild or reset.
+/// local frame, each vertex at its particle ([`ClothTopology::vertex_particle`]). On the CPU
+/// backend this is the live state; on the GPU backend the live state stays on the GPU, and this
+/// holds the state as of the last rebuild or reset.
+///
+/// [`ClothTopology::vertex_particle`]: bvh_cloth_core::ClothTopology::vertex_particle
 #[derive(Component, Debug)]
 pub struct ClothSimulation {
     pub(crate) sim: ClothSim,
@@ -24,8 +30,13 @@ pub struct ClothSimulation {
     built_from: Cloth,
     /// The entity's rigid pose at the end of the last tick; pins move on from here.
     pub(crate) pose: Affine3A,
-    /// The cloth's own grid mesh.
+    /// The mesh the cloth draws (its own: generated, or a copy of the authored one).
     pub(crate) mesh: Handle<Mesh>,
+    /// The authored mesh a [`ClothShape::Mesh`] cloth was built from, kept for rebuilds.
+    source: Option<Handle<Mesh>>,
+    /// Where the pins go in each tick of this frame (`(particle, world position)` per pin), from
+    /// the entity's pose at the end of last frame to this frame's: see [`plan_anchors`].
+    pub(crate) anchor_targets: Vec<Vec<(u32, Vec3)>>,
     /// Positions changed since the mesh was last written.
     pub(crate) dirty: bool,
     /// Whether the stability guard's warning was given for the current parameters.
@@ -50,7 +61,7 @@ impl ClothSimulation {
         &self.sim
     }
 
-    /// The grid mesh the plugin made for this cloth.
+    /// The mesh the cloth draws (also in its entity's [`Mesh3d`]).
     pub fn mesh(&self) -> &Handle<Mesh> {
         &self.mesh
     }
@@ -91,19 +102,59 @@ pub(crate) fn rigid_pose(transform: &GlobalTransform) -> Affine3A {
     Affine3A::from_rotation_translation(rotation, translation)
 }
 
+/// A cloth built from its component: the simulation, the mesh it draws and the authored mesh
+/// it came from.
+struct Built {
+    sim: ClothSim,
+    mesh: Mesh,
+    source: Option<Handle<Mesh>>,
+}
+
+/// Builds the simulation of `cloth` at `transform`. `Ok(None)` while its authored mesh is still
+/// loading.
+fn build(
+    cloth: &Cloth,
+    gravity: Vec3,
+    transform: &GlobalTransform,
+    source: Option<Handle<Mesh>>,
+    meshes: &Assets<Mesh>,
+) -> Result<Option<Built>, ClothError> {
+    let params = cloth.to_params(gravity)?;
+    let pose = rigid_pose(transform);
+    match &cloth.shape {
+        ClothShape::Grid { size, particles } => {
+            let (grid, topology) = grid_of(*size, *particles)?;
+            let pins = cloth.pins.particles(&topology, Some(&grid))?;
+            let sim = ClothSim::new(params, Arc::new(topology), pose, &pins)?;
+            let mesh = new_grid_mesh(&grid, &sim, transform);
+            Ok(Some(Built { sim, mesh, source: None }))
+        }
+        ClothShape::Mesh => {
+            let source = source.ok_or(ClothError::NoTriangleMesh)?;
+            let Some(authored) = meshes.get(&source) else { return Ok(None) };
+            let topology = authored_topology(authored, transform.scale())?;
+            let pins = cloth.pins.particles(&topology, None)?;
+            let sim = ClothSim::new(params, Arc::new(topology), pose, &pins)?;
+            let mesh = new_authored_mesh(authored, &sim, transform);
+            Ok(Some(Built { sim, mesh, source: Some(source) }))
+        }
+    }
+}
+
 /// Creates, updates, rebuilds and resets the simulation of every [`Cloth`].
-#[allow(clippy::type_complexity)]
+#[allow(clippy::type_complexity, clippy::too_many_arguments)]
 pub(crate) fn sync_cloths(
     mut commands: Commands,
     settings: Res<ClothSettings>,
     mut meshes: ResMut<Assets<Mesh>>,
-    mut cloths: Query<(Entity, Ref<Cloth>, &GlobalTransform, Option<&mut ClothSimulation>)>,
+    mut cloths: Query<(Entity, Ref<Cloth>, &GlobalTransform, Option<&mut ClothSimulation>, Option<&Mesh3d>)>,
     mut resets: MessageReader<ResetCloth>,
     mut messages: MessageWriter<ClothMessage>,
+    mut loading: Local<EntityHashSet>,
 ) {
     let resets: Vec<ResetCloth> = resets.read().copied().collect();
     let settings_changed = settings.is_changed();
-    for (entity, cloth, transform, state) in &mut cloths {
+    for (entity, cloth, transform, state, mesh3d) in &mut cloths {
         let pose = rigid_pose(transform);
         let reset = resets.iter().any(|r| *r == ResetCloth::All || *r == ResetCloth::One(entity));
         let mut reject = |error| {
@@ -126,33 +177,44 @@ pub(crate) fn sync_cloths(
                     state.reset(pose);
                 }
             }
-            state if cloth.is_changed() || reset => {
-                let pins = cloth.pins.indices(cloth.rows, cloth.cols);
-                let sim = match cloth.to_params(settings.gravity).and_then(|params| ClothSim::new(params, pose, &pins))
-                {
-                    Ok(sim) => sim,
+            state if cloth.is_changed() || reset || loading.contains(&entity) => {
+                // An authored cloth is rebuilt from the mesh it was first built from, not from the
+                // copy it draws.
+                let source = match &state {
+                    Some(state) => state.source.clone(),
+                    None => mesh3d.map(|m| m.0.clone()),
+                };
+                let built = match build(&cloth, settings.gravity, transform, source, &meshes) {
+                    Ok(Some(built)) => built,
+                    Ok(None) => {
+                        loading.insert(entity);
+                        continue;
+                    }
                     Err(error) => {
+                        loading.remove(&entity);
                         reject(error);
                         continue;
                     }
                 };
-                let new_mesh = new_cloth_mesh(&sim, transform);
+                loading.remove(&entity);
                 // A rebuilt cloth keeps its mesh handle, so materials and user references stay.
                 let mesh = match state.map(|s| s.mesh.clone()) {
                     Some(handle) if meshes.contains(&handle) => {
                         if let Some(mut old) = meshes.get_mut(&handle) {
-                            *old = new_mesh;
+                            *old = built.mesh;
                         }
                         handle
                     }
-                    _ => meshes.add(new_mesh),
+                    _ => meshes.add(built.mesh),
                 };
                 commands.entity(entity).try_insert((
                     ClothSimulation {
-                        sim,
+                        sim: built.sim,
                         built_from: Cloth::clone(&cloth),
                         pose,
                         mesh: mesh.clone(),
+                        source: built.source,
+                        anchor_targets: Vec::new(),
                         dirty: true,
                         guard_warned: false,
                         divergence_warned: false,
@@ -165,6 +227,36 @@ pub(crate) fn sync_cloths(
             _ => {}
         }
     }
+    loading.retain(|&entity| cloths.contains(entity));
+}
+
+/// Plans this frame's ticks for the pins of every cloth, on either backend: within a frame the
+/// entity's pose moves smoothly from last frame's to this frame's, one step per tick, and each
+/// tick's pins go where that pose puts them. The CPU backend applies them before each tick; the
+/// GPU backend uploads them for its `apply_anchors` kernel.
+pub(crate) fn plan_anchors(clock: Res<ClothClock>, mut cloths: Query<(&mut ClothSimulation, &GlobalTransform)>) {
+    for (mut state, transform) in &mut cloths {
+        let state = &mut *state;
+        state.anchor_targets.clear();
+        if clock.ticks == 0 {
+            continue;
+        }
+        let (from, to) = (state.pose, rigid_pose(transform));
+        if !state.sim.pins().is_empty() {
+            for k in 1..=clock.ticks {
+                let pose = interpolate(&from, &to, k as f32 / clock.ticks as f32);
+                state.anchor_targets.push(state.sim.pin_targets(&pose).collect());
+            }
+        }
+        state.pose = to;
+    }
+}
+
+/// The rigid pose a fraction `t` of the way from `from` to `to`.
+fn interpolate(from: &Affine3A, to: &Affine3A, t: f32) -> Affine3A {
+    let (_, r0, t0) = from.to_scale_rotation_translation();
+    let (_, r1, t1) = to.to_scale_rotation_translation();
+    Affine3A::from_rotation_translation(r0.slerp(r1, t), t0.lerp(t1, t))
 }
 
 /// Says once per parameter set when the stability guard runs a cloth at more substeps per tick
@@ -178,8 +270,7 @@ pub(crate) fn warn_stiff_cloths(clock: Res<ClothClock>, mut cloths: Query<(Entit
         if state.guard_warned {
             continue;
         }
-        let params = state.sim.params();
-        let (looper, substeps) = (params.looper, params.substeps(clock.tick_seconds));
+        let (looper, substeps) = (state.sim.params().looper, state.sim.substeps(clock.tick_seconds));
         if substeps > looper {
             warn!(
                 "Cloth on {entity}: spring_k is too stiff for looper = {looper} at this tick rate; \

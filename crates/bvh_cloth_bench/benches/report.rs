@@ -5,19 +5,27 @@
 //! 2. Particle queries head to head: our LBVH, brute force over the same spheres, and parry3d's
 //!    exact triangle-mesh projection, on the same draped particle positions.
 //! 3. Collider fidelity: cloths resting on the spheres, measured against the true mesh.
-//! 4. Scaling: step time against cloth size, and collider build time against n.
+//! 4. Scaling: step time against cloth size; the cost of any topology (an authored mesh against
+//!    the grid at the same particle count); collider build time against n.
 //! 5. Precision far from the origin: how far from it a stiff cloth still steps finitely.
 //!
 //! `WGPU_BACKEND=vulkan cargo bench -p bvh_cloth_bench --bench report`
 //! (without a GPU adapter the GPU columns say so and the rest still runs). Append `-- NAME` to
 //! run only the sections whose name contains NAME: `table_vii`, `queries`, `fidelity`,
-//! `step_scaling`, `build_scaling`, `far_from_origin`.
+//! `step_scaling`, `topology`, `build_scaling`, `far_from_origin`.
 
 use std::fmt::Write as _;
+use std::sync::Arc;
 
-use bvh_cloth_bench::{MODELS, TICK, best_of, cloth_above, collider, drape, median, model, time};
+use bvh_cloth_bench::{
+    MODELS, TICK, authored_grid, best_of, cloth_above, collider, drape, median, model, square_grid, time,
+    topology_above,
+};
 use bvh_cloth_core::obj::ObjMesh;
-use bvh_cloth_core::{Affine3A, ClothParams, ClothSim, Collider, Integrator, Vec3};
+
+use bvh_cloth_core::{
+    Affine3A, ClothGrid, ClothParams, ClothSim, ClothTopology, Collider, Integrator, UVec2, Vec2, Vec3,
+};
 use bvh_cloth_gpu::{ClothKernels, GpuCloth, GpuColliders, headless, wgpu};
 use parry3d::math::Vector;
 use parry3d::query::{PointQuery, Ray, RayCast};
@@ -74,6 +82,9 @@ fn main() {
     if run("step_scaling") {
         step_scaling(gpu.as_ref(), &single, threads);
     }
+    if run("topology") {
+        topology(gpu.as_ref(), &single, threads);
+    }
     if run("build_scaling") {
         build_scaling(&meshes);
     }
@@ -119,9 +130,14 @@ fn table_vii(meshes: &[ObjMesh], gpu: Option<&Gpu>, single: &rayon::ThreadPool, 
 /// Median wall time (ms) of `ticks` ticks of a `size x size` cloth on the GPU, around a blocking
 /// submit, after the cloth has fallen onto `colliders` for one simulated second.
 fn gpu_frame_ms(gpu: &Gpu, colliders: &[Collider], size: u32, ticks: u32) -> f64 {
-    let cpu = cloth_above(&colliders[0], size, Integrator::Rk4);
+    gpu_sim_frame_ms(gpu, colliders, &cloth_above(&colliders[0], size, Integrator::Rk4), ticks)
+}
+
+/// Median wall time (ms) of `ticks` ticks of `cpu`'s cloth on the GPU, as [`gpu_frame_ms`].
+fn gpu_sim_frame_ms(gpu: &Gpu, colliders: &[Collider], cpu: &ClothSim, ticks: u32) -> f64 {
+    let size = (cpu.len() as f64).sqrt() as u32;
     let gpu_colliders = GpuColliders::new(&gpu.device, colliders);
-    let mut cloth = GpuCloth::new(&gpu.device, &gpu.kernels, &cpu).expect("the cloth fits the device");
+    let mut cloth = GpuCloth::new(&gpu.device, &gpu.kernels, cpu).expect("the cloth fits the device");
     cloth.set_params(&gpu.queue, cpu.params(), TICK, &gpu_colliders);
     let frame = |ticks: u32| {
         time(|| {
@@ -326,6 +342,36 @@ fn step_scaling(gpu: Option<&Gpu>, single: &rayon::ThreadPool, threads: usize) {
     );
 }
 
+/// The cost of any topology: ns per particle per substep of an RK4 cloth falling onto the bunny
+/// (n = 5), for the grid on its fast path, the grid's springs through the general per-particle
+/// path, and the grid's triangles built as an authored mesh, at the same particle count.
+fn topology(gpu: Option<&Gpu>, single: &rayon::ThreadPool, threads: usize) {
+    println!("\n## Any topology: ns per particle per substep, RK4, falling onto the bunny (n = 5)\n");
+    println!("| cloth | springs | CPU 1 thread | CPU {threads} threads | GPU |");
+    println!("|---|---|---|---|---|");
+    let bunny = [collider(&model("bunny"), 5)];
+    for size in [64u32, 128] {
+        let cases = [
+            ("grid, fast path", ClothTopology::grid(square_grid(size)).expect("a valid grid")),
+            ("grid, general path", ClothTopology::grid_as_mesh(square_grid(size)).expect("a valid grid")),
+            ("authored mesh", authored_grid(size)),
+        ];
+        for (name, t) in cases {
+            let springs = t.spring_count();
+            let sim = topology_above(&bunny[0], t, Integrator::Rk4);
+            let substeps = f64::from(sim.params().looper);
+            let ns = |seconds: f64| seconds * 1e9 / (sim.len() as f64 * substeps);
+            let run = |sim: &mut ClothSim| ns(best_of(5, || _ = sim.tick(TICK, &bunny)));
+            let (one, all) = (single.install(|| run(&mut sim.clone())), run(&mut sim.clone()));
+            // The GPU has one path for every topology; the grid's fast path is the CPU's.
+            let gpu_ns = gpu
+                .filter(|_| name != "grid, fast path")
+                .map_or("-".into(), |gpu| format!("{:.2}", ns(gpu_sim_frame_ms(gpu, &bunny, &sim, 1) * 1e-3)));
+            println!("| {size}x{size} {name} | {springs} | {one:.1} | {all:.1} | {gpu_ns} |");
+        }
+    }
+}
+
 /// Collider build time (voxel spheres + LBVH, all threads) against n.
 fn build_scaling(meshes: &[ObjMesh]) {
     println!("\n## Collider build (voxel spheres + LBVH), all threads, best of 9\n");
@@ -354,9 +400,6 @@ fn far_from_origin() {
     println!("|---|---|---|");
     for distance in [0.0f32, 100.0, 1_000.0, 3_000.0, 10_000.0, 100_000.0] {
         let params = ClothParams {
-            rows: 26,
-            cols: 24,
-            size: 1.4,
             looper: 22,
             spring_k: 1_390.0,
             damping: 0.1,
@@ -366,7 +409,9 @@ fn far_from_origin() {
         };
         let coordinate = distance / 3f32.sqrt();
         let start = Affine3A::from_translation(Vec3::splat(coordinate));
-        let mut sim = ClothSim::new(params, start, &[]).expect("valid parameters");
+        let grid = ClothGrid::new(Vec2::new(1.4, 1.4 * 25.0 / 23.0), UVec2::new(24, 26));
+        let topology = Arc::new(ClothTopology::grid(grid).expect("a valid grid"));
+        let mut sim = ClothSim::new(params, topology, start, &[]).expect("valid parameters");
         let first_bad = (1..=600).find(|_| {
             sim.tick(TICK, &[]);
             !sim.is_finite()

@@ -3,10 +3,13 @@
 //! Every scene is the paper's Table VII setup or a variation of it: a square cloth dropped onto
 //! one of the two models in `assets/models` (each normalised to a 1 m box standing on y = 0).
 
+use std::sync::Arc;
 use std::time::Instant;
 
 use bvh_cloth_core::obj::{ObjMesh, parse_obj};
-use bvh_cloth_core::{Affine3A, ClothParams, ClothSim, Collider, Integrator, Vec3};
+use bvh_cloth_core::{
+    Affine3A, ClothGrid, ClothParams, ClothSim, ClothTopology, Collider, Integrator, MeshRef, UVec2, Vec2, Vec3,
+};
 
 /// The simulation tick: one frame at 60 Hz.
 pub const TICK: f32 = 1.0 / 60.0;
@@ -29,12 +32,32 @@ pub fn collider(mesh: &ObjMesh, n: u32) -> Collider {
         .with_friction(1.0)
 }
 
-/// A `size x size` cloth (1.4 m wide, Looper 16, the paper's other parameters) held flat 0.3 m
-/// above `collider`, a little off its centre so that it slides off one side.
-pub fn cloth_above(collider: &Collider, size: u32, integrator: Integrator) -> ClothSim {
+/// The Table VII cloth's grid: `size x size` particles over 1.4 m x 1.4 m.
+pub fn square_grid(size: u32) -> ClothGrid {
+    ClothGrid::new(Vec2::splat(1.4), UVec2::splat(size))
+}
+
+/// The same grid's triangles built as an authored mesh would be ([`ClothTopology::from_mesh`]:
+/// edges and cross-edge springs, masses by area).
+pub fn authored_grid(size: u32) -> ClothTopology {
+    let grid = square_grid(size);
+    let positions: Vec<[f32; 3]> = grid.rest_positions(&Affine3A::IDENTITY).iter().map(|p| p.to_array()).collect();
+    let indices = grid.triangle_indices();
+    ClothTopology::from_mesh(MeshRef { positions: &positions, indices: Some(&indices) }).expect("a valid mesh")
+}
+
+/// A cloth of `topology` (Looper 16, the paper's other parameters) held flat 0.3 m above
+/// `collider`, a little off its centre so that it slides off one side.
+pub fn topology_above(collider: &Collider, topology: ClothTopology, integrator: Integrator) -> ClothSim {
     let top = collider.lbvh.bounds().expect("a collider has spheres").1.y;
-    let params = ClothParams { rows: size, cols: size, size: 1.4, damping: 1.0, integrator, ..Default::default() };
-    ClothSim::new(params, Affine3A::from_translation(Vec3::new(-0.2, top + 0.3, 0.0)), &[]).expect("valid cloth")
+    let params = ClothParams { damping: 1.0, integrator, ..Default::default() };
+    let pose = Affine3A::from_translation(Vec3::new(-0.2, top + 0.3, 0.0));
+    ClothSim::new(params, Arc::new(topology), pose, &[]).expect("valid cloth")
+}
+
+/// A `size x size` grid cloth (1.4 m wide) above `collider`, as [`topology_above`].
+pub fn cloth_above(collider: &Collider, size: u32, integrator: Integrator) -> ClothSim {
+    topology_above(collider, ClothTopology::grid(square_grid(size)).expect("a valid grid"), integrator)
 }
 
 /// A 64 x 64 cloth dropped on `collider` and simulated for `seconds`.

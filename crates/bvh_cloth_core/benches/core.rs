@@ -4,8 +4,12 @@
 
 use std::hint::black_box;
 
+use std::sync::Arc;
+
 use bvh_cloth_core::obj::{ObjMesh, parse_obj};
-use bvh_cloth_core::{Affine3A, ClothParams, ClothSim, Collider, Integrator, Vec3};
+use bvh_cloth_core::{
+    Affine3A, ClothGrid, ClothParams, ClothSim, ClothTopology, Collider, Integrator, MeshRef, UVec2, Vec2, Vec3,
+};
 use criterion::{BenchmarkId, Criterion, Throughput, criterion_group, criterion_main};
 
 fn load(name: &str) -> ObjMesh {
@@ -13,9 +17,43 @@ fn load(name: &str) -> ObjMesh {
     parse_obj(&std::fs::read_to_string(&path).expect("model file")).expect("valid OBJ")
 }
 
+fn grid(size: u32) -> ClothGrid {
+    ClothGrid::new(Vec2::splat(2.0), UVec2::splat(size))
+}
+
+fn cloth_on(topology: ClothTopology, integrator: Integrator) -> ClothSim {
+    let params = ClothParams { integrator, ..Default::default() };
+    ClothSim::new(params, Arc::new(topology), Affine3A::from_translation(Vec3::new(0.0, 1.2, 0.0)), &[]).unwrap()
+}
+
 fn cloth(size: u32, integrator: Integrator) -> ClothSim {
-    let params = ClothParams { rows: size, cols: size, integrator, ..Default::default() };
-    ClothSim::new(params, Affine3A::from_translation(Vec3::new(0.0, 1.2, 0.0)), &[]).unwrap()
+    cloth_on(ClothTopology::grid(grid(size)).unwrap(), integrator)
+}
+
+/// One RK4 substep per particle on the same particle count, three ways: the grid's fast path,
+/// the grid's springs through the general per-particle path, and the grid's triangles built as
+/// an authored mesh (edges and cross-edge springs, areas for masses).
+fn topology(c: &mut Criterion) {
+    let mut group = c.benchmark_group("topology");
+    for size in [64u32, 128] {
+        let g = grid(size);
+        let positions: Vec<[f32; 3]> = g.rest_positions(&Affine3A::IDENTITY).iter().map(|p| p.to_array()).collect();
+        let indices = g.triangle_indices();
+        let authored = ClothTopology::from_mesh(MeshRef { positions: &positions, indices: Some(&indices) }).unwrap();
+        let cases = [
+            ("grid fast path", ClothTopology::grid(g).unwrap()),
+            ("grid general path", ClothTopology::grid_as_mesh(g).unwrap()),
+            ("authored mesh", authored),
+        ];
+        for (name, t) in cases {
+            let mut sim = cloth_on(t, Integrator::Rk4);
+            group.throughput(Throughput::Elements(u64::from(size * size)));
+            group.bench_function(BenchmarkId::new(name, format!("{size}x{size}")), |b| {
+                b.iter(|| sim.substep(black_box(1.0e-3), &[]))
+            });
+        }
+    }
+    group.finish();
 }
 
 fn step(c: &mut Criterion) {
@@ -100,6 +138,6 @@ fn query(c: &mut Criterion) {
 criterion_group! {
     name = benches;
     config = Criterion::default().sample_size(20).warm_up_time(std::time::Duration::from_millis(500)).measurement_time(std::time::Duration::from_secs(2));
-    targets = step, build, query
+    targets = step, topology, build, query
 }
 criterion_main!(benches);

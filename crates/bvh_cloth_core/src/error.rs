@@ -42,14 +42,53 @@ pub enum ClothError {
     },
     /// `looper` (substeps per tick) must be at least 1.
     ZeroLooper,
-    /// `rows`, `cols` or `size` changed on a running cloth: that needs a new cloth.
-    ShapeChanged,
-    /// A pinned particle index lies outside the grid.
+    /// A pinned particle index lies outside the cloth.
     PinOutOfRange {
         /// The offending index.
         index: u32,
-        /// Number of particles in the grid.
+        /// Number of particles in the cloth.
         particles: u32,
+    },
+    /// The cloth has no mesh to simulate, or its mesh is not a list of triangles with `f32`
+    /// positions.
+    NoTriangleMesh,
+    /// The cloth mesh has no vertex positions.
+    MeshWithoutVertices,
+    /// The cloth mesh's index list is not a whole number of triangles.
+    MeshIndicesNotTriangles {
+        /// Length of the index list.
+        len: usize,
+    },
+    /// The cloth mesh has no indices and its vertex count is not a whole number of triangles.
+    MeshVerticesNotTriangles {
+        /// Number of vertices.
+        vertices: usize,
+    },
+    /// A cloth mesh vertex position is NaN or infinite.
+    MeshVertexNotFinite {
+        /// Index of the first such vertex.
+        vertex: usize,
+    },
+    /// A cloth mesh triangle references a vertex that does not exist.
+    MeshIndexOutOfRange {
+        /// Position of the bad entry in the index list.
+        position: usize,
+        /// The index found there.
+        index: u32,
+        /// Number of vertices in the mesh.
+        vertices: usize,
+    },
+    /// No triangle of the cloth mesh has any area, so there is no surface to carry mass.
+    MeshWithoutArea,
+    /// Pins chosen by grid position (the two ends, the first row) on a cloth that is not a
+    /// generated grid.
+    PinsNeedGrid,
+    /// The cloth has more particles than the core accepts.
+    TooManyParticles {
+        /// Particles after welding.
+        particles: usize,
+        /// Largest particle count accepted.
+        max: u32,
     },
 }
 
@@ -72,11 +111,31 @@ impl fmt::Display for ClothError {
                 write!(f, "cloth parameter `{field}` has a NaN or infinite component")
             }
             Self::ZeroLooper => write!(f, "cloth parameter `looper` must be at least 1"),
-            Self::ShapeChanged => {
-                write!(f, "cloth `rows`, `cols` or `size` changed: the grid must be rebuilt, not updated")
-            }
             Self::PinOutOfRange { index, particles } => {
-                write!(f, "pinned particle {index} is outside the grid of {particles} particles")
+                write!(f, "pinned particle {index} is outside the cloth of {particles} particles")
+            }
+            Self::NoTriangleMesh => {
+                write!(f, "cloth has no triangle-list mesh with Float32x3 positions to simulate")
+            }
+            Self::MeshWithoutVertices => write!(f, "cloth mesh has no vertex positions"),
+            Self::MeshIndicesNotTriangles { len } => {
+                write!(f, "cloth mesh has {len} indices, which is not a whole number of triangles")
+            }
+            Self::MeshVerticesNotTriangles { vertices } => {
+                write!(f, "cloth mesh has no indices and {vertices} vertices, which is not a whole number of triangles")
+            }
+            Self::MeshVertexNotFinite { vertex } => {
+                write!(f, "cloth mesh vertex {vertex} has a NaN or infinite coordinate")
+            }
+            Self::MeshIndexOutOfRange { position, index, vertices } => {
+                write!(f, "cloth mesh index {position} points at vertex {index}, but the mesh has {vertices} vertices")
+            }
+            Self::MeshWithoutArea => write!(f, "cloth mesh has no triangle with any area"),
+            Self::PinsNeedGrid => {
+                write!(f, "cloth pins by grid position (two ends, first row) need a generated grid; pin vertex indices")
+            }
+            Self::TooManyParticles { particles, max } => {
+                write!(f, "cloth has {particles} particles; at most {max} are supported")
             }
         }
     }

@@ -1,9 +1,14 @@
-//! Particle accelerations of the mass-spring model (paper eq. 1–3), one grid row at a time.
+//! Particle accelerations of the mass-spring model (paper eq. 1–3), one band of rows at a time.
 //!
 //! The cloth state is stored row by row, each row as six contiguous lanes
-//! `[x | y | z | vx | vy | vz]` of `cols` floats. For every stencil offset the inner loop runs
-//! over a contiguous column range with no branch, which the compiler vectorises; borders are
-//! handled by shortening that range, not by tests inside the loop.
+//! `[x | y | z | vx | vy | vz]` of `width` floats: a grid row, or a run of consecutive particles
+//! of any other topology. Two paths fill a band's accelerations:
+//! - [`ForceModel::band_acceleration`], the grid's fast path: for every stencil offset the inner
+//!   loop runs over a contiguous column range with no branch, which the compiler vectorises;
+//!   borders are handled by shortening that range, not by tests inside the loop.
+//! - [`ForceModel::band_acceleration_general`], for any topology: each particle gathers its
+//!   springs from the [`ClothTopology`]'s per-particle lists, in the order and with the
+//!   arithmetic of the GPU's `node_update`.
 
 use core::ops::Range;
 
@@ -11,6 +16,7 @@ use glam::Vec3;
 
 use crate::grid::{ClothGrid, STENCIL};
 use crate::params::ClothParams;
+use crate::topology::ClothTopology;
 
 /// Number of `f32` lanes per particle in the row layout (position and velocity).
 pub const LANES: usize = 6;
@@ -18,10 +24,10 @@ pub const LANES: usize = 6;
 /// Constants of the force model for one parameter set, precomputed per tick.
 #[derive(Clone, Copy, Debug)]
 pub struct ForceModel {
-    /// `stiffness scale * spring_k / m` per spring kind.
-    pub k_over_m: [f32; 3],
-    /// Rest length per spring kind.
-    pub rest: [f32; 3],
+    /// `stiffness scale * spring_k / mass` per spring kind: a spring's stiffness over a
+    /// particle's mass is this times the spring's weight times the particle's inverse mass
+    /// share.
+    pub k_over_mass: [f32; 3],
     /// Damping rate (1/s).
     pub damping: f32,
     /// Gravity plus the external force per unit mass.
@@ -30,19 +36,59 @@ pub struct ForceModel {
 
 impl ForceModel {
     /// Precomputes the model from validated parameters.
-    pub fn new(params: &ClothParams, grid: &ClothGrid) -> Self {
-        let m = params.particle_mass();
+    pub fn new(params: &ClothParams) -> Self {
         let s = params.stiffness;
-        let k = params.spring_k / m;
+        let k = params.spring_k / params.mass;
         Self {
-            k_over_m: [s.structural * k, s.shear * k, s.bending * k],
-            rest: [
-                grid.rest_length(crate::grid::SpringKind::Structural),
-                grid.rest_length(crate::grid::SpringKind::Shear),
-                grid.rest_length(crate::grid::SpringKind::Bending),
-            ],
+            k_over_mass: [s.structural * k, s.shear * k, s.bending * k],
             damping: params.damping,
             uniform_accel: params.gravity + params.external_force / params.mass,
+        }
+    }
+
+    /// The acceleration of every particle of rows `band` of any topology, as
+    /// [`Self::band_acceleration`] lays it out, with rows `width` particles long (the last one
+    /// may be short: its tail is padding and gets zero). Pinned particles get zero.
+    #[allow(clippy::too_many_arguments)]
+    pub fn band_acceleration_general(
+        &self,
+        topology: &ClothTopology,
+        width: usize,
+        state: &[f32],
+        free: &[f32],
+        band: Range<usize>,
+        acc: &mut [f32],
+    ) {
+        let w = LANES * width;
+        let position = |i: usize| {
+            let o = (i / width) * w + i % width;
+            Vec3::new(state[o], state[o + width], state[o + 2 * width])
+        };
+        let inv_share = topology.inv_mass_share();
+        for (j, r) in band.enumerate() {
+            for c in 0..width {
+                let i = r * width + c;
+                let mut a = Vec3::ZERO;
+                if i < topology.len() && free[i] != 0.0 {
+                    let o = r * w + c;
+                    let p = Vec3::new(state[o], state[o + width], state[o + 2 * width]);
+                    let v = Vec3::new(state[o + 3 * width], state[o + 4 * width], state[o + 5 * width]);
+                    a = self.uniform_accel - self.damping * v;
+                    for end in topology.springs_of(i) {
+                        let k = self.k_over_mass[end.kind as usize] * end.weight * inv_share[i];
+                        if k == 0.0 {
+                            continue;
+                        }
+                        let d = position(end.other as usize) - p;
+                        let len = (d.x * d.x + d.y * d.y + d.z * d.z).sqrt();
+                        a += k * (1.0 - end.rest / len.max(1.0e-6 * end.rest)) * d;
+                    }
+                    a *= free[i];
+                }
+                for (axis, value) in a.to_array().into_iter().enumerate() {
+                    acc[j * 3 * width + axis * width + c] = value;
+                }
+            }
         }
     }
 
@@ -53,9 +99,12 @@ impl ForceModel {
     /// Each spring is evaluated once and applied to both of its ends (Newton's third law), so a
     /// band pays for the springs inside it once and only re-evaluates the few that cross its
     /// edges. The band split is fixed by the caller, so the sums are the same on any thread count.
+    /// Every particle of the grid has the mass share whose inverse is `inv_mass_share`.
+    #[allow(clippy::too_many_arguments)]
     pub fn band_acceleration(
         &self,
         grid: &ClothGrid,
+        inv_mass_share: f32,
         state: &[f32],
         free: &[f32],
         band: Range<usize>,
@@ -81,8 +130,8 @@ impl ForceModel {
             [&row[lo..hi], &row[cols + lo..cols + hi], &row[2 * cols + lo..2 * cols + hi]]
         };
         for s in STENCIL.iter().filter(|s| s.dr > 0 || (s.dr == 0 && s.dc > 0)) {
-            let kind = s.kind as usize;
-            let (k, rest_len) = (self.k_over_m[kind], self.rest[kind]);
+            let k = self.k_over_mass[s.kind as usize] * grid.weight(s.dr, s.dc) * inv_mass_share;
+            let rest_len = grid.rest_length(s.dr, s.dc);
             let (dr, dc) = (s.dr as usize, i64::from(s.dc));
             // Columns c of the first end whose second end c + dc lies in the grid.
             let lo = (-dc).max(0) as usize;
@@ -179,6 +228,7 @@ mod tests {
     fn naive(
         model: &ForceModel,
         grid: &ClothGrid,
+        inv_share: f64,
         p: &[glam::DVec3],
         v: &[glam::DVec3],
         r: usize,
@@ -192,27 +242,26 @@ mod tests {
                 continue;
             }
             let d = p[rr as usize * grid.cols + cc as usize] - p[i];
-            let kind = s.kind as usize;
-            a += f64::from(model.k_over_m[kind]) * (d.length() - f64::from(model.rest[kind])) * d / d.length();
+            let k = f64::from(model.k_over_mass[s.kind as usize]) * f64::from(grid.weight(s.dr, s.dc)) * inv_share;
+            a += k * (d.length() - f64::from(grid.rest_length(s.dr, s.dc))) * d / d.length();
         }
         a
     }
 
-    #[test]
-    fn bands_apply_each_spring_to_both_ends_like_the_full_stencil() {
-        let params = ClothParams { rows: 13, cols: 11, spring_k: 700.0, damping: 0.3, ..Default::default() };
-        let grid = ClothGrid { rows: 13, cols: 11, spacing: params.spacing() };
-        let model = ForceModel::new(&params, &grid);
+    /// A `rows x cols` grid of rectangular cells, jiggled deterministically, with a few pinned
+    /// particles: its row-layout state, positions, velocities and free flags.
+    #[allow(clippy::type_complexity)]
+    fn jiggled(grid: &ClothGrid) -> (Vec<f32>, Vec<glam::DVec3>, Vec<glam::DVec3>, Vec<f32>) {
         let (rows, cols) = (grid.rows, grid.cols);
-        // A rest grid, jiggled deterministically, with a few pinned particles.
+        let s = grid.spacing();
         let jiggle = |i: usize, axis: usize| ((i * 7 + axis * 13) % 17) as f32 / 17.0 - 0.5;
         let mut state = vec![0.0f32; rows * cols * LANES];
         let (mut p, mut v) = (Vec::new(), Vec::new());
         for r in 0..rows {
             for c in 0..cols {
                 let i = r * cols + c;
-                let pos = Vec3::new(c as f32, 0.0, r as f32) * grid.spacing
-                    + 0.3 * grid.spacing * Vec3::new(jiggle(i, 0), jiggle(i, 1), jiggle(i, 2));
+                let pos = Vec3::new(c as f32 * s.x, 0.0, r as f32 * s.y)
+                    + 0.3 * s.min_element() * Vec3::new(jiggle(i, 0), jiggle(i, 1), jiggle(i, 2));
                 let vel = Vec3::new(jiggle(i, 3), jiggle(i, 4), jiggle(i, 5));
                 for (l, x) in [pos.x, pos.y, pos.z, vel.x, vel.y, vel.z].into_iter().enumerate() {
                     state[r * LANES * cols + l * cols + c] = x;
@@ -222,12 +271,26 @@ mod tests {
             }
         }
         let free: Vec<f32> = (0..rows * cols).map(|i| if i % 10 == 3 { 0.0 } else { 1.0 }).collect();
+        (state, p, v, free)
+    }
+
+    fn model() -> ForceModel {
+        ForceModel::new(&ClothParams { spring_k: 700.0, damping: 0.3, mass: 2.0, ..Default::default() })
+    }
+
+    #[test]
+    fn bands_apply_each_spring_to_both_ends_like_the_full_stencil() {
+        let grid = ClothGrid::new(glam::Vec2::new(1.3, 0.8), glam::UVec2::new(11, 13));
+        let model = model();
+        let (rows, cols) = (grid.rows, grid.cols);
+        let (state, p, v, free) = jiggled(&grid);
+        let inv_share = (rows * cols) as f32;
         for band_rows in [1, 2, 3, 5, 13] {
             let mut scratch = SpringScratch::default();
             for first in (0..rows).step_by(band_rows) {
                 let band = first..(first + band_rows).min(rows);
                 let mut acc = vec![f32::NAN; 3 * cols * band.len()];
-                model.band_acceleration(&grid, &state, &free, band.clone(), &mut acc, &mut scratch);
+                model.band_acceleration(&grid, inv_share, &state, &free, band.clone(), &mut acc, &mut scratch);
                 for (j, r) in band.enumerate() {
                     for c in 0..cols {
                         let got = Vec3::new(
@@ -235,7 +298,8 @@ mod tests {
                             acc[j * 3 * cols + cols + c],
                             acc[j * 3 * cols + 2 * cols + c],
                         );
-                        let want = naive(&model, &grid, &p, &v, r, c) * f64::from(free[r * cols + c]);
+                        let want =
+                            naive(&model, &grid, f64::from(inv_share), &p, &v, r, c) * f64::from(free[r * cols + c]);
                         let err = (got.as_dvec3() - want).length();
                         assert!(
                             err <= 1e-4 * want.length().max(1.0),
@@ -243,6 +307,25 @@ mod tests {
                         );
                     }
                 }
+            }
+        }
+    }
+
+    #[test]
+    fn the_general_path_gathers_the_same_springs_as_the_stencil() {
+        let grid = ClothGrid::new(glam::Vec2::new(1.3, 0.8), glam::UVec2::new(11, 13));
+        let topology = ClothTopology::grid_as_mesh(grid).unwrap();
+        let model = model();
+        let (state, p, v, free) = jiggled(&grid);
+        let inv_share = f64::from(topology.inv_mass_share()[0]);
+        let mut acc = vec![f32::NAN; 3 * grid.cols * grid.rows];
+        model.band_acceleration_general(&topology, grid.cols, &state, &free, 0..grid.rows, &mut acc);
+        for r in 0..grid.rows {
+            for c in 0..grid.cols {
+                let o = r * 3 * grid.cols + c;
+                let got = Vec3::new(acc[o], acc[o + grid.cols], acc[o + 2 * grid.cols]);
+                let want = naive(&model, &grid, inv_share, &p, &v, r, c) * f64::from(free[r * grid.cols + c]);
+                assert!((got.as_dvec3() - want).length() <= 1e-4 * want.length().max(1.0), "({r}, {c})");
             }
         }
     }

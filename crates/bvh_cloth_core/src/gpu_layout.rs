@@ -8,9 +8,9 @@ use glam::{Affine3A, Mat4, Vec3};
 use crate::collider::Collider;
 use crate::collision::ColliderFrame;
 use crate::forces::ForceModel;
-use crate::grid::ClothGrid;
 use crate::params::ClothParams;
 use crate::sim::ClothSim;
+use crate::topology::ClothTopology;
 
 /// One particle: position and velocity in world space. 32 bytes.
 #[repr(C)]
@@ -22,51 +22,88 @@ pub struct GpuParticle {
     pub velocity: [f32; 4],
 }
 
-/// The simulation constants of one cloth for one frame (a uniform). 80 bytes.
+/// The simulation constants of one cloth for one frame (a uniform). 64 bytes.
+///
+/// The cloth's shape is in two storage buffers of `u32` words, laid out by
+/// [`gpu_topology_words`] and [`gpu_surface_words`].
 #[repr(C)]
 #[derive(Clone, Copy, Debug, Default, PartialEq, Pod, Zeroable)]
 pub struct GpuClothParams {
-    /// Particle rows.
-    pub rows: u32,
-    /// Particle columns.
-    pub cols: u32,
+    /// Number of particles.
+    pub particle_count: u32,
+    /// Number of render vertices `normal_shader` writes.
+    pub vertex_count: u32,
     /// Number of [`GpuCollider`]s to test.
     pub collider_count: u32,
-    /// Padding.
-    pub _pad0: u32,
+    /// Threads along `x` of every dispatch (workgroups along `x` times 64): a thread's index is
+    /// `y * dispatch_width + x`.
+    pub dispatch_width: u32,
     /// Substep length in seconds.
     pub h: f32,
     /// Damping rate in 1/s.
     pub damping: f32,
+    /// Number of pinned particles `apply_anchors` moves each tick.
+    pub anchor_count: u32,
     /// Padding.
-    pub _pad1: [f32; 2],
-    /// `scale * spring_k / m` for structural, shear and bending springs; `w` unused.
-    pub k_over_m: [f32; 4],
-    /// Rest lengths of the three kinds; `w` unused.
-    pub rest: [f32; 4],
+    pub _pad: u32,
+    /// `scale * spring_k / mass` for structural, shear and bending springs; `w` unused.
+    pub k_over_mass: [f32; 4],
     /// Gravity plus the external force per unit mass; `w` unused.
     pub uniform_accel: [f32; 4],
 }
 
 impl GpuClothParams {
-    /// The constants of a cloth with `params` on `grid`, for substeps of `h` seconds against
-    /// `collider_count` colliders.
-    pub fn new(params: &ClothParams, grid: &ClothGrid, h: f32, collider_count: u32) -> Self {
-        let model = ForceModel::new(params, grid);
-        let [s, sh, b] = model.k_over_m;
-        let [rs, rsh, rb] = model.rest;
+    /// The constants of a cloth with `params` on `topology` and `anchor_count` pins, for
+    /// substeps of `h` seconds against `collider_count` colliders, dispatched `dispatch_width`
+    /// threads wide.
+    pub fn new(
+        params: &ClothParams,
+        topology: &ClothTopology,
+        anchor_count: u32,
+        h: f32,
+        collider_count: u32,
+        dispatch_width: u32,
+    ) -> Self {
+        let model = ForceModel::new(params);
+        let [s, sh, b] = model.k_over_mass;
         Self {
-            rows: grid.rows as u32,
-            cols: grid.cols as u32,
+            particle_count: topology.len() as u32,
+            vertex_count: topology.vertex_particle().len() as u32,
             collider_count,
+            dispatch_width,
             h,
             damping: model.damping,
-            k_over_m: [s, sh, b, 0.0],
-            rest: [rs, rsh, rb, 0.0],
+            anchor_count,
+            k_over_mass: [s, sh, b, 0.0],
             uniform_accel: model.uniform_accel.extend(0.0).to_array(),
             ..Zeroable::zeroed()
         }
     }
+}
+
+/// What `node_update` reads of a cloth's shape, as `u32` words: the `N + 1` spring offsets of
+/// [`ClothTopology::spring_offsets`], then the `N` inverse mass shares (`f32` bits), then every
+/// [`crate::topology::SpringEnd`] as four words.
+pub fn gpu_topology_words(topology: &ClothTopology) -> Vec<u32> {
+    let mut words = Vec::with_capacity(2 * topology.len() + 1 + 4 * topology.spring_ends().len());
+    words.extend_from_slice(topology.spring_offsets());
+    words.extend(topology.inv_mass_share().iter().map(|s| s.to_bits()));
+    words.extend_from_slice(bytemuck::cast_slice(topology.spring_ends()));
+    words
+}
+
+/// What `normal_shader` reads of a cloth's surface, as `u32` words: the particle of each of
+/// the `V` render vertices, then the `N + 1` triangle offsets of
+/// [`ClothTopology::triangle_offsets`], then the triangle list, then the triangles' corners
+/// (three words each).
+pub fn gpu_surface_words(topology: &ClothTopology) -> Vec<u32> {
+    let mut words =
+        Vec::with_capacity(topology.vertex_particle().len() + topology.len() + 1 + 4 * topology.triangles().len());
+    words.extend_from_slice(topology.vertex_particle());
+    words.extend_from_slice(topology.triangle_offsets());
+    words.extend_from_slice(topology.triangle_list());
+    words.extend(topology.triangles().iter().flatten());
+    words
 }
 
 /// One collider's frame and where its tree lies in the shared node and sphere arrays.
@@ -122,7 +159,8 @@ impl GpuCollider {
 }
 
 /// Where `normal_shader` writes a cloth's positions and normals: an interleaved vertex buffer
-/// of `f32` words (a mesh's vertex slab), in the frame of the cloth's entity. 144 bytes.
+/// of `f32` words (a mesh's vertex slab), in the frame of the cloth's entity. 144 bytes. Vertex
+/// `v` shows particle `vertex_particle[v]` (see [`gpu_surface_words`]).
 #[repr(C)]
 #[derive(Clone, Copy, Debug, Default, PartialEq, Pod, Zeroable)]
 pub struct GpuMeshWriteback {
@@ -163,7 +201,8 @@ impl GpuMeshWriteback {
     }
 }
 
-/// The particles of `sim` in GPU layout.
+/// The particles of `sim` in GPU layout: `position.w` is 1 for a free particle and 0 for a
+/// held one.
 pub fn gpu_particles(sim: &ClothSim) -> Vec<GpuParticle> {
     (0..sim.len())
         .map(|i| GpuParticle {
@@ -188,7 +227,7 @@ mod tests {
     #[test]
     fn sizes_are_multiples_of_sixteen() {
         assert_eq!(size_of::<GpuParticle>(), 32);
-        assert_eq!(size_of::<GpuClothParams>(), 80);
+        assert_eq!(size_of::<GpuClothParams>(), 64);
         assert_eq!(size_of::<GpuCollider>(), 176);
         assert_eq!(size_of::<GpuMeshWriteback>(), 144);
     }

@@ -8,7 +8,7 @@
 //!
 //! | module | paper |
 //! |---|---|
-//! | [`params`], [`grid`], [`forces`] | 2.1, eq. 1–3, Table V |
+//! | [`params`], [`grid`], [`topology`], [`forces`] | 2.1, eq. 1–3, Table V |
 //! | [`sim`] (RK4, semi-implicit Euler) | 2.2, eq. 4 |
 //! | [`voxel_spheres`] | 2.4.1 |
 //! | [`morton`], [`lbvh`] | 2.4.2 (Karras 2012) |
@@ -21,7 +21,9 @@
 //! This crate knows nothing of any engine: it is tested, benchmarked and fuzzed on its own.
 //!
 //! ```
-//! use bvh_cloth_core::{Affine3A, ClothParams, ClothSim, Collider, MeshRef, Pins, Vec3};
+//! use std::sync::Arc;
+//!
+//! use bvh_cloth_core::{Affine3A, ClothGrid, ClothParams, ClothSim, ClothTopology, Collider, MeshRef, Vec2, Vec3};
 //!
 //! // A unit box as the collider, voxelised at n = 3.
 //! let positions: Vec<[f32; 3]> =
@@ -29,10 +31,11 @@
 //! let indices = [0, 1, 3, 0, 3, 2, 4, 6, 7, 4, 7, 5, 0, 4, 5, 0, 5, 1, 2, 3, 7, 2, 7, 6];
 //! let collider = Collider::from_mesh(MeshRef { positions: &positions, indices: Some(&indices) }, 3)?;
 //!
-//! // A 16 x 16 cloth, 2 m above it, falling for half a second at 60 ticks per second.
-//! let params = ClothParams { rows: 16, cols: 16, ..Default::default() };
+//! // A 2 m x 2 m cloth of 16 x 16 particles, 2 m above it, falling for half a second at 60
+//! // ticks per second. Any triangle mesh works too: `ClothTopology::from_mesh`.
+//! let grid = Arc::new(ClothTopology::grid(ClothGrid::new(Vec2::splat(2.0), [16, 16].into()))?);
 //! let pose = Affine3A::from_translation(Vec3::new(0.5, 2.0, 0.5));
-//! let mut cloth = ClothSim::new(params, pose, &[])?;
+//! let mut cloth = ClothSim::new(ClothParams::default(), grid, pose, &[])?;
 //! for _ in 0..30 {
 //!     cloth.tick(1.0 / 60.0, std::slice::from_ref(&collider));
 //! }
@@ -54,15 +57,17 @@ pub mod normals;
 pub mod obj;
 pub mod params;
 pub mod sim;
+pub mod topology;
 pub mod traversal;
 mod voxel_grid;
 pub mod voxel_spheres;
 
 pub use collider::{Collider, ColliderPose};
 pub use error::{ClothError, ColliderError};
-pub use glam::{Affine3A, Quat, Vec3};
-pub use grid::{ClothGrid, Pins};
+pub use glam::{Affine3A, Quat, UVec2, Vec2, Vec3};
+pub use grid::{ClothGrid, MAX_PARTICLES, Pins};
 pub use lbvh::{BvhNode, Lbvh, Sphere};
 pub use params::{ClothParams, Integrator, SpringStiffness};
 pub use sim::ClothSim;
+pub use topology::{ClothTopology, SpringEnd};
 pub use voxel_spheres::MeshRef;

@@ -1,72 +1,63 @@
-//! Per-vertex normals of the cloth grid (paper Algorithm 3, `NormalShader`): the sum of the
-//! normals of the (up to four) grid cells around a particle, normalised.
+//! Per-vertex normals of the cloth (paper Algorithm 3, `NormalShader`): the sum of the normals
+//! of the triangles around a particle, each weighted by its area, normalised.
 
 use glam::Vec3;
 
-use crate::grid::ClothGrid;
+use crate::topology::ClothTopology;
 
-/// The normal of particle `(r, c)` given a position lookup. Each adjacent cell contributes the
-/// cross product of its two edges at the particle, ordered so a flat cloth at rest faces +Y.
-pub fn vertex_normal(grid: &ClothGrid, r: usize, c: usize, pos: impl Fn(usize) -> Vec3) -> Vec3 {
-    let p = pos(grid.index(r, c));
-    let edge = |rr: usize, cc: usize| pos(grid.index(rr, cc)) - p;
-    let (has_up, has_down) = (r > 0, r + 1 < grid.rows);
-    let (has_left, has_right) = (c > 0, c + 1 < grid.cols);
+/// The normal of particle `i` given a position lookup: the cross products of its triangles'
+/// edges (twice their areas, pointing the way their corners turn counter-clockwise), summed in
+/// the order of [`ClothTopology::triangles_of`] and normalised; `+Y` where they cancel.
+pub fn particle_normal(topology: &ClothTopology, i: usize, pos: impl Fn(usize) -> Vec3) -> Vec3 {
+    let triangles = topology.triangles();
     let mut n = Vec3::ZERO;
-    if has_down && has_right {
-        n += edge(r + 1, c).cross(edge(r, c + 1));
-    }
-    if has_right && has_up {
-        n += edge(r, c + 1).cross(edge(r - 1, c));
-    }
-    if has_up && has_left {
-        n += edge(r - 1, c).cross(edge(r, c - 1));
-    }
-    if has_left && has_down {
-        n += edge(r, c - 1).cross(edge(r + 1, c));
+    for &t in topology.triangles_of(i) {
+        let [a, b, c] = triangles[t as usize].map(|p| pos(p as usize));
+        n += (b - a).cross(c - a);
     }
     n.try_normalize().unwrap_or(Vec3::Y)
 }
 
-/// Normals of every particle, row-major.
-pub fn grid_normals(grid: &ClothGrid, positions: &[Vec3]) -> Vec<Vec3> {
-    let mut out = Vec::with_capacity(grid.len());
-    for r in 0..grid.rows {
-        for c in 0..grid.cols {
-            out.push(vertex_normal(grid, r, c, |i| positions[i]));
-        }
-    }
-    out
+/// Normals of every particle.
+pub fn particle_normals(topology: &ClothTopology, positions: &[Vec3]) -> Vec<Vec3> {
+    (0..topology.len()).map(|i| particle_normal(topology, i, |p| positions[p])).collect()
 }
 
 #[cfg(test)]
 mod tests {
-    use glam::{Affine3A, Quat};
+    use glam::{Affine3A, Quat, UVec2, Vec2};
 
     use super::*;
+    use crate::grid::ClothGrid;
+
+    fn grid(cols: u32, rows: u32, size: f32) -> (ClothGrid, ClothTopology) {
+        let grid = ClothGrid::new(Vec2::splat(size), UVec2::new(cols, rows));
+        (grid, ClothTopology::grid(grid).unwrap())
+    }
 
     #[test]
     fn flat_cloth_faces_up_and_follows_rotation() {
-        let grid = ClothGrid { rows: 4, cols: 5, spacing: 0.1 };
+        let (grid, topology) = grid(5, 4, 0.4);
         let flat = grid.rest_positions(&Affine3A::IDENTITY);
-        assert!(grid_normals(&grid, &flat).iter().all(|n| n.distance(Vec3::Y) < 1e-6));
+        assert!(particle_normals(&topology, &flat).iter().all(|n| n.distance(Vec3::Y) < 1e-6));
         let rot = Quat::from_rotation_x(core::f32::consts::FRAC_PI_2);
         let turned = grid.rest_positions(&Affine3A::from_quat(rot));
         let expected = rot * Vec3::Y;
-        assert!(grid_normals(&grid, &turned).iter().all(|n| n.distance(expected) < 1e-5));
+        assert!(particle_normals(&topology, &turned).iter().all(|n| n.distance(expected) < 1e-5));
     }
 
     #[test]
     fn fold_bends_normals() {
         // A roof: the middle column raised, so normals on each side tilt away from it.
-        let grid = ClothGrid { rows: 3, cols: 3, spacing: 1.0 };
+        let (grid, topology) = grid(3, 3, 2.0);
         let mut p = grid.rest_positions(&Affine3A::IDENTITY);
         for r in 0..3 {
             p[grid.index(r, 1)].y = 1.0;
         }
-        let n = grid_normals(&grid, &p);
+        let n = particle_normals(&topology, &p);
         assert!(n[grid.index(1, 0)].x < -0.1);
         assert!(n[grid.index(1, 2)].x > 0.1);
-        assert!(n[grid.index(1, 1)].x.abs() < 1e-6);
+        // The ridge's own normal points up, tilted only by the one diagonal of each cell.
+        assert!(n[grid.index(1, 1)].y > 0.9);
     }
 }

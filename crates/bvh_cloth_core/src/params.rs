@@ -3,9 +3,7 @@
 use glam::Vec3;
 
 use crate::error::ClothError;
-
-/// Largest particle count a single cloth may have (4096 x 4096).
-pub const MAX_PARTICLES: u32 = 1 << 24;
+use crate::topology::ClothTopology;
 
 /// Most substeps one tick may take when the stability guard raises `looper` (see
 /// [`ClothParams::max_stable_substep`]). Beyond it the springs are too stiff for the tick rate
@@ -44,28 +42,28 @@ impl Default for SpringStiffness {
     }
 }
 
-/// Everything that defines a cloth's physics (paper Table V, plus gravity and the integrator).
+/// Everything that defines a cloth's material and how it is stepped (paper Table V, plus
+/// gravity and the integrator). The cloth's shape is its [`ClothTopology`].
 #[derive(Clone, Debug, PartialEq)]
 pub struct ClothParams {
-    /// Number of particle rows ("Vertex Row"); the rows run along the cloth's local +Z.
-    pub rows: u32,
-    /// Number of particle columns ("Vertex Column"); the columns run along the cloth's local +X.
-    pub cols: u32,
-    /// Length of the cloth along its columns, in metres ("Cloth Size"). Cells are square, so the
-    /// cloth is `size * (rows - 1) / (cols - 1)` deep.
-    pub size: f32,
-    /// Total mass of the cloth in kilograms ("Cloth Mass"), shared equally by the particles.
+    /// Total mass of the cloth in kilograms ("Cloth Mass"). Each particle carries the share of
+    /// it that [`ClothTopology::mass_share`] gives: its share of the surface for an authored
+    /// mesh, an equal share on the generated grid (as in the paper).
     pub mass: f32,
     /// Simulation substeps per tick ("Looper").
     pub looper: u32,
-    /// Spring stiffness `c_e` of paper eq. 1, in N/m ("SpringK").
+    /// Stiffness of the cloth in N/m ("SpringK", the `c_e` of paper eq. 1), independent of the
+    /// resolution: each spring gets `spring_k * scale * A / L²`, where `L` is its rest length
+    /// and `A` the rest area it spans (see [`crate::topology`]). On a grid with square cells that
+    /// is `spring_k` times its kind's scale for every spring, as in the paper; a finer grid or
+    /// an irregular mesh of the same sheet stretches the same under the same load.
     pub spring_k: f32,
     /// Velocity damping rate in 1/s ("Damping"): each particle feels `-damping * m * v`,
     /// which is paper eq. 2 with `c_d = damping * m`, so the same value behaves the same at
-    /// every grid resolution.
+    /// every resolution.
     pub damping: f32,
-    /// A non-gravity force on the whole cloth, in newtons ("External Force"), shared equally by
-    /// the particles (wind, a push).
+    /// A non-gravity force on the whole cloth, in newtons ("External Force"), shared by the
+    /// particles in proportion to their mass (wind, a push).
     pub external_force: Vec3,
     /// Gravitational acceleration in m/s².
     pub gravity: Vec3,
@@ -78,9 +76,6 @@ pub struct ClothParams {
 impl Default for ClothParams {
     fn default() -> Self {
         Self {
-            rows: 64,
-            cols: 64,
-            size: 2.0,
             mass: 1.0,
             looper: 16,
             spring_k: 200.0,
@@ -94,33 +89,21 @@ impl Default for ClothParams {
 }
 
 impl ClothParams {
-    /// Number of particles, `rows * cols`.
-    pub fn particle_count(&self) -> usize {
-        self.rows as usize * self.cols as usize
-    }
-
-    /// Mass of one particle in kilograms.
-    pub fn particle_mass(&self) -> f32 {
-        self.mass / self.particle_count() as f32
-    }
-
-    /// Rest distance between neighbouring particles in metres.
-    pub fn spacing(&self) -> f32 {
-        self.size / (self.cols.max(2) - 1) as f32
-    }
-
-    /// The longest substep, in seconds, for which the integrator stays stable.
+    /// The longest substep, in seconds, for which the integrator stays stable on `topology`.
     ///
-    /// The fastest mode of the spring grid has `w² <= 4 (k_structural + k_shear + k_bending) / m`:
-    /// each stencil spring adds at most `2 k (d·u)²` to the stiffness along a direction `u`, and
-    /// over each kind's four neighbours `(d·u)²` sums to 2 whatever `u` is (a Gershgorin bound;
-    /// the grid's real top mode, the checkerboard, reaches `6 k / m` with the default scales).
-    /// Damping adds its rate to that. RK4 is stable up to `h w = 2√2` on the imaginary axis and
-    /// semi-implicit Euler up to `h w = 2`; 10 % is kept in hand.
-    pub fn max_stable_substep(&self) -> f32 {
+    /// The fastest mode of the springs has `w² <= 2 max_i λ_i / m_i`, where `λ_i` is the largest
+    /// eigenvalue of `Σ k_ij d_ij d_ijᵀ` over particle `i`'s springs (unit rest directions
+    /// `d_ij`): a Gershgorin bound on the stiffness matrix per unit mass, which
+    /// [`ClothTopology::stiffness_bound`] precomputes per spring kind. On the square grid it is
+    /// `4 (k_structural + k_shear + k_bending) / m`, and the grid's real top mode, the
+    /// checkerboard, reaches `6 k / m` with the default scales. Damping adds its rate to that.
+    /// RK4 is stable up to `h w = 2√2` on the imaginary axis and semi-implicit Euler up to
+    /// `h w = 2`; 10 % is kept in hand.
+    pub fn max_stable_substep(&self, topology: &ClothTopology) -> f32 {
         let s = self.stiffness;
-        let k_sum = self.spring_k * (s.structural + s.shear + s.bending);
-        let omega = (4.0 * k_sum / self.particle_mass()).sqrt() + self.damping;
+        let bound = topology.stiffness_bound();
+        let per_mass = s.structural * bound[0] + s.shear * bound[1] + s.bending * bound[2];
+        let omega = (2.0 * self.spring_k / self.mass * per_mass).sqrt() + self.damping;
         let limit = match self.integrator {
             Integrator::Rk4 => 2.0 * core::f32::consts::SQRT_2,
             Integrator::SemiImplicitEuler => 2.0,
@@ -128,11 +111,11 @@ impl ClothParams {
         if omega > 0.0 { 0.9 * limit / omega } else { f32::INFINITY }
     }
 
-    /// Substeps one tick of `dt` seconds takes: `looper`, or more when a substep of
-    /// `dt / looper` would be longer than [`Self::max_stable_substep`], up to
+    /// Substeps one tick of `dt` seconds takes on `topology`: `looper`, or more when a substep
+    /// of `dt / looper` would be longer than [`Self::max_stable_substep`], up to
     /// [`MAX_SUBSTEPS_PER_TICK`].
-    pub fn substeps(&self, dt: f32) -> u32 {
-        let needed = (dt / self.max_stable_substep()).ceil();
+    pub fn substeps(&self, dt: f32, topology: &ClothTopology) -> u32 {
+        let needed = (dt / self.max_stable_substep(topology)).ceil();
         if needed.is_finite() && needed > self.looper as f32 {
             (needed as u32).min(MAX_SUBSTEPS_PER_TICK).max(self.looper)
         } else {
@@ -140,16 +123,8 @@ impl ClothParams {
         }
     }
 
-    /// Checks that a cloth can be built and stepped with these parameters.
+    /// Checks that a cloth can be stepped with these parameters.
     pub fn validate(&self) -> Result<(), ClothError> {
-        let (rows, cols) = (self.rows, self.cols);
-        if rows < 2 || cols < 2 {
-            return Err(ClothError::GridTooSmall { rows, cols });
-        }
-        if u64::from(rows) * u64::from(cols) > u64::from(MAX_PARTICLES) {
-            return Err(ClothError::GridTooLarge { rows, cols, max_particles: MAX_PARTICLES });
-        }
-        positive("size", self.size)?;
         positive("mass", self.mass)?;
         if self.looper == 0 {
             return Err(ClothError::ZeroLooper);
@@ -161,8 +136,6 @@ impl ClothParams {
         non_negative("stiffness.bending", self.stiffness.bending)?;
         finite("external_force", self.external_force)?;
         finite("gravity", self.gravity)?;
-        // The particle mass must itself be a usable positive number.
-        positive("mass", self.particle_mass())?;
         Ok(())
     }
 }
@@ -181,7 +154,10 @@ fn finite(field: &'static str, value: Vec3) -> Result<(), ClothError> {
 
 #[cfg(test)]
 mod tests {
+    use glam::{UVec2, Vec2};
+
     use super::*;
+    use crate::grid::ClothGrid;
 
     #[test]
     fn defaults_are_valid() {
@@ -190,42 +166,57 @@ mod tests {
 
     #[test]
     fn stability_guard_adds_substeps_only_when_needed() {
+        let grid = ClothTopology::grid(ClothGrid::new(Vec2::splat(2.0), UVec2::splat(64))).unwrap();
         let base = ClothParams::default();
-        assert_eq!(base.substeps(1.0 / 60.0), base.looper, "the defaults are stable as given");
+        assert_eq!(base.substeps(1.0 / 60.0, &grid), base.looper, "the defaults are stable as given");
         let stiff = ClothParams { spring_k: 5000.0, ..base.clone() };
-        let n = stiff.substeps(1.0 / 60.0);
-        assert!(n > base.looper && (1.0 / 60.0) / n as f32 <= stiff.max_stable_substep(), "{n}");
-        let absurd = ClothParams { spring_k: 1.0e12, ..base };
-        assert_eq!(absurd.substeps(1.0 / 60.0), MAX_SUBSTEPS_PER_TICK);
+        let n = stiff.substeps(1.0 / 60.0, &grid);
+        assert!(n > base.looper && (1.0 / 60.0) / n as f32 <= stiff.max_stable_substep(&grid), "{n}");
+        let absurd = ClothParams { spring_k: 1.0e12, ..base.clone() };
+        assert_eq!(absurd.substeps(1.0 / 60.0, &grid), MAX_SUBSTEPS_PER_TICK);
+        // On the square grid the bound is the closed form 4 (k_s + k_sh + k_b) / m.
+        let m = base.mass / grid.len() as f32;
+        let k_sum = base.spring_k * (1.0 + 0.5 + 0.25);
+        let closed = 0.9 * 2.0 * core::f32::consts::SQRT_2 / ((4.0 * k_sum / m).sqrt() + base.damping);
+        let got = base.max_stable_substep(&grid);
+        assert!((got - closed).abs() <= 1e-5 * closed, "{got} vs {closed}");
     }
 
     #[test]
     fn rejects_what_cannot_work() {
         let base = ClothParams::default();
         let cases: Vec<(ClothParams, ClothError)> = vec![
-            (ClothParams { rows: 1, ..base.clone() }, ClothError::GridTooSmall { rows: 1, cols: 64 }),
-            (ClothParams { cols: 0, ..base.clone() }, ClothError::GridTooSmall { rows: 64, cols: 0 }),
-            (
-                ClothParams { size: f32::NAN, ..base.clone() },
-                ClothError::NotPositive { field: "size", value: f32::NAN },
-            ),
             (ClothParams { mass: -1.0, ..base.clone() }, ClothError::NotPositive { field: "mass", value: -1.0 }),
             (ClothParams { looper: 0, ..base.clone() }, ClothError::ZeroLooper),
             (
                 ClothParams { spring_k: f32::INFINITY, ..base.clone() },
                 ClothError::Negative { field: "spring_k", value: f32::INFINITY },
             ),
+            (ClothParams { damping: -0.5, ..base.clone() }, ClothError::Negative { field: "damping", value: -0.5 }),
             (
                 ClothParams { external_force: Vec3::new(0.0, f32::NAN, 0.0), ..base.clone() },
                 ClothError::NotFinite { field: "external_force" },
             ),
         ];
         for (params, expected) in cases {
-            let err = params.validate().unwrap_err();
-            // NaN != NaN, so compare the messages, which carry every field.
-            assert_eq!(err.to_string(), expected.to_string());
+            assert_eq!(params.validate().unwrap_err(), expected);
         }
-        let huge = ClothParams { rows: 100_000, cols: 100_000, ..base };
-        assert!(matches!(huge.validate(), Err(ClothError::GridTooLarge { .. })));
+        let nan_mass = ClothParams { mass: f32::NAN, ..base };
+        // NaN != NaN, so compare the message, which carries the field and the value.
+        assert_eq!(
+            nan_mass.validate().unwrap_err().to_string(),
+            ClothError::NotPositive { field: "mass", value: f32::NAN }.to_string()
+        );
+    }
+
+    #[test]
+    fn grids_refuse_what_cannot_work() {
+        let grid =
+            |x: f32, y: f32, cols: u32, rows: u32| ClothGrid::new(Vec2::new(x, y), UVec2::new(cols, rows)).validate();
+        assert_eq!(grid(1.0, 1.0, 8, 1), Err(ClothError::GridTooSmall { rows: 1, cols: 8 }));
+        assert_eq!(grid(1.0, 1.0, 0, 8), Err(ClothError::GridTooSmall { rows: 8, cols: 0 }));
+        assert_eq!(grid(1.0, -2.0, 8, 8), Err(ClothError::NotPositive { field: "size.y", value: -2.0 }));
+        assert!(matches!(grid(1.0, 1.0, 100_000, 100_000), Err(ClothError::GridTooLarge { .. })));
+        assert_eq!(grid(3.0, 0.5, 8, 2), Ok(()));
     }
 }

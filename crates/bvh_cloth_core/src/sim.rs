@@ -1,10 +1,12 @@
-//! The CPU stepper: a whole cloth advanced by RK4 or semi-implicit Euler, with collision
-//! response fused into the last stage of every substep (paper Fig. 1).
+//! The CPU stepper: a whole cloth of any [`ClothTopology`] advanced by RK4 or semi-implicit
+//! Euler, with collision response fused into the last stage of every substep (paper Fig. 1).
 //!
 //! This is the reference the GPU kernels are checked against and a real backend for machines
 //! without compute shaders. Rows are processed in parallel with rayon; every particle's result
 //! depends only on the previous stage's buffers, never on which thread ran it, so a step is
 //! bit-identical whatever the number of threads.
+
+use std::sync::Arc;
 
 use glam::{Affine3A, Vec3};
 use rayon::prelude::*;
@@ -13,25 +15,31 @@ use crate::collider::Collider;
 use crate::collision::ColliderFrame;
 use crate::error::ClothError;
 use crate::forces::{ForceModel, LANES, SpringScratch};
-use crate::grid::{ClothGrid, STENCIL};
 use crate::params::{ClothParams, Integrator};
+use crate::topology::ClothTopology;
 
 /// Rows per band: the unit of parallel work, and of spring reuse (see
 /// [`ForceModel::band_acceleration`]). It is fixed, so results do not depend on the thread count.
 const BAND_ROWS: usize = 8;
 
+/// Particles per row of the state layout when the topology is not the grid (the grid's rows
+/// are its own).
+const GENERAL_ROW: usize = 64;
+
 /// A simulated cloth.
 #[derive(Clone, Debug)]
 pub struct ClothSim {
     params: ClothParams,
-    grid: ClothGrid,
+    topology: Arc<ClothTopology>,
+    /// Particles per row of the state layout; the last row may be padded.
+    width: usize,
     /// Current state, row layout (see [`crate::forces`]).
     state: Vec<f32>,
     /// Stage buffers: intermediate states and the running RK4 slope sum.
     stage_a: Vec<f32>,
     stage_b: Vec<f32>,
     slope_sum: Vec<f32>,
-    /// 1 for a free particle, 0 for a pinned one.
+    /// 1 for a free particle, 0 for a pinned or massless one and for padding.
     free: Vec<f32>,
     pins: Vec<u32>,
 }
@@ -48,30 +56,46 @@ enum Stage {
 }
 
 impl ClothSim {
-    /// Builds a cloth at rest: the flat grid placed in the world by `pose`, with `pins` (row-major
-    /// particle indices) held in place.
-    pub fn new(params: ClothParams, pose: Affine3A, pins: &[u32]) -> Result<Self, ClothError> {
+    /// Builds a cloth at rest: `topology`'s rest shape placed in the world by `pose`, with
+    /// `pins` (particle indices) held in place. Particles without mass (used by no triangle
+    /// with area) are held too.
+    pub fn new(
+        params: ClothParams,
+        topology: Arc<ClothTopology>,
+        pose: Affine3A,
+        pins: &[u32],
+    ) -> Result<Self, ClothError> {
         params.validate()?;
         if !pose.is_finite() {
             return Err(ClothError::NotFinite { field: "pose" });
         }
-        let grid = ClothGrid { rows: params.rows as usize, cols: params.cols as usize, spacing: params.spacing() };
-        let n = grid.len();
-        let mut free = vec![1.0f32; n];
+        let n = topology.len();
+        let (width, rows) = match topology.stencil() {
+            Some(grid) => (grid.cols, grid.rows),
+            None => (GENERAL_ROW.min(n), n.div_ceil(GENERAL_ROW.min(n))),
+        };
+        let slots = width * rows;
+        let mut free = vec![0.0f32; slots];
+        for (f, &share) in free.iter_mut().zip(topology.mass_share()) {
+            *f = if share > 0.0 { 1.0 } else { 0.0 };
+        }
         for &i in pins {
-            let slot = free.get_mut(i as usize).ok_or(ClothError::PinOutOfRange { index: i, particles: n as u32 })?;
-            *slot = 0.0;
+            if i as usize >= n {
+                return Err(ClothError::PinOutOfRange { index: i, particles: n as u32 });
+            }
+            free[i as usize] = 0.0;
         }
         let mut pins = pins.to_vec();
         pins.sort_unstable();
         pins.dedup();
         let mut sim = Self {
             params,
-            grid,
-            state: vec![0.0; n * LANES],
-            stage_a: vec![0.0; n * LANES],
-            stage_b: vec![0.0; n * LANES],
-            slope_sum: vec![0.0; n * LANES],
+            topology,
+            width,
+            state: vec![0.0; slots * LANES],
+            stage_a: vec![0.0; slots * LANES],
+            stage_b: vec![0.0; slots * LANES],
+            slope_sum: vec![0.0; slots * LANES],
             free,
             pins,
         };
@@ -81,8 +105,9 @@ impl ClothSim {
 
     /// Puts every particle back at its rest position under `pose`, at rest.
     pub fn reset(&mut self, pose: Affine3A) {
-        for (i, p) in self.grid.rest_positions(&pose).into_iter().enumerate() {
-            self.set_position(i, p);
+        let topology = Arc::clone(&self.topology);
+        for (i, &p) in topology.rest_positions().iter().enumerate() {
+            self.set_position(i, pose.transform_point3(p));
             self.set_velocity(i, Vec3::ZERO);
         }
     }
@@ -91,18 +116,24 @@ impl ClothSim {
     /// the object that holds the cloth.
     pub fn pin_to(&mut self, pose: &Affine3A) {
         let targets: Vec<(u32, Vec3)> = self.pin_targets(pose).collect();
-        for (i, p) in targets {
-            self.set_position(i as usize, p);
+        self.move_pins(&targets);
+    }
+
+    /// Moves particles to the given world positions: `(index, position)` pairs, for pins that
+    /// follow targets of their own. Indices outside the cloth are ignored.
+    pub fn move_pins(&mut self, targets: &[(u32, Vec3)]) {
+        for &(i, p) in targets {
+            if (i as usize) < self.len() {
+                self.set_position(i as usize, p);
+            }
         }
     }
 
     /// Where each pinned particle belongs under `pose`: `(index, world position)`, its rest
     /// position placed by the pose.
     pub fn pin_targets<'a>(&'a self, pose: &'a Affine3A) -> impl Iterator<Item = (u32, Vec3)> + 'a {
-        self.pins.iter().map(move |&i| {
-            let (r, c) = (i as usize / self.grid.cols, i as usize % self.grid.cols);
-            (i, pose.transform_point3(self.grid.local_rest_position(r, c)))
-        })
+        let rest = self.topology.rest_positions();
+        self.pins.iter().map(move |&i| (i, pose.transform_point3(rest[i as usize])))
     }
 
     /// The parameters.
@@ -110,31 +141,32 @@ impl ClothSim {
         &self.params
     }
 
-    /// Replaces the parameters that can change without rebuilding the grid (everything except
-    /// `rows`, `cols` and `size`). Returns an error, and keeps the old parameters, when the new
-    /// ones are invalid or change the grid's shape.
+    /// Replaces the parameters, keeping the state. Returns an error, and keeps the old
+    /// parameters, when the new ones are invalid.
     pub fn set_params(&mut self, params: ClothParams) -> Result<(), ClothError> {
         params.validate()?;
-        if (params.rows, params.cols) != (self.params.rows, self.params.cols) || params.size != self.params.size {
-            return Err(ClothError::ShapeChanged);
-        }
         self.params = params;
         Ok(())
     }
 
-    /// The grid's shape.
-    pub fn grid(&self) -> &ClothGrid {
-        &self.grid
+    /// The cloth's shape.
+    pub fn topology(&self) -> &Arc<ClothTopology> {
+        &self.topology
+    }
+
+    /// Substeps a tick of `dt` seconds runs (see [`ClothParams::substeps`]).
+    pub fn substeps(&self, dt: f32) -> u32 {
+        self.params.substeps(dt, &self.topology)
     }
 
     /// Number of particles.
     pub fn len(&self) -> usize {
-        self.grid.len()
+        self.topology.len()
     }
 
-    /// Whether the cloth has no particle (never true: a cloth has at least 2 x 2).
+    /// Whether the cloth has no particle (never true for a built topology).
     pub fn is_empty(&self) -> bool {
-        self.grid.is_empty()
+        self.topology.is_empty()
     }
 
     /// The pinned particle indices, sorted.
@@ -142,16 +174,20 @@ impl ClothSim {
         &self.pins
     }
 
-    /// Whether particle `i` is pinned.
+    /// Whether particle `i` is held still (pinned, or without mass).
     pub fn is_pinned(&self, i: usize) -> bool {
         self.free[i] == 0.0
     }
 
+    /// Mass of particle `i` in kilograms.
+    pub fn particle_mass(&self, i: usize) -> f32 {
+        self.params.mass * self.topology.mass_share()[i]
+    }
+
     #[inline]
     fn lane(&self, i: usize) -> (usize, usize) {
-        let cols = self.grid.cols;
-        let (r, c) = (i / cols, i % cols);
-        (r * LANES * cols + c, cols)
+        let w = self.width;
+        ((i / w) * LANES * w + i % w, w)
     }
 
     /// Position of particle `i`.
@@ -182,17 +218,17 @@ impl ClothSim {
         self.state[o + 5 * s] = v.z;
     }
 
-    /// All positions, row-major.
+    /// All positions, by particle index.
     pub fn positions(&self) -> Vec<Vec3> {
         (0..self.len()).map(|i| self.position(i)).collect()
     }
 
-    /// All velocities, row-major.
+    /// All velocities, by particle index.
     pub fn velocities(&self) -> Vec<Vec3> {
         (0..self.len()).map(|i| self.velocity(i)).collect()
     }
 
-    /// Writes all positions into `out` (row-major), e.g. straight into a mesh attribute.
+    /// Writes all positions into `out` (by particle index).
     pub fn write_positions(&self, out: &mut [[f32; 3]]) {
         for (i, o) in out.iter_mut().enumerate().take(self.len()) {
             *o = self.position(i).to_array();
@@ -212,25 +248,18 @@ impl ClothSim {
     /// Total mechanical energy in joules: kinetic + spring potential − work of the uniform
     /// acceleration (gravity and external force, taken from the origin).
     pub fn energy(&self) -> f64 {
-        let m = f64::from(self.params.particle_mass());
-        let model = ForceModel::new(&self.params, &self.grid);
+        let model = ForceModel::new(&self.params);
         let g = model.uniform_accel.as_dvec3();
-        let (rows, cols) = (self.grid.rows as i64, self.grid.cols as i64);
+        let k_per_weight = model.k_over_mass.map(|k| f64::from(k) * f64::from(self.params.mass));
         let mut e = 0.0f64;
         for i in 0..self.len() {
+            let m = f64::from(self.particle_mass(i));
             let (p, v) = (self.position(i).as_dvec3(), self.velocity(i).as_dvec3());
             e += 0.5 * m * v.length_squared() - m * g.dot(p);
-            let (r, c) = ((i as i64) / cols, (i as i64) % cols);
-            for s in STENCIL {
-                let (rr, cc) = (r + i64::from(s.dr), c + i64::from(s.dc));
-                if rr < 0 || cc < 0 || rr >= rows || cc >= cols {
-                    continue;
-                }
-                let kind = s.kind as usize;
-                let q = self.position((rr * cols + cc) as usize).as_dvec3();
-                let stretch = (q - p).length() - f64::from(model.rest[kind]);
-                // Each spring is seen from both ends: count half.
-                e += 0.25 * m * f64::from(model.k_over_m[kind]) * stretch * stretch;
+            for end in self.topology.springs_of(i).iter().filter(|end| end.other as usize > i) {
+                let q = self.position(end.other as usize).as_dvec3();
+                let stretch = (q - p).length() - f64::from(end.rest);
+                e += 0.5 * k_per_weight[end.kind as usize] * f64::from(end.weight) * stretch * stretch;
             }
         }
         e
@@ -243,7 +272,7 @@ impl ClothSim {
         if !(dt.is_finite() && dt > 0.0) {
             return 0;
         }
-        let substeps = self.params.substeps(dt);
+        let substeps = self.substeps(dt);
         let h = dt / substeps as f32;
         for _ in 0..substeps {
             self.substep(h, colliders);
@@ -254,7 +283,7 @@ impl ClothSim {
     /// Advances one substep of `h` seconds (integration, then collision).
     pub fn substep(&mut self, h: f32, colliders: &[Collider]) {
         let frames: Vec<ColliderFrame<'_>> = colliders.iter().filter_map(ColliderFrame::new).collect();
-        let model = ForceModel::new(&self.params, &self.grid);
+        let model = ForceModel::new(&self.params);
         match self.params.integrator {
             Integrator::Rk4 => {
                 let stages = [
@@ -285,10 +314,10 @@ impl ClothSim {
         src: Src,
         dst: Dst,
     ) {
-        let grid = self.grid;
-        let cols = grid.cols;
-        let w = LANES * cols;
-        let Self { state, stage_a, stage_b, slope_sum, free, .. } = self;
+        let width = self.width;
+        let w = LANES * width;
+        let Self { state, stage_a, stage_b, slope_sum, free, topology, .. } = self;
+        let topology: &ClothTopology = topology;
         let (src, out): (&[f32], &mut [f32]) = match (src, dst) {
             (Src::State, Dst::A) => (state, stage_a),
             (Src::A, Dst::B) => (stage_a, stage_b),
@@ -299,20 +328,26 @@ impl ClothSim {
         let free: &[f32] = free;
         let band_len = BAND_ROWS * w;
         out.par_chunks_mut(band_len).zip(slope_sum.par_chunks_mut(band_len)).enumerate().for_each_init(
-            || (vec![0.0f32; 3 * cols * BAND_ROWS], SpringScratch::default()),
+            || (vec![0.0f32; 3 * width * BAND_ROWS], SpringScratch::default()),
             |(acc, scratch), (b, (out_band, sum_band))| {
                 let first = b * BAND_ROWS;
                 let band = first..first + out_band.len() / w;
-                model.band_acceleration(&grid, src, free, band.clone(), acc, scratch);
+                match topology.stencil() {
+                    Some(grid) => {
+                        let inv_share = topology.inv_mass_share()[0];
+                        model.band_acceleration(grid, inv_share, src, free, band.clone(), acc, scratch);
+                    }
+                    None => model.band_acceleration_general(topology, width, src, free, band.clone(), acc),
+                }
                 for (j, r) in band.enumerate() {
                     let row = r * w..(r + 1) * w;
                     let (out_row, sum_row) = (&mut out_band[j * w..(j + 1) * w], &mut sum_band[j * w..(j + 1) * w]);
-                    let acc_row = &acc[j * 3 * cols..(j + 1) * 3 * cols];
+                    let acc_row = &acc[j * 3 * width..(j + 1) * 3 * width];
                     let (src_row, base_row) = (&src[row.clone()], &base[row]);
-                    let free_row = &free[r * cols..(r + 1) * cols];
-                    integrate_row(stage, h, cols, src_row, base_row, free_row, acc_row, sum_row, out_row);
+                    let free_row = &free[r * width..(r + 1) * width];
+                    integrate_row(stage, h, width, src_row, base_row, free_row, acc_row, sum_row, out_row);
                     if matches!(stage, Stage::Rk4Final | Stage::Euler) && !frames.is_empty() {
-                        collide_row(frames, cols, base_row, free_row, out_row);
+                        collide_row(frames, width, base_row, free_row, out_row);
                     }
                 }
             },

@@ -4,7 +4,9 @@
 //! one spring: along the diagonal it is the linear oscillator `x(t) = A cos(w t)`,
 //! `w = sqrt(k / m)`.
 
-use bvh_cloth_core::{Affine3A, ClothParams, ClothSim, Integrator, SpringStiffness, Vec3};
+use std::sync::Arc;
+
+use bvh_cloth_core::{Affine3A, ClothGrid, ClothParams, ClothSim, ClothTopology, Integrator, SpringStiffness, Vec3};
 
 const AMPLITUDE: f32 = 0.2;
 const OMEGA: f32 = core::f32::consts::TAU; // one period per second
@@ -13,9 +15,6 @@ fn oscillator(integrator: Integrator) -> (ClothSim, Vec3, Vec3, f32) {
     // 4 particles of 0.25 kg; k = w^2 m puts the period at 1 s.
     let m = 0.25f32;
     let params = ClothParams {
-        rows: 2,
-        cols: 2,
-        size: 1.0,
         mass: 4.0 * m,
         looper: 1,
         spring_k: OMEGA * OMEGA * m,
@@ -25,7 +24,8 @@ fn oscillator(integrator: Integrator) -> (ClothSim, Vec3, Vec3, f32) {
         integrator,
         ..Default::default()
     };
-    let mut sim = ClothSim::new(params, Affine3A::IDENTITY, &[0, 1, 2]).unwrap();
+    let grid = Arc::new(ClothTopology::grid(ClothGrid::new([1.0, 1.0].into(), [2, 2].into())).unwrap());
+    let mut sim = ClothSim::new(params, grid, Affine3A::IDENTITY, &[0, 1, 2]).unwrap();
     let anchor = sim.position(0);
     let dir = (sim.position(3) - anchor).normalize();
     let rest = core::f32::consts::SQRT_2;

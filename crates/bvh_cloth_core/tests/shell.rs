@@ -56,10 +56,10 @@ fn drop_on(collider: &Collider, seconds: f32, solid: Option<&(dyn Fn(Vec3) -> bo
     let top = collider.lbvh.bounds().expect("spheres").1.y;
     let params = ClothParams { looper: 16, ..ClothParams::default() };
     let pose = Affine3A::from_translation(Vec3::new(0.0, top + 0.1, 0.0));
-    let mut sim = ClothSim::new(params, pose, &[]).expect("a valid cloth");
+    let mut sim = ClothSim::new(params, common::grid_topology(2.0, 64, 64), pose, &[]).expect("a valid cloth");
     let colliders = std::slice::from_ref(collider);
     let dt = 1.0 / 60.0;
-    let substeps = sim.params().substeps(dt);
+    let substeps = sim.substeps(dt);
     let h = dt / substeps as f32;
     let mut violations = Vec::new();
     let mut steps = 0;

@@ -1,27 +1,29 @@
-// Bindings: 0 is shared; node_update uses 1-4 and 13, collision_detection_with_bvh 5-9,
-// normal_shader 10-12, so every (group, binding) names one variable.
+// Bindings: 0 is shared; node_update uses 1-4, 13 and 16, collision_detection_with_bvh 5-9,
+// normal_shader 10-12 and 17, apply_anchors 14-15, so every (group, binding) names one variable.
 //
 // The paper's three compute kernels (Table I): node_update, collision_detection_with_bvh and
-// normal_shader. Each thread owns one particle of the rows x cols grid; workgroups are 8x8x1.
+// normal_shader, plus apply_anchors, which moves pinned particles at the start of each tick.
+// Each thread owns one particle (one render vertex in normal_shader) of a cloth of any
+// topology; workgroups are 8x8x1, and a thread's index is id.y * dispatch_width + id.x.
 // Every struct mirrors a #[repr(C)] struct of bvh_cloth_core::gpu_layout field for field, and
 // every formula follows the CPU reference (bvh_cloth_core's forces, sim, collision, traversal
 // and normals modules) in the same order of operations.
 
 struct GpuParticle {
-    position: vec4<f32>, // w: 1 free, 0 pinned
+    position: vec4<f32>, // w: 1 free, 0 held
     velocity: vec4<f32>,
 }
 
 struct GpuClothParams {
-    rows: u32,
-    cols: u32,
+    particle_count: u32,
+    vertex_count: u32,
     collider_count: u32,
-    _pad0: u32,
+    dispatch_width: u32,
     h: f32,
     damping: f32,
-    _pad1: vec2<f32>,
-    k_over_m: vec4<f32>,
-    rest: vec4<f32>,
+    anchor_count: u32,
+    _pad: u32,
+    k_over_mass: vec4<f32>,
     uniform_accel: vec4<f32>,
 }
 
@@ -78,30 +80,32 @@ override STAGE: u32 = 0u;
 @group(0) @binding(4) var<storage, read_write> stage_out: array<GpuParticle>;
 // Particles quarantined since the host last read and cleared it (one per particle and substep).
 @group(0) @binding(13) var<storage, read_write> faults: atomic<u32>;
+// The cloth's springs (bvh_cloth_core::gpu_layout::gpu_topology_words): N + 1 offsets, N inverse
+// mass shares, then four words per spring end (other, kind, rest, weight).
+@group(0) @binding(16) var<storage, read> topology: array<u32>;
 
-// Acceleration of particle (r, c) at the `source` state; zero for a pinned particle.
-fn acceleration(r: i32, c: i32) -> vec3<f32> {
-    let rows = i32(params.rows);
-    let cols = i32(params.cols);
-    let me = source[r * cols + c];
+// The index of the particle (or vertex) this thread owns.
+fn thread_index(id: vec3<u32>) -> u32 {
+    return id.y * params.dispatch_width + id.x;
+}
+
+// Acceleration of particle i at the `source` state, gathered over its springs
+// (bvh_cloth_core::forces::ForceModel::band_acceleration_general); zero for a held particle.
+fn acceleration(i: u32) -> vec3<f32> {
+    let n = params.particle_count;
+    let me = source[i];
     let p = me.position.xyz;
     var a = params.uniform_accel.xyz - params.damping * me.velocity.xyz;
-    // The stencil of bvh_cloth_core::grid::STENCIL, in its order: (dr, dc, kind).
-    var dr = array<i32, 12>(0, 0, -1, 1, -1, -1, 1, 1, 0, 0, -2, 2);
-    var dc = array<i32, 12>(-1, 1, 0, 0, -1, 1, -1, 1, -2, 2, 0, 0);
-    var kind = array<u32, 12>(0u, 0u, 0u, 0u, 1u, 1u, 1u, 1u, 2u, 2u, 2u, 2u);
-    for (var s = 0; s < 12; s++) {
-        let rr = r + dr[s];
-        let cc = c + dc[s];
-        if (rr < 0 || rr >= rows || cc < 0 || cc >= cols) {
-            continue;
-        }
-        let k = params.k_over_m[kind[s]];
+    let inv_share = bitcast<f32>(topology[n + 1u + i]);
+    let ends = 2u * n + 1u;
+    for (var s = topology[i]; s < topology[i + 1u]; s++) {
+        let e = ends + 4u * s;
+        let k = params.k_over_mass[topology[e + 1u]] * bitcast<f32>(topology[e + 3u]) * inv_share;
         if (k == 0.0) {
             continue;
         }
-        let rest = params.rest[kind[s]];
-        let d = source[rr * cols + cc].position.xyz - p;
+        let rest = bitcast<f32>(topology[e + 2u]);
+        let d = source[topology[e]].position.xyz - p;
         let len = sqrt(d.x * d.x + d.y * d.y + d.z * d.z);
         a += k * (1.0 - rest / max(len, 1.0e-6 * rest)) * d;
     }
@@ -110,11 +114,11 @@ fn acceleration(r: i32, c: i32) -> vec3<f32> {
 
 @compute @workgroup_size(8, 8, 1)
 fn node_update(@builtin(global_invocation_id) id: vec3<u32>) {
-    if (id.x >= params.cols || id.y >= params.rows) {
+    let i = thread_index(id);
+    if (i >= params.particle_count) {
         return;
     }
-    let i = id.y * params.cols + id.x;
-    let acc = acceleration(i32(id.y), i32(id.x));
+    let acc = acceleration(i);
     let b = base[i];
     let free = b.position.w;
     let h = params.h;
@@ -425,10 +429,10 @@ fn contact_velocity(velocity: vec3<f32>, n: vec3<f32>, friction: f32) -> vec3<f3
 
 @compute @workgroup_size(8, 8, 1)
 fn collision_detection_with_bvh(@builtin(global_invocation_id) id: vec3<u32>) {
-    if (id.x >= params.cols || id.y >= params.rows) {
+    let i = thread_index(id);
+    if (i >= params.particle_count) {
         return;
     }
-    let i = id.y * params.cols + id.x;
     let prev_world = state[i].position.xyz;
     var out = moved[i];
     if (out.position.w != 0.0) {
@@ -453,58 +457,77 @@ fn collision_detection_with_bvh(@builtin(global_invocation_id) id: vec3<u32>) {
 }
 
 // ---------------------------------------------------------------------------------------------
-// NormalShader (Algorithm 3): per-vertex normals from the adjacent grid cells, written with the
-// positions into an interleaved vertex buffer.
+// NormalShader (Algorithm 3): per-vertex normals from the triangles around each particle,
+// written with the positions into an interleaved vertex buffer; one thread per render vertex.
 // ---------------------------------------------------------------------------------------------
 
 @group(0) @binding(10) var<storage, read> particles: array<GpuParticle>;
 @group(0) @binding(11) var<uniform> writeback: GpuMeshWriteback;
 @group(0) @binding(12) var<storage, read_write> vertices: array<f32>;
+// The cloth's surface (bvh_cloth_core::gpu_layout::gpu_surface_words): the particle of each of
+// the V vertices, N + 1 triangle offsets, the per-particle triangle lists, then three corners
+// per triangle.
+@group(0) @binding(17) var<storage, read> surface: array<u32>;
 
-fn position_at(r: u32, c: u32) -> vec3<f32> {
-    return particles[r * params.cols + c].position.xyz;
+fn corner(triangles: u32, t: u32, k: u32) -> vec3<f32> {
+    return particles[surface[triangles + 3u * t + k]].position.xyz;
 }
 
 @compute @workgroup_size(8, 8, 1)
 fn normal_shader(@builtin(global_invocation_id) id: vec3<u32>) {
-    let r = id.y;
-    let c = id.x;
-    if (c >= params.cols || r >= params.rows) {
+    let v = thread_index(id);
+    if (v >= params.vertex_count) {
         return;
     }
-    let p = position_at(r, c);
-    let has_up = r > 0u;
-    let has_down = r + 1u < params.rows;
-    let has_left = c > 0u;
-    let has_right = c + 1u < params.cols;
-    // The CPU's order: down-right, right-up, up-left, left-down.
+    let offsets = params.vertex_count;
+    let lists = offsets + params.particle_count + 1u;
+    let triangles = lists + surface[offsets + params.particle_count];
+    let i = surface[v];
+    // The CPU's order: the particle's triangles as listed (bvh_cloth_core::normals).
     var n = vec3<f32>(0.0);
-    if (has_down && has_right) {
-        n += cross(position_at(r + 1u, c) - p, position_at(r, c + 1u) - p);
-    }
-    if (has_right && has_up) {
-        n += cross(position_at(r, c + 1u) - p, position_at(r - 1u, c) - p);
-    }
-    if (has_up && has_left) {
-        n += cross(position_at(r - 1u, c) - p, position_at(r, c - 1u) - p);
-    }
-    if (has_left && has_down) {
-        n += cross(position_at(r, c - 1u) - p, position_at(r + 1u, c) - p);
+    for (var k = surface[offsets + i]; k < surface[offsets + i + 1u]; k++) {
+        let t = surface[lists + k];
+        let a = corner(triangles, t, 0u);
+        n += cross(corner(triangles, t, 1u) - a, corner(triangles, t, 2u) - a);
     }
     var world_normal = vec3<f32>(0.0, 1.0, 0.0);
     let len2 = dot(n, n);
     if (len2 > 0.0 && len2 < 3.0e38) {
         world_normal = n * inverseSqrt(len2);
     }
+    let p = particles[i].position.xyz;
     let local_position = (writeback.local_from_world * vec4(p, 1.0)).xyz;
     var local_normal = (writeback.normal_from_world * vec4(world_normal, 0.0)).xyz;
     let nl2 = dot(local_normal, local_normal);
     local_normal = select(vec3<f32>(0.0, 1.0, 0.0), local_normal * inverseSqrt(nl2), nl2 > 0.0);
-    let w = writeback.first_word + (r * params.cols + c) * writeback.stride_words;
+    let w = writeback.first_word + v * writeback.stride_words;
     vertices[w + writeback.position_word] = local_position.x;
     vertices[w + writeback.position_word + 1u] = local_position.y;
     vertices[w + writeback.position_word + 2u] = local_position.z;
     vertices[w + writeback.normal_word] = local_normal.x;
     vertices[w + writeback.normal_word + 1u] = local_normal.y;
     vertices[w + writeback.normal_word + 2u] = local_normal.z;
+}
+
+// ---------------------------------------------------------------------------------------------
+// Anchors: at the start of each tick, every pinned particle moves to where its anchor holds it
+// during that tick (bvh_cloth_core::ClothSim::move_pins). The host binds that tick's targets
+// with a dynamic offset.
+// ---------------------------------------------------------------------------------------------
+
+@group(0) @binding(14) var<storage, read_write> anchored: array<GpuParticle>;
+// xyz: the target; w: the particle index, as bits.
+@group(0) @binding(15) var<storage, read> anchor_targets: array<vec4<f32>>;
+
+@compute @workgroup_size(8, 8, 1)
+fn apply_anchors(@builtin(global_invocation_id) id: vec3<u32>) {
+    let k = thread_index(id);
+    if (k >= params.anchor_count) {
+        return;
+    }
+    let goal = anchor_targets[k];
+    let i = bitcast<u32>(goal.w);
+    if (i < params.particle_count) {
+        anchored[i].position = vec4(goal.xyz, anchored[i].position.w);
+    }
 }

@@ -12,9 +12,11 @@ pub const SHADER_SOURCE: &str = include_str!("cloth.wgsl");
 /// Threads per workgroup along each grid axis (workgroups are 8 x 8 x 1, paper Table I).
 pub const WORKGROUP_SIZE: u32 = 8;
 
-/// Storage buffers the busiest kernels (`node_update`, `collision_detection_with_bvh`) bind at
-/// once.
-pub const STORAGE_BUFFERS_NEEDED: u32 = 5;
+/// Storage buffers the busiest kernel (`node_update`) binds at once.
+pub const STORAGE_BUFFERS_NEEDED: u32 = 6;
+
+/// Threads per workgroup (8 x 8 x 1).
+const THREADS_PER_WORKGROUP: u32 = WORKGROUP_SIZE * WORKGROUP_SIZE;
 
 /// The largest buffer the kernels may bind as storage on `device`: its largest storage binding,
 /// or its largest buffer where that is smaller.
@@ -31,12 +33,11 @@ pub enum KernelError {
         /// What the device allows.
         allowed: u32,
     },
-    /// A grid is larger than one dispatch can cover on this device.
-    GridTooLarge {
-        /// Particle rows.
-        rows: u32,
-        /// Particle columns.
-        cols: u32,
+    /// A cloth has more particles (or render vertices) than one dispatch can cover on this
+    /// device.
+    TooManyThreads {
+        /// Particles or vertices to cover.
+        count: u32,
         /// The device's largest workgroup count per dispatch dimension.
         max_workgroups: u32,
     },
@@ -56,9 +57,10 @@ impl fmt::Display for KernelError {
                 f,
                 "the device allows {allowed} storage buffers per shader stage; the cloth kernels need {STORAGE_BUFFERS_NEEDED}"
             ),
-            Self::GridTooLarge { rows, cols, max_workgroups } => write!(
+            Self::TooManyThreads { count, max_workgroups } => write!(
                 f,
-                "a {rows}x{cols} cloth needs more than the device's {max_workgroups} workgroups per dispatch dimension"
+                "a cloth of {count} particles or vertices needs more than the device's {max_workgroups} x \
+                 {max_workgroups} workgroups per dispatch"
             ),
             Self::BufferTooLarge { bytes, max } => {
                 write!(f, "a buffer of {bytes} bytes is larger than the device's largest storage binding ({max} bytes)")
@@ -70,16 +72,18 @@ impl fmt::Display for KernelError {
 impl std::error::Error for KernelError {}
 
 /// The compiled kernels: five `node_update` pipelines (the four RK4 stages and semi-implicit
-/// Euler, selected by the WGSL override constant `STAGE`), `collision_detection_with_bvh` and
-/// `normal_shader`.
+/// Euler, selected by the WGSL override constant `STAGE`), `collision_detection_with_bvh`,
+/// `normal_shader` and `apply_anchors`.
 #[derive(Debug)]
 pub struct ClothKernels {
     pub(crate) node_update: [ComputePipeline; 5],
     pub(crate) collision: ComputePipeline,
     pub(crate) normal: ComputePipeline,
+    pub(crate) anchors: ComputePipeline,
     pub(crate) node_update_layout: BindGroupLayout,
     pub(crate) collision_layout: BindGroupLayout,
     pub(crate) normal_layout: BindGroupLayout,
+    pub(crate) anchors_layout: BindGroupLayout,
 }
 
 fn entry(binding: u32, ty: BufferBindingType) -> BindGroupLayoutEntry {
@@ -112,7 +116,15 @@ impl ClothKernels {
         };
         let node_update_layout = layout(
             "bvh_cloth_node_update_layout",
-            &[params, storage(1, true), storage(2, true), storage(3, false), storage(4, false), storage(13, false)],
+            &[
+                params,
+                storage(1, true),
+                storage(2, true),
+                storage(3, false),
+                storage(4, false),
+                storage(13, false),
+                storage(16, true),
+            ],
         );
         let collision_layout = layout(
             "bvh_cloth_collision_layout",
@@ -120,8 +132,19 @@ impl ClothKernels {
         );
         let normal_layout = layout(
             "bvh_cloth_normal_layout",
-            &[params, storage(10, true), entry(11, BufferBindingType::Uniform), storage(12, false)],
+            &[params, storage(10, true), entry(11, BufferBindingType::Uniform), storage(12, false), storage(17, true)],
         );
+        let targets = BindGroupLayoutEntry {
+            binding: 15,
+            visibility: ShaderStages::COMPUTE,
+            ty: BindingType::Buffer {
+                ty: BufferBindingType::Storage { read_only: true },
+                has_dynamic_offset: true,
+                min_binding_size: None,
+            },
+            count: None,
+        };
+        let anchors_layout = layout("bvh_cloth_anchors_layout", &[params, storage(14, false), targets]);
         let pipeline = |label: &str, layout: &BindGroupLayout, entry_point: &str, constants: &[(&str, f64)]| {
             let pipeline_layout = device.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
                 label: Some(label),
@@ -148,18 +171,23 @@ impl ClothKernels {
                 &[],
             ),
             normal: pipeline("bvh_cloth_normal_shader", &normal_layout, "normal_shader", &[]),
+            anchors: pipeline("bvh_cloth_apply_anchors", &anchors_layout, "apply_anchors", &[]),
             node_update_layout,
             collision_layout,
             normal_layout,
+            anchors_layout,
         })
     }
 
-    /// Workgroups that cover a `rows x cols` grid, or why one dispatch cannot.
-    pub fn workgroups(device: &Device, rows: u32, cols: u32) -> Result<(u32, u32), KernelError> {
+    /// Workgroups (8 x 8 threads each) that give `count` threads, one per particle or vertex,
+    /// as `(x, y)`, or why one dispatch cannot. A thread's index is `y * (8 x) + x`.
+    pub fn workgroups(device: &Device, count: u32) -> Result<(u32, u32), KernelError> {
         let max_workgroups = device.limits().max_compute_workgroups_per_dimension;
-        let (x, y) = (cols.div_ceil(WORKGROUP_SIZE), rows.div_ceil(WORKGROUP_SIZE));
-        if x > max_workgroups || y > max_workgroups {
-            return Err(KernelError::GridTooLarge { rows, cols, max_workgroups });
+        let groups = count.div_ceil(THREADS_PER_WORKGROUP).max(1);
+        let x = groups.min(max_workgroups);
+        let y = groups.div_ceil(x);
+        if y > max_workgroups {
+            return Err(KernelError::TooManyThreads { count, max_workgroups });
         }
         Ok((x, y))
     }

@@ -5,7 +5,10 @@
 //! Also: thousands of cloths created, stepped and dropped leave no GPU resource behind.
 
 use bvh_cloth_core::gpu_layout::GpuParticle;
-use bvh_cloth_core::{Affine3A, ClothParams, ClothSim, Collider, MeshRef, Vec3};
+use std::sync::Arc;
+
+use bvh_cloth_core::gpu_layout::gpu_topology_words;
+use bvh_cloth_core::{Affine3A, ClothGrid, ClothParams, ClothSim, ClothTopology, Collider, MeshRef, UVec2, Vec2, Vec3};
 use bvh_cloth_gpu::headless::{self, HeadlessGpu};
 use bvh_cloth_gpu::wgpu;
 use bvh_cloth_gpu::{ClothKernels, FaultReadback, GpuCloth, GpuColliders, KernelError, STORAGE_BUFFERS_NEEDED};
@@ -22,8 +25,8 @@ fn gpu(limit: impl FnOnce(wgpu::Limits) -> wgpu::Limits) -> Option<HeadlessGpu> 
 }
 
 fn cloth(rows: u32, cols: u32) -> ClothSim {
-    let params = ClothParams { rows, cols, size: 1.0, ..Default::default() };
-    ClothSim::new(params, Affine3A::from_translation(Vec3::Y), &[]).unwrap()
+    let grid = ClothTopology::grid(ClothGrid::new(Vec2::ONE, UVec2::new(cols, rows))).unwrap();
+    ClothSim::new(ClothParams::default(), Arc::new(grid), Affine3A::from_translation(Vec3::Y), &[]).unwrap()
 }
 
 /// A closed box of `2 x 2 x 2` unit cells' worth of triangles, voxelised at `n`.
@@ -43,16 +46,16 @@ fn a_device_with_too_few_storage_buffers_is_refused() {
 }
 
 #[test]
-fn a_grid_beyond_one_dispatch_is_refused_and_smaller_ones_run() {
-    // Four 8 x 8 workgroups per dimension: at most 32 x 32 particles.
+fn a_cloth_beyond_one_dispatch_is_refused_and_smaller_ones_run() {
+    // Four by four workgroups of 8 x 8 threads: at most 1,024 particles.
     let Some(gpu) = gpu(|limits| wgpu::Limits { max_compute_workgroups_per_dimension: 4, ..limits }) else { return };
     let kernels = ClothKernels::new(&gpu.device).unwrap();
-    let error = GpuCloth::new(&gpu.device, &kernels, &cloth(33, 16)).unwrap_err();
-    assert_eq!(error, KernelError::GridTooLarge { rows: 33, cols: 16, max_workgroups: 4 });
-    assert!(error.to_string().contains("33x16"), "{error}");
+    let error = GpuCloth::new(&gpu.device, &kernels, &cloth(33, 32)).unwrap_err();
+    assert_eq!(error, KernelError::TooManyThreads { count: 33 * 32, max_workgroups: 4 });
+    assert!(error.to_string().contains("1056 particles"), "{error}");
 
     let sim = cloth(32, 32);
-    let mut fits = GpuCloth::new(&gpu.device, &kernels, &sim).expect("32 x 32 fits four workgroups");
+    let mut fits = GpuCloth::new(&gpu.device, &kernels, &sim).expect("32 x 32 fits 4 x 4 workgroups");
     let none = GpuColliders::new(&gpu.device, &[]);
     fits.set_params(&gpu.queue, sim.params(), 1.0 / 60.0, &none);
     let mut encoder = gpu.device.create_command_encoder(&Default::default());
@@ -64,15 +67,19 @@ fn a_grid_beyond_one_dispatch_is_refused_and_smaller_ones_run() {
 
 #[test]
 fn a_cloth_beyond_one_storage_binding_is_refused() {
-    // 16 KiB bindings hold 512 particles of 32 bytes.
-    let Some(gpu) = gpu(|limits| wgpu::Limits { max_storage_buffer_binding_size: 16 << 10, ..limits }) else {
-        return;
-    };
+    // The largest buffer of a cloth is its spring list (16 bytes per spring end, about 12 per
+    // particle): bindings of exactly a 16 x 16 grid's spring list take that cloth and refuse one
+    // row more.
+    let spring_bytes = |sim: &ClothSim| 4 * gpu_topology_words(sim.topology()).len() as u64;
+    let (fits, too_big) = (cloth(16, 16), cloth(17, 16));
+    let max = spring_bytes(&fits);
+    assert!(max > 16 * 16 * size_of::<GpuParticle>() as u64, "the springs are the largest buffer");
+    let Some(gpu) = gpu(|limits| wgpu::Limits { max_storage_buffer_binding_size: max, ..limits }) else { return };
     let kernels = ClothKernels::new(&gpu.device).unwrap();
-    let error = GpuCloth::new(&gpu.device, &kernels, &cloth(32, 32)).unwrap_err();
-    assert_eq!(error, KernelError::BufferTooLarge { bytes: 32 << 10, max: 16 << 10 });
-    assert!(error.to_string().contains("32768 bytes"), "{error}");
-    assert!(GpuCloth::new(&gpu.device, &kernels, &cloth(16, 32)).is_ok(), "512 particles fit exactly");
+    let error = GpuCloth::new(&gpu.device, &kernels, &too_big).unwrap_err();
+    assert_eq!(error, KernelError::BufferTooLarge { bytes: spring_bytes(&too_big), max });
+    assert!(error.to_string().contains(&format!("{} bytes", spring_bytes(&too_big))), "{error}");
+    assert!(GpuCloth::new(&gpu.device, &kernels, &fits).is_ok(), "a spring list of exactly the limit fits");
 }
 
 #[test]
@@ -111,10 +118,10 @@ fn thousands_of_cloths_created_stepped_and_dropped_leave_no_gpu_resource() {
         cloth.set_params(&gpu.queue, sim.params(), 1.0 / 60.0, &colliders);
         let faults = FaultReadback::new(&gpu.device);
         if round == 0 {
-            // The count sees the handles held: the cloth's params, state, stage and fault buffers
-            // (two more stages live inside its bind groups), 3 collider buffers, and the
-            // staging buffer.
-            assert_eq!(live(&gpu), (before.0 + 8, before.1 + 5));
+            // The count sees the handles held: the cloth's params, state, stage, fault and
+            // surface buffers (two more stages and the springs live inside its bind groups),
+            // 3 collider buffers, and the staging buffer.
+            assert_eq!(live(&gpu), (before.0 + 9, before.1 + 5));
         }
         let mut encoder = gpu.device.create_command_encoder(&Default::default());
         cloth.encode_ticks(&gpu.device, &mut encoder, &kernels, &colliders, 1);

@@ -39,7 +39,7 @@ fn wgsl_is_valid() {
         .validate(&module)
         .unwrap_or_else(|e| panic!("{}", e.emit_to_string(SHADER_SOURCE)));
     let entry_points: Vec<&str> = module.entry_points.iter().map(|e| e.name.as_str()).collect();
-    assert_eq!(entry_points, ["node_update", "collision_detection_with_bvh", "normal_shader"]);
+    assert_eq!(entry_points, ["node_update", "collision_detection_with_bvh", "normal_shader", "apply_anchors"]);
     for entry in &module.entry_points {
         assert_eq!(entry.workgroup_size, [8, 8, 1], "{} runs 8x8x1 workgroups", entry.name);
     }
@@ -53,7 +53,18 @@ fn wgsl_structs_match_the_rust_layouts() {
         &module,
         "GpuClothParams",
         GpuClothParams,
-        [rows, cols, collider_count, _pad0, h, damping, _pad1, k_over_m, rest, uniform_accel]
+        [
+            particle_count,
+            vertex_count,
+            collider_count,
+            dispatch_width,
+            h,
+            damping,
+            anchor_count,
+            _pad,
+            k_over_mass,
+            uniform_accel
+        ]
     );
     assert_layout!(
         &module,

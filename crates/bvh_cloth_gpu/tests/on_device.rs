@@ -7,9 +7,11 @@
 
 use bvh_cloth_core::gpu_layout::{GpuMeshWriteback, GpuParticle, load_gpu_particles};
 use bvh_cloth_core::obj::parse_obj;
+use std::sync::Arc;
+
 use bvh_cloth_core::{
-    Affine3A, ClothGrid, ClothParams, ClothSim, Collider, ColliderPose, Integrator, Lbvh, MeshRef, Pins, Quat, Sphere,
-    SpringStiffness, Vec3,
+    Affine3A, ClothGrid, ClothParams, ClothSim, ClothTopology, Collider, ColliderPose, Integrator, Lbvh, MeshRef, Pins,
+    Quat, Sphere, SpringStiffness, UVec2, Vec2, Vec3,
 };
 use bvh_cloth_gpu::wgpu::util::DeviceExt;
 use bvh_cloth_gpu::wgpu::{self, Device, Queue};
@@ -61,12 +63,19 @@ fn velocity(p: &GpuParticle) -> Vec3 {
     Vec3::from_slice(&p.velocity[..3])
 }
 
+/// A square grid `size` metres wide of `n x n` particles.
+fn square(size: f32, n: u32) -> ClothGrid {
+    ClothGrid::new(Vec2::splat(size), UVec2::splat(n))
+}
+
+/// A cloth on `grid` with `params`, placed by `pose`, with `pins` held.
+fn grid_cloth(grid: ClothGrid, params: ClothParams, pose: Affine3A, pins: &[u32]) -> ClothSim {
+    ClothSim::new(params, Arc::new(ClothTopology::grid(grid).unwrap()), pose, pins).unwrap()
+}
+
 /// A 2 x 2 cloth, 1 m wide, whose particles weigh 1 kg each, with no damping.
 fn small(integrator: Integrator, spring_k: f32, gravity: Vec3, pins: &[u32]) -> ClothSim {
     let params = ClothParams {
-        rows: 2,
-        cols: 2,
-        size: 1.0,
         mass: 4.0,
         looper: 1,
         spring_k,
@@ -76,7 +85,7 @@ fn small(integrator: Integrator, spring_k: f32, gravity: Vec3, pins: &[u32]) -> 
         integrator,
         ..Default::default()
     };
-    ClothSim::new(params, Affine3A::IDENTITY, pins).unwrap()
+    grid_cloth(square(1.0, 2), params, Affine3A::IDENTITY, pins)
 }
 
 // ---------------------------------------------------------------------------------------------
@@ -269,8 +278,8 @@ fn normal_shader_writes_an_interleaved_vertex_buffer() {
     // world), in a mesh whose entity sits at (1, 2, 3) turned the same way: in the mesh's own
     // frame the grid is flat again and faces +Y.
     let turn = Quat::from_rotation_x(core::f32::consts::FRAC_PI_2);
-    let params = ClothParams { rows: 3, cols: 3, size: 1.0, ..Default::default() };
-    let sim = ClothSim::new(params, Affine3A::from_rotation_translation(turn, Vec3::new(1.0, 2.0, 3.0)), &[]).unwrap();
+    let pose = Affine3A::from_rotation_translation(turn, Vec3::new(1.0, 2.0, 3.0));
+    let sim = grid_cloth(square(1.0, 3), ClothParams::default(), pose, &[]);
     let none = GpuColliders::new(&rig.device, &[]);
     let cloth = rig.cloth(&sim, 0.1, &none);
     // Vertices of 8 words: position at 0, normal at 4, sentinels elsewhere; one vertex of
@@ -296,7 +305,7 @@ fn normal_shader_writes_an_interleaved_vertex_buffer() {
     let out: Vec<f32> = headless::read(&rig.device, &rig.queue, &vertices);
 
     assert!(out[..STRIDE as usize].iter().all(|&w| w == sentinel), "the padding vertex was written");
-    let grid = ClothGrid { rows: 3, cols: 3, spacing: 0.5 };
+    let grid = square(1.0, 3);
     for r in 0..3 {
         for c in 0..3 {
             let v = &out[((1 + grid.index(r, c)) * STRIDE as usize)..][..STRIDE as usize];
@@ -341,9 +350,9 @@ fn gpu_positions(rig: &Rig, cloth: &GpuCloth) -> Vec<Vec3> {
 #[test]
 fn hanging_cloth_agrees_with_the_cpu() {
     let Some(rig) = rig() else { return };
-    let params = ClothParams { rows: 32, cols: 32, size: 1.0, damping: 1.0, ..Default::default() };
-    let grid = ClothGrid { rows: 32, cols: 32, spacing: params.spacing() };
-    let mut cpu = ClothSim::new(params, Affine3A::from_translation(Vec3::Y), &Pins::TwoEnds.indices(&grid)).unwrap();
+    let params = ClothParams { damping: 1.0, ..Default::default() };
+    let grid = square(1.0, 32);
+    let mut cpu = grid_cloth(grid, params, Affine3A::from_translation(Vec3::Y), &Pins::TwoEnds.indices(&grid));
     let none = GpuColliders::new(&rig.device, &[]);
     let gpu = rig.cloth(&cpu, 1.0 / 60.0, &none);
     let mut worst = 0.0f32;
@@ -382,8 +391,8 @@ fn bunny(n: u32) -> Collider {
 fn bunny_drop_agrees_with_the_cpu() {
     let Some(rig) = rig() else { return };
     let colliders = [bunny(5)];
-    let params = ClothParams { rows: 64, cols: 64, size: 1.2, damping: 1.0, ..Default::default() };
-    let mut cpu = ClothSim::new(params, Affine3A::from_translation(Vec3::new(-0.2, 1.2, 0.0)), &[]).unwrap();
+    let params = ClothParams { damping: 1.0, ..Default::default() };
+    let mut cpu = grid_cloth(square(1.2, 64), params, Affine3A::from_translation(Vec3::new(-0.2, 1.2, 0.0)), &[]);
     let gpu_colliders = GpuColliders::new(&rig.device, &colliders);
     let gpu = rig.cloth(&cpu, 1.0 / 60.0, &gpu_colliders);
 
@@ -438,8 +447,8 @@ fn two_colliders_one_moving_agree_with_the_cpu() {
         scale: 0.6,
     });
     let mut colliders = [ball, small_bunny];
-    let params = ClothParams { rows: 48, cols: 48, size: 1.8, damping: 1.0, ..Default::default() };
-    let mut cpu = ClothSim::new(params, Affine3A::from_translation(Vec3::new(0.0, 1.0, 0.0)), &[]).unwrap();
+    let params = ClothParams { damping: 1.0, ..Default::default() };
+    let mut cpu = grid_cloth(square(1.8, 48), params, Affine3A::from_translation(Vec3::new(0.0, 1.0, 0.0)), &[]);
     let mut gpu_colliders = GpuColliders::new(&rig.device, &colliders);
     let gpu = rig.cloth(&cpu, 1.0 / 60.0, &gpu_colliders);
 
@@ -474,4 +483,120 @@ fn two_colliders_one_moving_agree_with_the_cpu() {
     }
     // The colliders hold the cloth up.
     assert!(centroid(&g).y > 0.1, "the cloth fell past the colliders: centroid {}", centroid(&g));
+}
+
+/// A flag built as an artist exports one: `cols x rows` points over `width x height` metres in
+/// the XY plane, split down the middle column at a UV seam (the two halves have their own
+/// vertices there), so welding must join them.
+fn seamed_flag(cols: u32, rows: u32, width: f32, height: f32) -> (Vec<[f32; 3]>, Vec<u32>) {
+    let seam = cols / 2;
+    let mut positions = Vec::new();
+    let mut indices = Vec::new();
+    for (first, last) in [(0, seam), (seam, cols - 1)] {
+        let start = positions.len() as u32;
+        let span = last - first + 1;
+        for r in 0..rows {
+            for c in first..=last {
+                let x = width * c as f32 / (cols - 1) as f32;
+                let y = -height * r as f32 / (rows - 1) as f32;
+                positions.push([x, y, 0.0]);
+            }
+        }
+        for r in 0..rows - 1 {
+            for c in 0..span - 1 {
+                let i = start + r * span + c;
+                indices.extend_from_slice(&[i, i + span, i + 1, i + 1, i + span, i + span + 1]);
+            }
+        }
+    }
+    (positions, indices)
+}
+
+/// An authored mesh (a flag with a UV seam) anchored along its pole edge, whose anchor swings
+/// and climbs during every frame of four ticks: the GPU's `apply_anchors` must place the pins
+/// tick by tick as the CPU's `move_pins` does, and the general spring path must match.
+///
+/// Tolerance: 1e-5 m after each frame of 4 ticks, the GPU starting each frame from the CPU's
+/// state (no contact, so only rounding differs, as in `hanging_cloth_agrees_with_the_cpu`).
+/// The pins themselves are written, not computed: they must be bit-equal to the last tick's
+/// targets. Then `normal_shader` writes the render vertices: the two vertices of every seam
+/// point must be bit-equal (no crack) and every vertex must show its particle.
+#[test]
+fn authored_mesh_with_moving_anchors_agrees_with_the_cpu() {
+    let Some(rig) = rig() else { return };
+    let (positions, indices) = seamed_flag(13, 9, 1.2, 0.8);
+    let topology = ClothTopology::from_mesh(MeshRef { positions: &positions, indices: Some(&indices) }).unwrap();
+    assert_eq!(topology.len(), 13 * 9, "the seam's 9 duplicated vertices are welded");
+    let pole: Vec<u32> =
+        (0..topology.len() as u32).filter(|&i| topology.rest_positions()[i as usize].x == 0.0).collect();
+    assert_eq!(pole.len(), 9);
+    let params = ClothParams { damping: 0.5, ..Default::default() };
+    let start = Affine3A::from_translation(Vec3::new(0.0, 2.0, 0.0));
+    let mut cpu = ClothSim::new(params, Arc::new(topology), start, &pole).unwrap();
+    let none = GpuColliders::new(&rig.device, &[]);
+    let mut gpu = rig.cloth(&cpu, 1.0 / 60.0, &none);
+    // The pole's pose at time t: swinging about the vertical and climbing.
+    let pose_at = |t: f32| {
+        Affine3A::from_rotation_translation(Quat::from_rotation_y(1.5 * (3.0 * t).sin()), Vec3::new(0.0, 2.0 + t, 0.0))
+    };
+    const TICKS: u32 = 4;
+    let (mut worst, mut pin_gap) = (0.0f32, 0.0f32);
+    for frame in 0..30 {
+        gpu.upload_state(&rig.queue, &cpu);
+        let targets: Vec<Vec<(u32, Vec3)>> = (0..TICKS)
+            .map(|k| {
+                let pose = pose_at((frame * TICKS + k) as f32 / 60.0);
+                cpu.pin_targets(&pose).collect()
+            })
+            .collect();
+        for tick in &targets {
+            cpu.move_pins(tick);
+            cpu.tick(1.0 / 60.0, &[]);
+        }
+        gpu.write_anchor_targets(&rig.device, &rig.queue, &rig.kernels, &targets);
+        rig.ticks(&gpu, &none, TICKS);
+        let on_gpu = gpu_positions(&rig, &gpu);
+        worst = worst.max(largest_gap(&cpu.positions(), &on_gpu));
+        for &(i, target) in targets.last().unwrap() {
+            pin_gap = pin_gap.max(on_gpu[i as usize].distance(target));
+        }
+    }
+    eprintln!("anchored flag, 30 frames of {TICKS} ticks: largest CPU-GPU gap after a frame {worst:e} m");
+    assert_eq!(pin_gap, 0.0, "the pins sit exactly on their last targets");
+    assert!(worst < 1e-5, "GPU and CPU differ by {worst} m after a frame");
+    let travelled = cpu.positions().iter().map(|p| p.y).fold(f32::INFINITY, f32::min);
+    assert!(travelled > 1.3, "the flag was carried up with its pole (lowest point {travelled})");
+
+    // The render vertices, straight from normal_shader: 4 words each (position only), the
+    // normal written over a scratch vertex layout of 8 words.
+    const STRIDE: u32 = 8;
+    let words = vec![0.0f32; positions.len() * STRIDE as usize];
+    let vertices = rig.device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
+        label: None,
+        contents: bytemuck::cast_slice(&words),
+        usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_SRC,
+    });
+    let writeback = GpuMeshWriteback::new(Affine3A::IDENTITY, 0, STRIDE, 0, 4);
+    let writeback = rig.device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
+        label: None,
+        contents: bytemuck::bytes_of(&writeback),
+        usage: wgpu::BufferUsages::UNIFORM,
+    });
+    let mut encoder = rig.device.create_command_encoder(&Default::default());
+    gpu.encode_writeback(&rig.device, &mut encoder, &rig.kernels, &writeback, vertices.as_entire_buffer_binding());
+    rig.queue.submit([encoder.finish()]);
+    let out: Vec<f32> = headless::read(&rig.device, &rig.queue, &vertices);
+    let on_gpu = gpu_positions(&rig, &gpu);
+    let vertex = |v: usize| &out[v * STRIDE as usize..][..STRIDE as usize];
+    let topology = cpu.topology();
+    for (v, &p) in topology.vertex_particle().iter().enumerate() {
+        assert_eq!(Vec3::from_slice(&vertex(v)[0..3]), on_gpu[p as usize], "vertex {v} shows particle {p}");
+        let n = Vec3::from_slice(&vertex(v)[4..7]);
+        assert!((n.length() - 1.0).abs() < 1e-5, "vertex {v} has a unit normal, not {n}");
+        for (w, &q) in topology.vertex_particle().iter().enumerate().skip(v + 1) {
+            if q == p {
+                assert_eq!(vertex(v)[..7], vertex(w)[..7], "seam vertices {v} and {w} split apart");
+            }
+        }
+    }
 }

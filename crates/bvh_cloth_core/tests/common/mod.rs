@@ -2,7 +2,9 @@
 #![allow(missing_docs)]
 #![allow(dead_code)]
 
-use bvh_cloth_core::{Collider, Lbvh, Sphere, Vec3};
+use std::sync::Arc;
+
+use bvh_cloth_core::{ClothGrid, ClothTopology, Collider, Lbvh, Sphere, UVec2, Vec2, Vec3};
 
 /// A small deterministic xorshift generator, so tests need no RNG crate and never flake.
 pub struct Rng(u64);
@@ -58,4 +60,15 @@ pub fn uv_sphere(centre: Vec3, r: f32, stacks: u32, slices: u32) -> (Vec<[f32; 3
 /// A collider made of the given spheres directly (no voxelisation).
 pub fn sphere_collider(spheres: &[Sphere]) -> Collider {
     Collider { lbvh: Lbvh::build(spheres).into(), resolution: 1, margin: 0.0, friction: 0.0, pose: Default::default() }
+}
+
+/// A square grid `size` metres wide of `cols x rows` particles (square cells, as the paper's).
+pub fn square_grid(size: f32, cols: u32, rows: u32) -> ClothGrid {
+    let depth = size * (rows - 1) as f32 / (cols - 1) as f32;
+    ClothGrid::new(Vec2::new(size, depth), UVec2::new(cols, rows))
+}
+
+/// The grid topology of [`square_grid`].
+pub fn grid_topology(size: f32, cols: u32, rows: u32) -> Arc<ClothTopology> {
+    Arc::new(ClothTopology::grid(square_grid(size, cols, rows)).unwrap())
 }
