@@ -1,6 +1,6 @@
-//! A flag on a swaying pole: an authored mesh (built here in code, as an exporter writes one,
-//! with a UV seam down its middle) becomes cloth with `Cloth::mesh()`, held along its pole edge
-//! by vertex index, and flaps in a gusting wind (External Force).
+//! A flag on a swaying pole: a mesh built in code (Bevy's subdivided `Plane3d`; a loaded glTF or
+//! OBJ works the same) becomes cloth with `Cloth::mesh()`, held along its pole edge by vertex
+//! index, and flaps in a gusting wind (External Force).
 //!
 //! `cargo run --release -p bevy_bvh_cloth --features egui --example flag`
 //!
@@ -8,14 +8,13 @@
 
 mod common;
 
-use bevy::asset::RenderAssetUsages;
-use bevy::mesh::{Indices, PrimitiveTopology, VertexAttributeValues};
+use bevy::mesh::VertexAttributeValues;
 use bevy::prelude::*;
 use bevy_bvh_cloth::prelude::*;
 
-/// The flag's size in metres and its resolution (points along the fly and the hoist).
+/// The flag's size in metres, and the plane's subdivisions (30 gives 32 x 32 vertices).
 const FLAG: Vec2 = Vec2::new(1.5, 1.0);
-const POINTS: UVec2 = UVec2::new(36, 24);
+const SUBDIVISIONS: u32 = 30;
 
 fn main() {
     common::example_app("bevy_bvh_cloth: flag").add_systems(Startup, setup).add_systems(Update, (sway, gusts)).run();
@@ -43,39 +42,21 @@ fn setup(mut commands: Commands, mut meshes: ResMut<Assets<Mesh>>, mut materials
         .id();
     commands.spawn((
         Mesh3d(meshes.add(flag)),
-        Cloth { damping: 0.3, spring_k: 400.0, mass: 0.3, ..Cloth::mesh() }.with_pins(ClothPins::Indices(pole_edge)),
+        Cloth { damping: 0.3, spring_k: 400.0, mass: 0.3, looper: 24, ..Cloth::mesh() }
+            .with_pins(ClothPins::Indices(pole_edge)),
         common::cloth_material(&mut materials, Color::srgb(0.15, 0.3, 0.7)),
         Transform::from_xyz(0.0, 2.9, 0.0),
         ChildOf(pole),
     ));
 }
 
-/// A flag in the local XY plane, hoist edge on x = 0, top edge on y = 0, split at a UV seam down
-/// its middle column (each half has its own vertices there, as a textured export would).
+/// The flag: Bevy's own subdivided plane, standing in the local XY plane (its rows hang along
+/// -Y from the top edge), as any mesh a game builds or loads.
 fn flag_mesh() -> Mesh {
-    let seam = POINTS.x / 2;
-    let (mut positions, mut uvs, mut indices) = (Vec::new(), Vec::new(), Vec::<u32>::new());
-    for (first, last) in [(0, seam), (seam, POINTS.x - 1)] {
-        let start = positions.len() as u32;
-        let span = last - first + 1;
-        for r in 0..POINTS.y {
-            for c in first..=last {
-                let uv = Vec2::new(c as f32 / (POINTS.x - 1) as f32, r as f32 / (POINTS.y - 1) as f32);
-                positions.push([FLAG.x * uv.x, -FLAG.y * uv.y, 0.0]);
-                uvs.push(uv.to_array());
-            }
-        }
-        for r in 0..POINTS.y - 1 {
-            for c in 0..span - 1 {
-                let i = start + r * span + c;
-                indices.extend_from_slice(&[i, i + span, i + 1, i + 1, i + span, i + span + 1]);
-            }
-        }
-    }
-    Mesh::new(PrimitiveTopology::TriangleList, RenderAssetUsages::default())
-        .with_inserted_attribute(Mesh::ATTRIBUTE_POSITION, positions)
-        .with_inserted_attribute(Mesh::ATTRIBUTE_UV_0, uvs)
-        .with_inserted_indices(Indices::U32(indices))
+    let mut mesh = Plane3d::new(Vec3::Z, FLAG / 2.0).mesh().subdivisions(SUBDIVISIONS).build();
+    // Hoist edge at x = 0, top edge at y = 0.
+    mesh.translate_by(Vec3::new(FLAG.x / 2.0, -FLAG.y / 2.0, 0.0));
+    mesh
 }
 
 /// The vertices along the hoist edge, where the flag meets the pole.
@@ -83,7 +64,7 @@ fn pole_vertices(mesh: &Mesh) -> Vec<u32> {
     let Some(VertexAttributeValues::Float32x3(positions)) = mesh.attribute(Mesh::ATTRIBUTE_POSITION) else {
         return Vec::new();
     };
-    (0..positions.len() as u32).filter(|&v| positions[v as usize][0] == 0.0).collect()
+    (0..positions.len() as u32).filter(|&v| positions[v as usize][0].abs() < 1e-5).collect()
 }
 
 /// The pole sways about its foot: the flag's pins follow it tick by tick.

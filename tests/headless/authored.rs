@@ -134,8 +134,12 @@ fn meshes_that_cannot_be_cloth_are_refused_by_name_and_the_rest_runs() {
         .with_inserted_attribute(Mesh::ATTRIBUTE_POSITION, vec![[0.0f32; 3], [1.0, 0.0, 0.0]]);
     let flat = Mesh::new(PrimitiveTopology::TriangleList, RenderAssetUsages::default())
         .with_inserted_attribute(Mesh::ATTRIBUTE_POSITION, vec![[0.0f32, 0.0, 0.0], [1.0, 0.0, 0.0], [2.0, 0.0, 0.0]]);
+    // Its data is moved to the render world once uploaded: the simulation cannot read it.
+    let mut render_only = seamed_flag(5, 4);
+    render_only.asset_usage = RenderAssetUsages::RENDER_WORLD;
     let cases: Vec<(Option<Mesh>, ClothPins, ClothError)> = vec![
         (None, ClothPins::None, ClothError::NoTriangleMesh),
+        (Some(render_only), ClothPins::None, ClothError::NoTriangleMesh),
         (Some(nan), ClothPins::None, ClothError::MeshVertexNotFinite { vertex: 3 }),
         (Some(lines), ClothPins::None, ClothError::NoTriangleMesh),
         (Some(flat), ClothPins::None, ClothError::MeshWithoutArea),

@@ -126,8 +126,15 @@ fn big_meshes_are_built_off_the_main_thread() {
         app.update();
     }
     assert!(saw_building, "a 34,817-vertex mesh is above the async threshold");
-    let (spheres, _) = wait_for_collider(&mut app, bunny);
-    assert!(spheres > 50, "{spheres} spheres at n = 5");
+    let (spheres, inner_nodes) = wait_for_collider(&mut app, bunny);
+    // The same tree as the core builds from the same file, synchronously.
+    let path = format!("{}/../../assets/models/bunny.obj", std::env::var("CARGO_MANIFEST_DIR").unwrap());
+    let obj = parse_obj(&std::fs::read_to_string(path).unwrap()).unwrap();
+    let expected = Collider::from_mesh(MeshRef { positions: &obj.positions, indices: Some(&obj.indices) }, 5).unwrap();
+    assert_eq!(spheres as usize, expected.lbvh.spheres.len(), "spheres at n = 5");
+    assert_eq!(inner_nodes as usize, expected.lbvh.nodes.len());
+    let built = &app.world().get::<ClothCollider>(bunny).unwrap().collider().lbvh;
+    assert_eq!(built.spheres, expected.lbvh.spheres, "the async build gives the synchronous tree");
 }
 
 #[test]

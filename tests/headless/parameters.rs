@@ -6,24 +6,40 @@ use bevy_bvh_cloth::prelude::*;
 
 use crate::harness::{app, max_distance, positions, run, sent};
 
-/// A hanging cloth run for one second, `edit` applied to its component, then one more second.
-fn run_with(edit: impl FnOnce(&mut Cloth)) -> Vec<Vec3> {
+/// A hanging cloth run for one second, `edit` applied to its component, then one more second:
+/// its positions and velocities.
+fn run_with(edit: impl FnOnce(&mut Cloth)) -> (Vec<Vec3>, Vec<Vec3>) {
     let mut app = app();
     let cloth = Cloth { damping: 0.5, ..Cloth::grid(Vec2::splat(1.0), UVec2::splat(12)).with_pins(ClothPins::TwoEnds) };
     let entity = app.world_mut().spawn((cloth, Transform::from_xyz(0.0, 2.0, 0.0))).id();
     run(&mut app, 1.0);
     edit(&mut app.world_mut().get_mut::<Cloth>(entity).unwrap());
     run(&mut app, 1.0);
-    positions(&app, entity)
+    let sim = app.world().get::<ClothSimulation>(entity).unwrap().sim();
+    (sim.positions(), sim.velocities())
 }
 
 /// A named change to a cloth's component.
 type Edit = fn(&mut Cloth);
 
+fn mean(v: impl Iterator<Item = f32>) -> f32 {
+    let (sum, n) = v.fold((0.0, 0), |(s, n), x| (s + x, n + 1));
+    sum / n as f32
+}
+
+/// Mean stretch of the springs between vertical neighbours (12 x 12 over 1 m: rest 1/11 m).
+fn stretch(p: &[Vec3]) -> f32 {
+    mean((0..11 * 12).map(|i| p[i].distance(p[i + 12]) - 1.0 / 11.0))
+}
+
+fn kinetic(v: &[Vec3]) -> f32 {
+    mean(v.iter().map(|v| v.length_squared()))
+}
+
 #[test]
-fn each_live_parameter_changes_the_result() {
-    let baseline = run_with(|_| {});
-    assert_eq!(baseline, run_with(|_| {}), "the simulation is deterministic");
+fn each_live_parameter_changes_the_result_the_way_it_should() {
+    let (p0, v0) = run_with(|_| {});
+    assert_eq!((p0.clone(), v0.clone()), run_with(|_| {}), "the simulation is deterministic");
     let edits: [(&str, Edit); 4] = [
         ("spring_k", |c| c.spring_k *= 3.0),
         ("looper", |c| c.looper = 4),
@@ -31,9 +47,34 @@ fn each_live_parameter_changes_the_result() {
         ("external_force", |c| c.external_force = Vec3::new(0.0, 0.0, 2.0)),
     ];
     for (name, edit) in edits {
-        let changed = run_with(edit);
-        let moved = max_distance(&baseline, &changed);
-        assert!(moved > 1e-3, "changing {name} moved the cloth by only {moved} m");
+        let (p, v) = run_with(edit);
+        let moved = max_distance(&p0, &p);
+        eprintln!(
+            "{name}: moved {moved:.2e} m; stretch {:.2e} vs {:.2e}; kinetic {:.2e} vs {:.2e}; centroid z {:.3} vs {:.3}",
+            stretch(&p),
+            stretch(&p0),
+            kinetic(&v),
+            kinetic(&v0),
+            mean(p.iter().map(|p| p.z)),
+            mean(p0.iter().map(|p| p.z))
+        );
+        match name {
+            // A stiffer fabric stretches less under the same weight.
+            "spring_k" => {
+                assert!(stretch(&p) < 0.6 * stretch(&p0), "{name}: stretch {} vs {}", stretch(&p), stretch(&p0))
+            }
+            // More substeps resolve the same motion more finely: a change, but a small one.
+            "looper" => assert!(moved > 1e-6 && moved < 1e-2, "{name}: moved {moved} m"),
+            // Ten times the damping takes most of the motion out of the swinging cloth.
+            "damping" => {
+                assert!(kinetic(&v) < 0.5 * kinetic(&v0), "{name}: kinetic {} vs {}", kinetic(&v), kinetic(&v0))
+            }
+            // A push along +Z moves the cloth that way.
+            _ => {
+                let shift = mean(p.iter().map(|p| p.z)) - mean(p0.iter().map(|p| p.z));
+                assert!(shift > 0.05, "{name}: the centroid moved {shift} m along +Z");
+            }
+        }
     }
 }
 

@@ -320,3 +320,46 @@ fn gpu_cloths_spawned_changed_and_despawned_leave_no_gpu_resource() {
     eprintln!("live (buffers, bind groups): {before:?} after the warm-up, {after:?} after 300 more rounds");
     assert_eq!(after, before, "GPU resources grew over 300 rounds");
 }
+
+/// On the GPU backend a cloth with `ClothReadback` has its live state in `ClothSimulation`, a
+/// frame or two late and without a blocking read; a cloth without it keeps the state it was
+/// built with. A free fall (no pins, no colliders: the springs stay at rest) is compared with
+/// the core's CPU stepper: the state read back must be the core's after exactly the ticks
+/// `ticks_late` says it has run (1e-4 m; a tick of fall at this speed moves the cloth over
+/// 0.1 m, so a tick's error would show).
+#[test]
+fn the_gpu_backend_reads_a_cloth_back_when_asked() {
+    let Some(mut app) = gpu_backend_app() else { return };
+    let cloth = |x: f32| {
+        (Cloth { damping: 0.5, ..Cloth::grid(Vec2::ONE, UVec2::splat(12)) }, Transform::from_xyz(x, 10.0, 0.0))
+    };
+    let read = app.world_mut().spawn((cloth(0.0), ClothReadback::default())).id();
+    let unread = app.world_mut().spawn(cloth(3.0)).id();
+    for _ in 0..60 {
+        app.update();
+    }
+    let late = app.world().get::<ClothReadback>(read).unwrap().ticks_late.expect("a state arrived");
+    assert!(late <= 3, "the state is {late} ticks late (one tick per frame here)");
+    let got = app.world().get::<ClothSimulation>(read).unwrap().sim().positions();
+    let ticks = app.world().resource::<ClothClock>().total_ticks;
+    let topology = std::sync::Arc::new(
+        bvh_cloth_core::ClothTopology::grid(bvh_cloth_core::ClothGrid::new(Vec2::ONE, UVec2::splat(12))).unwrap(),
+    );
+    let params = bvh_cloth_core::ClothParams { damping: 0.5, ..Default::default() };
+    let mut core = bvh_cloth_core::ClothSim::new(
+        params,
+        topology,
+        bvh_cloth_core::Affine3A::from_translation(Vec3::new(0.0, 10.0, 0.0)),
+        &[],
+    )
+    .unwrap();
+    for _ in 0..ticks - late {
+        core.tick(1.0 / 60.0, &[]);
+    }
+    let gap = core.positions().iter().zip(&got).map(|(a, b)| a.distance(*b)).fold(0.0f32, f32::max);
+    eprintln!("read back {late} ticks late (of {ticks}): within {gap:e} m of the core's state");
+    assert!(gap < 1e-4, "the read-back state is not the core's after {} ticks ({gap} m)", ticks - late);
+    assert!(got.iter().all(|p| p.y < 8.0), "the read-back cloth has fallen");
+    let rest = app.world().get::<ClothSimulation>(unread).unwrap().sim().positions();
+    assert!(rest.iter().all(|p| p.y == 10.0), "a cloth without ClothReadback keeps its built state");
+}

@@ -6,20 +6,20 @@ use bevy::camera::primitives::Aabb;
 use bevy::mesh::{Indices, PrimitiveTopology, VertexAttributeValues};
 use bevy::prelude::*;
 use bvh_cloth_core::normals::particle_normal;
-use bvh_cloth_core::{ClothError, ClothGrid, ClothSim, ClothTopology, MeshRef};
+use bvh_cloth_core::{ClothError, ClothGrid, ClothSim, ClothTopology};
+
+use crate::collider_mesh::TriangleList;
 
 /// The topology of an authored mesh, its positions scaled by `scale` (the entity's scale when
-/// the cloth is built).
+/// the cloth is built). The mesh is read as colliders read theirs ([`TriangleList`]); a mesh
+/// that is not a main-world triangle list with `Float32x3` positions is
+/// [`ClothError::NoTriangleMesh`].
 pub(crate) fn authored_topology(mesh: &Mesh, scale: Vec3) -> Result<ClothTopology, ClothError> {
-    if mesh.primitive_topology() != PrimitiveTopology::TriangleList {
-        return Err(ClothError::NoTriangleMesh);
+    let mut triangles = TriangleList::from_mesh(mesh).map_err(|_| ClothError::NoTriangleMesh)?;
+    for p in &mut triangles.positions {
+        *p = (Vec3::from(*p) * scale).to_array();
     }
-    let Some(VertexAttributeValues::Float32x3(positions)) = mesh.attribute(Mesh::ATTRIBUTE_POSITION) else {
-        return Err(ClothError::NoTriangleMesh);
-    };
-    let positions: Vec<[f32; 3]> = positions.iter().map(|&p| (Vec3::from(p) * scale).to_array()).collect();
-    let indices: Option<Vec<u32>> = mesh.indices().map(|i| i.iter().map(|i| i as u32).collect());
-    ClothTopology::from_mesh(MeshRef { positions: &positions, indices: indices.as_deref() })
+    ClothTopology::from_mesh(triangles.as_mesh_ref())
 }
 
 /// A new mesh for a grid cloth: positions and normals in the frame of `transform`, UVs over the

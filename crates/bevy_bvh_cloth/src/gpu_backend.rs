@@ -13,13 +13,16 @@
 //!    change is one 64-byte write), the pins' targets, the collider frames, and where each
 //!    mesh's vertices lie in their slab.
 //! 3. [`simulate_cloths`] (`RenderGraph`, before the camera driver) records the ticks, the
-//!    writeback and a copy of each cloth's fault count; [`request_fault_reads`] (`Cleanup`,
-//!    after the submit) asks for those copies to be mapped.
-//! 4. A later frame's [`report_faults`] (`ExtractSchedule`) sends the counts that have arrived
-//!    to the main world as [`GpuClothDiverged`], and [`reset_diverged_cloths`] resets those
-//!    cloths there, which the next extract uploads.
+//!    writeback, a copy of each cloth's fault count and, for cloths with [`ClothReadback`], a
+//!    copy of its particles; [`request_fault_reads`] (`Cleanup`, after the submit) asks for
+//!    those copies to be mapped.
+//! 4. A later frame's [`report_faults`] (`ExtractSchedule`) sends the counts and states that
+//!    have arrived to the main world, as [`GpuClothDiverged`] and [`GpuClothState`];
+//!    [`reset_diverged_cloths`] resets the diverged cloths there (which the next extract
+//!    uploads), and `apply_gpu_readbacks` loads the states into their simulations.
 
 use std::sync::Arc;
+use std::sync::atomic::{AtomicU64, Ordering};
 
 use bevy::core_pipeline::schedule::camera_driver;
 use bevy::ecs::entity::EntityHashMap;
@@ -33,11 +36,12 @@ use bevy::render::{Extract, ExtractSchedule, MainWorld, Render, RenderSystems};
 use bvh_cloth_core::gpu_layout::GpuMeshWriteback;
 use bvh_cloth_core::{Affine3A, ClothParams, ClothSim, Collider, Lbvh};
 use bvh_cloth_gpu::wgpu::{self, BufferUsages};
-use bvh_cloth_gpu::{ClothKernels, FaultReadback, GpuCloth, GpuColliders};
+use bvh_cloth_gpu::{ClothKernels, FaultReadback, GpuCloth, GpuColliders, ParticleReadback};
 
 use crate::clock::ClothClock;
 use crate::collider::ClothCollider;
 use crate::messages::ClothMessage;
+use crate::readback::{ClothReadback, GpuClothState};
 use crate::simulation::{ClothSimulation, rigid_pose};
 
 /// Adds the render-world systems. Called by the plugin when the GPU backend is active.
@@ -78,6 +82,8 @@ struct ExtractedCloth {
     anchor_targets: Vec<Vec<(u32, Vec3)>>,
     mesh: AssetId<Mesh>,
     mesh_to_world: Affine3A,
+    /// Whether gameplay reads this cloth's state back ([`ClothReadback`]).
+    read_back: bool,
 }
 
 /// Where `normal_shader` writes one cloth: its mesh, and the layout of that mesh's vertices.
@@ -94,6 +100,8 @@ struct RenderCloth {
     generation: u64,
     writeback: Writeback,
     faults: FaultReadback,
+    /// The state read back for gameplay, and the ticks run by the copy in flight.
+    state: Option<(ParticleReadback, AtomicU64)>,
 }
 
 /// The render world's cloth state.
@@ -111,6 +119,8 @@ pub(crate) struct GpuClothWorld {
     refused: EntityHashMap<u64>,
     /// This frame's input.
     ticks: u32,
+    /// Ticks run since start-up, this frame's included.
+    total_ticks: u64,
     tick_seconds: f32,
     extracted: Vec<ExtractedCloth>,
     extracted_colliders: Vec<Collider>,
@@ -118,17 +128,21 @@ pub(crate) struct GpuClothWorld {
     collider_entities: Vec<Entity>,
 }
 
+/// What [`extract_cloths`] reads of each cloth entity.
+type ClothToExtract = (Entity, &'static ClothSimulation, &'static GlobalTransform, &'static Mesh3d, Has<ClothReadback>);
+
 fn extract_cloths(
     mut world: ResMut<GpuClothWorld>,
     clock: Extract<Res<ClothClock>>,
-    cloths: Extract<Query<(Entity, &ClothSimulation, &GlobalTransform, &Mesh3d)>>,
+    cloths: Extract<Query<ClothToExtract>>,
     colliders: Extract<Query<(Entity, &ClothCollider)>>,
 ) {
     world.ticks = clock.ticks;
+    world.total_ticks = clock.total_ticks;
     world.tick_seconds = clock.tick_seconds;
     let extracted = cloths
         .iter()
-        .map(|(entity, state, transform, mesh)| {
+        .map(|(entity, state, transform, mesh, read_back)| {
             let known = world.cloths.get(&entity).map(|c| c.generation).or(world.refused.get(&entity).copied());
             let sim = state.sim();
             ExtractedCloth {
@@ -139,6 +153,7 @@ fn extract_cloths(
                 anchor_targets: state.anchor_targets.clone(),
                 mesh: mesh.id(),
                 mesh_to_world: transform.affine(),
+                read_back,
             }
         })
         .collect();
@@ -217,7 +232,13 @@ fn prepare_cloths(
                 // The upload clears the fault count; a read still in flight counts the old
                 // state's faults, so it is dropped with its readback.
                 render.gpu.upload_state(&queue, sim);
-                Some(RenderCloth { generation: cloth.generation, faults: FaultReadback::new(device), ..render })
+                // Reads in flight are of the old state: they are dropped with their readbacks.
+                Some(RenderCloth {
+                    generation: cloth.generation,
+                    faults: FaultReadback::new(device),
+                    state: None,
+                    ..render
+                })
             }
             (_, Some(sim)) => match GpuCloth::new(device, kernels, sim) {
                 Ok(gpu) => Some(RenderCloth {
@@ -234,6 +255,7 @@ fn prepare_cloths(
                         ready: false,
                     },
                     faults: FaultReadback::new(device),
+                    state: None,
                 }),
                 Err(error) => {
                     error!("Cloth on {}: cannot run on the GPU: {error}; it stays at rest", cloth.entity);
@@ -244,6 +266,11 @@ fn prepare_cloths(
             (None, None) => None,
         };
         let Some(mut render) = render else { continue };
+        if !cloth.read_back {
+            render.state = None;
+        } else if render.state.is_none() {
+            render.state = Some((ParticleReadback::new(device, &render.gpu), AtomicU64::new(0)));
+        }
         render.gpu.set_params(&queue, &cloth.params, world.tick_seconds.max(f32::MIN_POSITIVE), colliders);
         render.gpu.write_anchor_targets(device, &queue, kernels, &cloth.anchor_targets);
 
@@ -272,6 +299,11 @@ fn simulate_cloths(mut render_context: RenderContext, world: Res<GpuClothWorld>,
         let encoder = render_context.command_encoder();
         render.gpu.encode_ticks(device, encoder, kernels, colliders, world.ticks);
         render.faults.record(encoder, &render.gpu);
+        if let Some((state, ticks)) = &render.state
+            && state.record(encoder, &render.gpu)
+        {
+            ticks.store(world.total_ticks, Ordering::Relaxed);
+        }
         if !render.writeback.ready {
             continue;
         }
@@ -286,18 +318,29 @@ fn simulate_cloths(mut render_context: RenderContext, world: Res<GpuClothWorld>,
     }
 }
 
-/// Asks for this frame's fault-count copies to be mapped, now that they are submitted.
+/// Asks for this frame's fault-count and state copies to be mapped, now that they are
+/// submitted.
 fn request_fault_reads(world: Res<GpuClothWorld>) {
     for render in world.cloths.values() {
         render.faults.submitted();
+        if let Some((state, _)) = &render.state {
+            state.submitted();
+        }
     }
 }
 
-/// Sends the fault counts that have arrived, where non-zero, to the main world.
+/// Sends the fault counts that have arrived, where non-zero, and the read-back states to the
+/// main world.
 fn report_faults(mut main_world: ResMut<MainWorld>, world: Res<GpuClothWorld>) {
     for (&entity, render) in &world.cloths {
         if let Some(particles @ 1..) = render.faults.take() {
             main_world.write_message(GpuClothDiverged { entity, generation: render.generation, particles });
+        }
+        if let Some((state, ticks)) = &render.state
+            && let Some(particles) = state.take()
+        {
+            let ticks = ticks.load(Ordering::Relaxed);
+            main_world.write_message(GpuClothState { entity, generation: render.generation, ticks, particles });
         }
     }
 }

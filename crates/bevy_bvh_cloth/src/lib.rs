@@ -58,8 +58,10 @@
 //! * **GPU** (where the render device runs compute shaders): the render world runs the paper's
 //!   kernels from [`bvh_cloth_gpu`] in Bevy's `RenderGraph` schedule, before the camera driver,
 //!   and `normal_shader` writes positions and normals straight into the cloth mesh's vertex
-//!   slab. Only each cloth's count of non-finite particles is read back, without waiting for
-//!   it; [`ClothSimulation`] then holds the state as of the last rebuild or reset.
+//!   slab. Nothing on the hot path waits for the GPU: each cloth's count of non-finite
+//!   particles is read back without waiting for it, and so is its whole state when the cloth
+//!   has [`ClothReadback`] (then [`ClothSimulation`] is one or two frames late; without it,
+//!   [`ClothSimulation`] holds the state as of the last rebuild or reset).
 //! * **CPU** (no compute shaders, no renderer, or asked for): the core's rayon stepper in
 //!   [`ClothSystems::Step`], writing the `Mesh` asset in [`ClothSystems::Writeback`].
 //!
@@ -89,6 +91,7 @@ mod gpu_backend;
 mod messages;
 #[cfg(feature = "egui")]
 pub mod panel;
+mod readback;
 mod settings;
 mod simulation;
 mod stats;
@@ -109,6 +112,7 @@ pub use cloth::{Cloth, ClothIntegrator, ClothPins, ClothShape, SpringScales};
 pub use collider::{ASYNC_BUILD_MIN_VERTICES, AutoCollider, ClothCollider, ColliderStatus};
 pub use collider_mesh::{ColliderFailure, collider_from_mesh};
 pub use messages::{ClothMessage, ResetCloth};
+pub use readback::ClothReadback;
 pub use settings::ClothSettings;
 pub use simulation::ClothSimulation;
 pub use stats::ClothStats;
@@ -119,8 +123,8 @@ pub mod prelude {
     pub use crate::panel::ClothPanelPlugin;
     pub use crate::{
         ActiveClothBackend, AutoCollider, BvhClothPlugin, BvhClothPlugins, Cloth, ClothBackend, ClothClock,
-        ClothDebugViewPlugin, ClothIntegrator, ClothMessage, ClothPins, ClothSettings, ClothShape, ClothSimulation,
-        ClothStats, ClothSystems, ColliderStatus, ResetCloth, SpringScales,
+        ClothDebugViewPlugin, ClothIntegrator, ClothMessage, ClothPins, ClothReadback, ClothSettings, ClothShape,
+        ClothSimulation, ClothStats, ClothSystems, ColliderStatus, ResetCloth, SpringScales,
     };
 }
 
@@ -168,6 +172,7 @@ impl Plugin for BvhClothPlugin {
             .register_type::<ClothSettings>()
             .register_type::<ClothClock>()
             .register_type::<ClothStats>()
+            .register_type::<ClothReadback>()
             .register_type::<ClothBackend>()
             .register_type::<ActiveClothBackend>()
             .init_resource::<ClothSettings>()
@@ -178,6 +183,7 @@ impl Plugin for BvhClothPlugin {
             .add_message::<ClothMessage>()
             .add_message::<ResetCloth>()
             .add_message::<gpu_backend::GpuClothDiverged>()
+            .add_message::<readback::GpuClothState>()
             .configure_sets(
                 PostUpdate,
                 (ClothSystems::BuildColliders, ClothSystems::Prepare, ClothSystems::Step, ClothSystems::Writeback)
@@ -194,7 +200,8 @@ impl Plugin for BvhClothPlugin {
                     (
                         clock::advance_clock,
                         simulation::sync_cloths,
-                        gpu_backend::reset_diverged_cloths.run_if(not(backend::cpu_backend_active)),
+                        (gpu_backend::reset_diverged_cloths, readback::apply_gpu_readbacks)
+                            .run_if(not(backend::cpu_backend_active)),
                         simulation::warn_stiff_cloths,
                     )
                         .chain()

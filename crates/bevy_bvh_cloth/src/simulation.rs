@@ -19,8 +19,9 @@ use crate::settings::ClothSettings;
 ///
 /// Particle positions are in world space. The entity's [`Mesh3d`] shows them in the entity's
 /// local frame, each vertex at its particle ([`ClothTopology::vertex_particle`]). On the CPU
-/// backend this is the live state; on the GPU backend the live state stays on the GPU, and this
-/// holds the state as of the last rebuild or reset.
+/// backend this is the live state. On the GPU backend the live state stays on the GPU: with
+/// [`ClothReadback`](crate::ClothReadback) on the entity this is read back one or two frames
+/// late, without stalling; without it, this holds the state as of the last rebuild or reset.
 ///
 /// [`ClothTopology::vertex_particle`]: bvh_cloth_core::ClothTopology::vertex_particle
 #[derive(Component, Debug)]
@@ -39,8 +40,10 @@ pub struct ClothSimulation {
     pub(crate) anchor_targets: Vec<Vec<(u32, Vec3)>>,
     /// Positions changed since the mesh was last written.
     pub(crate) dirty: bool,
-    /// Whether the stability guard's warning was given for the current parameters.
-    pub(crate) guard_warned: bool,
+    /// The `(looper, substeps)` the stability guard last warned about: it says so again only
+    /// when that changes, not whenever some other parameter (an External Force driven every
+    /// frame, say) is edited.
+    pub(crate) guard_warned: Option<(u32, u32)>,
     /// Whether a divergence was logged for the current parameters (each one is still sent as a
     /// message): a cloth whose parameters make it diverge every tick logs once, not every frame.
     pub(crate) divergence_warned: bool,
@@ -167,7 +170,6 @@ pub(crate) fn sync_cloths(
                     match cloth.to_params(settings.gravity).and_then(|params| state.sim.set_params(params)) {
                         Ok(()) => {
                             state.built_from = Cloth::clone(&cloth);
-                            state.guard_warned = false;
                             state.divergence_warned = false;
                         }
                         Err(error) => reject(error),
@@ -216,7 +218,7 @@ pub(crate) fn sync_cloths(
                         source: built.source,
                         anchor_targets: Vec::new(),
                         dirty: true,
-                        guard_warned: false,
+                        guard_warned: None,
                         divergence_warned: false,
                         generation: next_generation(),
                     },
@@ -259,24 +261,22 @@ fn interpolate(from: &Affine3A, to: &Affine3A, t: f32) -> Affine3A {
     Affine3A::from_rotation_translation(r0.slerp(r1, t), t0.lerp(t1, t))
 }
 
-/// Says once per parameter set when the stability guard runs a cloth at more substeps per tick
-/// than its Looper. Either backend runs the count [`bvh_cloth_core::ClothParams::substeps`]
-/// gives, so it is checked here, for both.
+/// Says once per `(looper, substeps)` pair when the stability guard runs a cloth at more
+/// substeps per tick than its Looper. Either backend runs the count
+/// [`bvh_cloth_core::ClothParams::substeps`] gives, so it is checked here, for both. The count
+/// comes from the topology's precomputed bound, so checking it every frame is cheap.
 pub(crate) fn warn_stiff_cloths(clock: Res<ClothClock>, mut cloths: Query<(Entity, &mut ClothSimulation)>) {
     if clock.ticks == 0 {
         return;
     }
     for (entity, mut state) in &mut cloths {
-        if state.guard_warned {
-            continue;
-        }
         let (looper, substeps) = (state.sim.params().looper, state.sim.substeps(clock.tick_seconds));
-        if substeps > looper {
+        if substeps > looper && state.guard_warned != Some((looper, substeps)) {
             warn!(
                 "Cloth on {entity}: spring_k is too stiff for looper = {looper} at this tick rate; \
                  running {substeps} substeps per tick to stay stable"
             );
-            state.guard_warned = true;
+            state.guard_warned = Some((looper, substeps));
         }
     }
 }

@@ -50,7 +50,7 @@ pub enum ClothError {
         particles: u32,
     },
     /// The cloth has no mesh to simulate, or its mesh is not a list of triangles with `f32`
-    /// positions.
+    /// positions that the simulation can read.
     NoTriangleMesh,
     /// The cloth mesh has no vertex positions.
     MeshWithoutVertices,
@@ -115,7 +115,7 @@ impl fmt::Display for ClothError {
                 write!(f, "pinned particle {index} is outside the cloth of {particles} particles")
             }
             Self::NoTriangleMesh => {
-                write!(f, "cloth has no triangle-list mesh with Float32x3 positions to simulate")
+                write!(f, "cloth has no readable triangle-list mesh with Float32x3 positions to simulate")
             }
             Self::MeshWithoutVertices => write!(f, "cloth mesh has no vertex positions"),
             Self::MeshIndicesNotTriangles { len } => {

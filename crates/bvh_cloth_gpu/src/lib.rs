@@ -17,18 +17,19 @@
 //! | [`GpuColliders`] | every collider's frame, nodes and spheres |
 //! | [`GpuCloth`] | one cloth's particle buffers and parameters; encodes ticks and writeback |
 //! | [`FaultReadback`] | reads a cloth's count of quarantined particles without stalling |
+//! | [`ParticleReadback`] | reads a cloth's positions and velocities without stalling |
 //! | [`headless`] | a device without a window, and blocking readback, for tests and benchmarks |
 
 #![deny(missing_docs)]
 
 mod cloth;
 mod colliders;
-mod faults;
 pub mod headless;
 mod kernels;
+mod readback;
 
 pub use cloth::GpuCloth;
 pub use colliders::GpuColliders;
-pub use faults::FaultReadback;
 pub use kernels::{ClothKernels, KernelError, SHADER_SOURCE, STORAGE_BUFFERS_NEEDED, WORKGROUP_SIZE};
+pub use readback::{FaultReadback, ParticleReadback};
 pub use wgpu;

@@ -1,0 +1,58 @@
+//! Reading where a GPU cloth is, for gameplay: opt in with [`ClothReadback`].
+
+use bevy::prelude::*;
+use bvh_cloth_core::gpu_layout::{GpuParticle, load_gpu_particles};
+
+use crate::clock::ClothClock;
+use crate::simulation::ClothSimulation;
+
+/// Put this on a [`Cloth`](crate::Cloth) entity to have its state read back from the GPU, so
+/// that [`ClothSimulation::sim`] gives its live positions and velocities on the GPU backend
+/// too.
+///
+/// The read never stalls a frame: each frame's state is copied on the GPU and mapped after the
+/// submit, and it reaches the main world when the map completes, usually one or two frames
+/// later. [`ClothReadback::ticks_late`] says how late the state in [`ClothSimulation`] is. A
+/// copy costs the cloth's particle buffer (32 bytes per particle) per frame, so read back only
+/// the cloths gameplay looks at. On the CPU backend the state is always live and this does
+/// nothing.
+#[derive(Component, Clone, Debug, Default, PartialEq, Reflect)]
+#[reflect(Component, Default, Debug)]
+pub struct ClothReadback {
+    /// How many ticks the state in [`ClothSimulation`] is behind the one drawn this frame
+    /// (about one frame's worth per frame of delay); `None` until the first read arrives.
+    pub ticks_late: Option<u64>,
+}
+
+/// A cloth's particles read back from the GPU, sent from the render world to the main world.
+#[derive(Message, Clone, Debug)]
+pub(crate) struct GpuClothState {
+    pub(crate) entity: Entity,
+    /// The [`ClothSimulation`] generation read: a state read before a rebuild or reset is stale.
+    pub(crate) generation: u64,
+    /// [`ClothClock::total_ticks`] of the state: the ticks it has run.
+    pub(crate) ticks: u64,
+    pub(crate) particles: Vec<GpuParticle>,
+}
+
+/// Main world: loads each state that arrived into its cloth's simulation (unless the cloth was
+/// rebuilt or reset since), and counts how late each read-back cloth is.
+pub(crate) fn apply_gpu_readbacks(
+    mut states: MessageReader<GpuClothState>,
+    mut cloths: Query<(&mut ClothSimulation, &mut ClothReadback)>,
+    clock: Res<ClothClock>,
+) {
+    for (_, mut readback) in &mut cloths {
+        if let Some(late) = &mut readback.ticks_late {
+            *late += u64::from(clock.ticks);
+        }
+    }
+    for state in states.read() {
+        let Ok((mut sim, mut readback)) = cloths.get_mut(state.entity) else { continue };
+        if sim.generation != state.generation {
+            continue;
+        }
+        load_gpu_particles(&mut sim.sim, &state.particles);
+        readback.ticks_late = Some(clock.total_ticks.saturating_sub(state.ticks));
+    }
+}
