@@ -129,12 +129,6 @@ impl Cloth {
     }
 }
 
-/// The generated grid of a [`ClothShape::Grid`], validated.
-pub(crate) fn grid_of(size: Vec2, particles: UVec2) -> Result<(ClothGrid, ClothTopology), ClothError> {
-    let grid = ClothGrid::new(size, particles);
-    Ok((grid, ClothTopology::grid(grid)?))
-}
-
 /// Per-kind stiffness scales applied on top of [`Cloth::spring_k`] (paper section 2.1).
 #[derive(Clone, Copy, Debug, PartialEq, Reflect)]
 #[reflect(Default, Debug)]

@@ -7,10 +7,10 @@ use std::sync::Arc;
 use bevy::camera::visibility::NoAutoAabb;
 use bevy::ecs::entity::EntityHashSet;
 use bevy::prelude::*;
-use bvh_cloth_core::{Affine3A, ClothError, ClothSim, Vec3};
+use bvh_cloth_core::{Affine3A, ClothError, ClothGrid, ClothSim, ClothTopology, Vec3};
 
 use crate::clock::ClothClock;
-use crate::cloth::{Cloth, ClothShape, grid_of};
+use crate::cloth::{Cloth, ClothShape};
 use crate::cloth_mesh::{authored_topology, new_authored_mesh, new_grid_mesh};
 use crate::messages::{ClothMessage, ResetCloth};
 use crate::settings::ClothSettings;
@@ -126,7 +126,8 @@ fn build(
     let pose = rigid_pose(transform);
     match &cloth.shape {
         ClothShape::Grid { size, particles } => {
-            let (grid, topology) = grid_of(*size, *particles)?;
+            let grid = ClothGrid::new(*size, *particles);
+            let topology = ClothTopology::grid(grid)?;
             let pins = cloth.pins.particles(&topology, Some(&grid))?;
             let sim = ClothSim::new(params, Arc::new(topology), pose, &pins)?;
             let mesh = new_grid_mesh(&grid, &sim, transform);

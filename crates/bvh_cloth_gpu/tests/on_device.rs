@@ -50,6 +50,31 @@ impl Rig {
         self.queue.submit([encoder.finish()]);
     }
 
+    /// Runs `normal_shader` for `cloth` into a vertex buffer that starts as `words`, laid out
+    /// as `writeback` says, and returns the buffer's words.
+    fn write_vertices(&self, cloth: &GpuCloth, writeback: &GpuMeshWriteback, words: Vec<f32>) -> Vec<f32> {
+        let vertices = self.device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
+            label: None,
+            contents: bytemuck::cast_slice(&words),
+            usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_SRC,
+        });
+        let writeback = self.device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
+            label: None,
+            contents: bytemuck::bytes_of(writeback),
+            usage: wgpu::BufferUsages::UNIFORM,
+        });
+        let mut encoder = self.device.create_command_encoder(&Default::default());
+        cloth.encode_writeback(
+            &self.device,
+            &mut encoder,
+            &self.kernels,
+            &writeback,
+            vertices.as_entire_buffer_binding(),
+        );
+        self.queue.submit([encoder.finish()]);
+        headless::read(&self.device, &self.queue, &vertices)
+    }
+
     fn particles(&self, cloth: &GpuCloth) -> Vec<GpuParticle> {
         headless::read(&self.device, &self.queue, cloth.particles())
     }
@@ -286,23 +311,9 @@ fn normal_shader_writes_an_interleaved_vertex_buffer() {
     // padding before the first.
     const STRIDE: u32 = 8;
     let sentinel = -7.0f32;
-    let words = vec![sentinel; (1 + sim.len()) * STRIDE as usize];
-    let vertices = rig.device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
-        label: None,
-        contents: bytemuck::cast_slice(&words),
-        usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_SRC,
-    });
     let mesh_to_world = Affine3A::from_rotation_translation(turn, Vec3::new(1.0, 2.0, 3.0));
     let writeback = GpuMeshWriteback::new(mesh_to_world, STRIDE, STRIDE, 0, 4);
-    let writeback = rig.device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
-        label: None,
-        contents: bytemuck::bytes_of(&writeback),
-        usage: wgpu::BufferUsages::UNIFORM,
-    });
-    let mut encoder = rig.device.create_command_encoder(&Default::default());
-    cloth.encode_writeback(&rig.device, &mut encoder, &rig.kernels, &writeback, vertices.as_entire_buffer_binding());
-    rig.queue.submit([encoder.finish()]);
-    let out: Vec<f32> = headless::read(&rig.device, &rig.queue, &vertices);
+    let out = rig.write_vertices(&cloth, &writeback, vec![sentinel; (1 + sim.len()) * STRIDE as usize]);
 
     assert!(out[..STRIDE as usize].iter().all(|&w| w == sentinel), "the padding vertex was written");
     let grid = square(1.0, 3);
@@ -567,25 +578,11 @@ fn authored_mesh_with_moving_anchors_agrees_with_the_cpu() {
     let travelled = cpu.positions().iter().map(|p| p.y).fold(f32::INFINITY, f32::min);
     assert!(travelled > 1.3, "the flag was carried up with its pole (lowest point {travelled})");
 
-    // The render vertices, straight from normal_shader: 4 words each (position only), the
-    // normal written over a scratch vertex layout of 8 words.
+    // The render vertices, straight from normal_shader, in world space: 8 words each, the
+    // position at word 0 and the normal at word 4.
     const STRIDE: u32 = 8;
-    let words = vec![0.0f32; positions.len() * STRIDE as usize];
-    let vertices = rig.device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
-        label: None,
-        contents: bytemuck::cast_slice(&words),
-        usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_SRC,
-    });
     let writeback = GpuMeshWriteback::new(Affine3A::IDENTITY, 0, STRIDE, 0, 4);
-    let writeback = rig.device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
-        label: None,
-        contents: bytemuck::bytes_of(&writeback),
-        usage: wgpu::BufferUsages::UNIFORM,
-    });
-    let mut encoder = rig.device.create_command_encoder(&Default::default());
-    gpu.encode_writeback(&rig.device, &mut encoder, &rig.kernels, &writeback, vertices.as_entire_buffer_binding());
-    rig.queue.submit([encoder.finish()]);
-    let out: Vec<f32> = headless::read(&rig.device, &rig.queue, &vertices);
+    let out = rig.write_vertices(&gpu, &writeback, vec![0.0; positions.len() * STRIDE as usize]);
     let on_gpu = gpu_positions(&rig, &gpu);
     let vertex = |v: usize| &out[v * STRIDE as usize..][..STRIDE as usize];
     let topology = cpu.topology();
