@@ -24,6 +24,7 @@ struct Tally {
     diverged: u32,
     rejected: u32,
     collider_failed: u32,
+    anchors_lost: u32,
     /// When each divergence happened, and under which parameters.
     divergences: Vec<String>,
 }
@@ -49,6 +50,7 @@ fn count(
             }
             ClothMessage::Rejected { .. } => tally.rejected += 1,
             ClothMessage::ColliderFailed { .. } => tally.collider_failed += 1,
+            ClothMessage::AnchorLost { .. } => tally.anchors_lost += 1,
         }
     }
 }
@@ -77,8 +79,7 @@ fn parameters(cloth: &mut Cloth, tick: u64) {
     cloth.damping = sweep(tick, 3_001, 0.0, 10.0, false);
     let f = |period| sweep(tick, period, -20.0, 20.0, false);
     cloth.external_force = Vec3::new(f(1_009), f(2_003), f(4_001));
-    cloth.integrator =
-        if (tick / 25_000).is_multiple_of(2) { ClothIntegrator::Rk4 } else { ClothIntegrator::SemiImplicitEuler };
+    cloth.integrator = if (tick / 25_000).is_multiple_of(2) { Integrator::Rk4 } else { Integrator::SemiImplicitEuler };
     match tick % 9_973 {
         0 => cloth.external_force.x = f32::NAN,
         1 => cloth.mass = -1.0,
@@ -150,6 +151,7 @@ fn main() {
     println!("| resets after a non-finite state (`Diverged`) | {} |", tally.diverged);
     println!("| parameter sets refused (`Rejected`) | {} |", tally.rejected);
     println!("| collider failures | {} |", tally.collider_failed);
+    println!("| anchors lost | {} |", tally.anchors_lost);
     println!("| energy: max / final (J) | {max_energy:.3} / {final_energy:.3} |");
     println!("| farthest particle from the origin (m) | {farthest:.1} |");
     println!("| resident memory at tick 5,000 / at the end | {} / {} |", mib(memory_start), mib(resident_mib()));

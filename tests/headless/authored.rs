@@ -11,7 +11,7 @@ use crate::harness::{add_mesh, app, app_at, positions, run, sent};
 
 /// A flag as an exporter writes one: `cols x rows` points over 1.2 m x 0.8 m in the local XY
 /// plane (the pole along x = 0), split at a UV seam down the middle column, with UVs.
-fn seamed_flag(cols: u32, rows: u32) -> Mesh {
+pub(crate) fn seamed_flag(cols: u32, rows: u32) -> Mesh {
     let seam = cols / 2;
     let (mut positions, mut uvs, mut indices) = (Vec::new(), Vec::new(), Vec::new());
     for (first, last, u0) in [(0, seam, 0.0f32), (seam, cols - 1, 0.5)] {
@@ -38,7 +38,7 @@ fn seamed_flag(cols: u32, rows: u32) -> Mesh {
 }
 
 /// The vertices of `mesh` on the pole (x = 0).
-fn pole_vertices(mesh: &Mesh) -> Vec<u32> {
+pub(crate) fn pole_vertices(mesh: &Mesh) -> Vec<u32> {
     let Some(VertexAttributeValues::Float32x3(p)) = mesh.attribute(Mesh::ATTRIBUTE_POSITION) else { unreachable!() };
     (0..p.len() as u32).filter(|&v| p[v as usize][0] == 0.0).collect()
 }

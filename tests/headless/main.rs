@@ -3,6 +3,7 @@
 
 mod harness;
 
+mod anchors;
 mod authored;
 mod colliders;
 mod divergence;

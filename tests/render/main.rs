@@ -363,3 +363,40 @@ fn the_gpu_backend_reads_a_cloth_back_when_asked() {
     let rest = app.world().get::<ClothSimulation>(unread).unwrap().sim().positions();
     assert!(rest.iter().all(|p| p.y == 10.0), "a cloth without ClothReadback keeps its built state");
 }
+
+/// On the GPU backend a row anchored to another entity rides it: after the target has swung
+/// and climbed and then stopped, the state read back holds the row exactly where the target
+/// carries it (1e-5 m), the rest hangs below it, and nothing went non-finite.
+#[test]
+fn the_gpu_backend_carries_anchors_on_another_entity() {
+    let Some(mut app) = gpu_backend_app() else { return };
+    let pole = app.world_mut().spawn(Transform::from_xyz(0.0, 2.0, -0.5)).id();
+    let row = ClothPins::Region { min: Vec3::new(-1.0, -0.01, -0.51), max: Vec3::new(1.0, 0.01, -0.49) };
+    let cloth = app
+        .world_mut()
+        .spawn((
+            Cloth { damping: 1.0, ..Cloth::grid(Vec2::ONE, UVec2::splat(12)) }.with_anchor(ClothAnchor::new(row, pole)),
+            Transform::from_xyz(0.0, 2.0, 0.0),
+            ClothReadback::default(),
+        ))
+        .id();
+    for frame in 0..90 {
+        let t = (frame as f32 / 60.0).min(1.0);
+        *app.world_mut().get_mut::<Transform>(pole).unwrap() =
+            Transform::from_xyz(0.4 * t, 2.0 + 0.5 * t, -0.5).with_rotation(Quat::from_rotation_y(1.5 * t));
+        app.update();
+    }
+    let pole_pose = Transform::from_xyz(0.4, 2.5, -0.5).with_rotation(Quat::from_rotation_y(1.5));
+    let sim = app.world().get::<ClothSimulation>(cloth).unwrap().sim();
+    assert!(app.world().get::<ClothReadback>(cloth).unwrap().ticks_late.is_some(), "a state arrived");
+    let rest = sim.topology().rest_positions();
+    let p = sim.positions();
+    assert!(p.iter().all(|q| q.is_finite()));
+    for i in 0..12 {
+        // Bound at the start: the pole at (0, 2, -0.5) unturned, the cloth at (0, 2, 0).
+        let local = rest[i] + Vec3::new(0.0, 0.0, 0.5);
+        let want = pole_pose.transform_point(local);
+        assert!(p[i].distance(want) < 1e-5, "anchored particle {i} at {} not {want}", p[i]);
+    }
+    assert!(p[12..].iter().all(|q| q.y < 2.5), "the cloth hangs below its row");
+}

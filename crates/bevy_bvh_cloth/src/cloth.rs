@@ -1,20 +1,23 @@
 //! The `Cloth` component: the paper's parameters (Table V) as a Bevy component.
 
 use bevy::prelude::*;
-use bvh_cloth_core::{ClothError, ClothGrid, ClothParams, ClothTopology, Integrator, Pins, SpringStiffness};
+use bvh_cloth_core::{ClothError, ClothParams, ClothPins, Integrator, SpringStiffness};
 
 /// A simulated cloth. Put it on an entity with a material: either with a generated sheet
 /// ([`Cloth::grid`]), for which the plugin makes the mesh, or on an entity with an authored
 /// triangle [`Mesh3d`] ([`Cloth::mesh`]), which then moves as cloth.
 ///
 /// The cloth starts in its rest shape under the entity's transform, at the moment it is spawned
-/// (or rebuilt). Pinned particles stay at their rest position under the entity's transform,
-/// so moving the entity drags them, tick by tick; the free particles are simulated in world
-/// space.
+/// (or rebuilt). Particles chosen by `pins` stay at their rest position under the entity's
+/// transform, so moving the entity drags them; particles chosen by an [`anchor`](ClothAnchor)
+/// are carried by another entity (a pole, a character's joint). Both move every tick, their
+/// holder's motion over the frame spread evenly over the frame's ticks. The free particles are
+/// simulated in world space.
 ///
-/// Editing `looper`, `spring_k`, `damping`, `external_force`, `mass`, `stiffness` or
-/// `integrator` takes effect on the next tick and keeps the cloth's state. Editing `shape` or
-/// `pins` rebuilds the cloth at rest. Invalid values are refused with an error (see
+/// Editing `looper`, `spring_k`, `damping`, `external_force`, `mass`, `stiffness`,
+/// `integrator` or an anchor's `offset` takes effect on the next tick and keeps the cloth's
+/// state. Editing `shape`, `pins` or which vertices or entity an anchor holds rebuilds the
+/// cloth at rest. Invalid values are refused with an error (see
 /// [`ClothMessage::Rejected`](crate::ClothMessage)), and the cloth keeps running with its last
 /// valid parameters.
 #[derive(Component, Clone, Debug, PartialEq, Reflect)]
@@ -38,11 +41,46 @@ pub struct Cloth {
     /// A force on the whole cloth in newtons, world axes ("External Force"): wind, a push.
     pub external_force: Vec3,
     /// Per-kind stiffness scales on top of `spring_k`.
-    pub stiffness: SpringScales,
+    pub stiffness: SpringStiffness,
     /// The time integrator.
-    pub integrator: ClothIntegrator,
-    /// Which particles are held in place.
+    pub integrator: Integrator,
+    /// Which particles the entity itself holds.
     pub pins: ClothPins,
+    /// Groups of particles held by other entities. Where a particle is chosen more than once,
+    /// the last anchor that chooses it holds it, and any anchor overrides `pins`.
+    pub anchors: Vec<ClothAnchor>,
+}
+
+/// A group of a cloth's particles carried by another entity: a flagpole, a character's
+/// shoulder joint, a ring on a curtain rod.
+///
+/// When the cloth is built, each chosen particle's rest position is taken into the target's
+/// frame (its rotation and translation; its scale is left out). From then on the particle goes
+/// where the target's frame carries that point, moved by `offset` along the target's own axes.
+/// If the target is despawned, or has no [`GlobalTransform`], the particles stay where they
+/// were last held and [`ClothMessage::AnchorLost`](crate::ClothMessage::AnchorLost) says so.
+#[derive(Clone, Debug, PartialEq, Reflect)]
+#[reflect(Debug, PartialEq)]
+pub struct ClothAnchor {
+    /// The particles the anchor holds.
+    pub pins: ClothPins,
+    /// The entity that carries them.
+    pub target: Entity,
+    /// A shift in metres along the target's axes, applied to every particle of the group.
+    pub offset: Vec3,
+}
+
+impl ClothAnchor {
+    /// `pins` carried by `target`, without offset.
+    pub fn new(pins: ClothPins, target: Entity) -> Self {
+        Self { pins, target, offset: Vec3::ZERO }
+    }
+
+    /// The same anchor, shifted by `offset` metres along the target's axes.
+    pub fn with_offset(mut self, offset: Vec3) -> Self {
+        self.offset = offset;
+        self
+    }
 }
 
 /// What a [`Cloth`] is made of.
@@ -82,9 +120,10 @@ impl Default for Cloth {
             spring_k: core.spring_k,
             damping: core.damping,
             external_force: Vec3::ZERO,
-            stiffness: SpringScales::default(),
-            integrator: ClothIntegrator::default(),
+            stiffness: core.stiffness,
+            integrator: core.integrator,
             pins: ClothPins::default(),
+            anchors: Vec::new(),
         }
     }
 }
@@ -101,9 +140,15 @@ impl Cloth {
         Self { shape: ClothShape::Mesh, ..default() }
     }
 
-    /// Sets which particles are pinned.
+    /// Sets which particles the entity itself holds.
     pub fn with_pins(mut self, pins: ClothPins) -> Self {
         self.pins = pins;
+        self
+    }
+
+    /// Adds a group of particles carried by another entity.
+    pub fn with_anchor(mut self, anchor: ClothAnchor) -> Self {
+        self.anchors.push(anchor);
         self
     }
 
@@ -116,8 +161,8 @@ impl Cloth {
             damping: self.damping,
             external_force: self.external_force,
             gravity,
-            stiffness: self.stiffness.into(),
-            integrator: self.integrator.into(),
+            stiffness: self.stiffness,
+            integrator: self.integrator,
         };
         params.validate()?;
         Ok(params)
@@ -125,93 +170,11 @@ impl Cloth {
 
     /// Whether going from `self` to `other` needs a new topology (and a new mesh).
     pub(crate) fn shape_differs(&self, other: &Cloth) -> bool {
-        self.shape != other.shape || self.pins != other.pins
-    }
-}
-
-/// Per-kind stiffness scales applied on top of [`Cloth::spring_k`] (paper section 2.1).
-#[derive(Clone, Copy, Debug, PartialEq, Reflect)]
-#[reflect(Default, Debug)]
-pub struct SpringScales {
-    /// Springs to the 4-neighbourhood.
-    pub structural: f32,
-    /// Springs to the diagonals.
-    pub shear: f32,
-    /// Springs two particles away along rows and columns.
-    pub bending: f32,
-}
-
-impl Default for SpringScales {
-    fn default() -> Self {
-        let s = SpringStiffness::default();
-        Self { structural: s.structural, shear: s.shear, bending: s.bending }
-    }
-}
-
-impl From<SpringScales> for SpringStiffness {
-    fn from(s: SpringScales) -> Self {
-        Self { structural: s.structural, shear: s.shear, bending: s.bending }
-    }
-}
-
-/// The time integrator of a cloth (paper section 2.2).
-#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Hash, Reflect)]
-#[reflect(Default, Debug)]
-pub enum ClothIntegrator {
-    /// Fourth-order Runge–Kutta over the whole system (paper eq. 4).
-    #[default]
-    Rk4,
-    /// Semi-implicit Euler: cheaper, first order.
-    SemiImplicitEuler,
-}
-
-impl From<ClothIntegrator> for Integrator {
-    fn from(i: ClothIntegrator) -> Self {
-        match i {
-            ClothIntegrator::Rk4 => Integrator::Rk4,
-            ClothIntegrator::SemiImplicitEuler => Integrator::SemiImplicitEuler,
+        fn holds(a: &ClothAnchor) -> (&ClothPins, Entity) {
+            (&a.pins, a.target)
         }
-    }
-}
-
-/// Which particles of a cloth are held in place.
-#[derive(Clone, Debug, Default, PartialEq, Eq, Reflect)]
-#[reflect(Default, Debug)]
-pub enum ClothPins {
-    /// Nothing: the cloth falls freely.
-    #[default]
-    None,
-    /// The two corners of a grid's first row (paper Fig. 5, "two ends fixed").
-    TwoEnds,
-    /// A grid's whole first row, like a curtain.
-    FirstRow,
-    /// Vertex indices of the cloth's mesh (on the grid, `row * cols + col`). Every vertex
-    /// welded to the same particle is held with it.
-    Indices(Vec<u32>),
-}
-
-impl ClothPins {
-    /// The pinned particles of `topology` (`grid` when it is a generated grid).
-    pub(crate) fn particles(&self, topology: &ClothTopology, grid: Option<&ClothGrid>) -> Result<Vec<u32>, ClothError> {
-        let by_grid = |pins: Pins| grid.map(|grid| pins.indices(grid)).ok_or(ClothError::PinsNeedGrid);
-        match self {
-            ClothPins::None => Ok(Vec::new()),
-            ClothPins::TwoEnds => by_grid(Pins::TwoEnds),
-            ClothPins::FirstRow => by_grid(Pins::FirstRow),
-            ClothPins::Indices(vertices) => {
-                let map = topology.vertex_particle();
-                let mut particles = vertices
-                    .iter()
-                    .map(|&v| {
-                        map.get(v as usize)
-                            .copied()
-                            .ok_or(ClothError::PinOutOfRange { index: v, particles: map.len() as u32 })
-                    })
-                    .collect::<Result<Vec<u32>, _>>()?;
-                particles.sort_unstable();
-                particles.dedup();
-                Ok(particles)
-            }
-        }
+        self.shape != other.shape
+            || self.pins != other.pins
+            || !self.anchors.iter().map(holds).eq(other.anchors.iter().map(holds))
     }
 }

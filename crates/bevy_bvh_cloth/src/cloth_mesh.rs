@@ -6,7 +6,7 @@ use bevy::camera::primitives::Aabb;
 use bevy::mesh::{Indices, PrimitiveTopology, VertexAttributeValues};
 use bevy::prelude::*;
 use bvh_cloth_core::normals::particle_normal;
-use bvh_cloth_core::{ClothError, ClothGrid, ClothSim, ClothTopology};
+use bvh_cloth_core::{ClothError, ClothGrid, ClothSim, ClothTopology, MeshVertices};
 
 use crate::collider_mesh::TriangleList;
 
@@ -20,6 +20,21 @@ pub(crate) fn authored_topology(mesh: &Mesh, scale: Vec3) -> Result<ClothTopolog
         *p = (Vec3::from(*p) * scale).to_array();
     }
     ClothTopology::from_mesh(triangles.as_mesh_ref())
+}
+
+/// What pins select from in an authored mesh: its positions as authored and its `Float32x4`
+/// vertex colours, where it has them. (Positions that are not `Float32x3` read as none; such a
+/// mesh never gets this far, [`authored_topology`] refuses it.)
+pub(crate) fn authored_vertices(mesh: &Mesh) -> MeshVertices<'_> {
+    let positions = match mesh.attribute(Mesh::ATTRIBUTE_POSITION) {
+        Some(VertexAttributeValues::Float32x3(p)) => p.as_slice(),
+        _ => &[],
+    };
+    let colors = match mesh.attribute(Mesh::ATTRIBUTE_COLOR) {
+        Some(VertexAttributeValues::Float32x4(c)) => Some(c.as_slice()),
+        _ => None,
+    };
+    MeshVertices { positions, colors }
 }
 
 /// A new mesh for a grid cloth: positions and normals in the frame of `transform`, UVs over the

@@ -107,8 +107,9 @@ use bevy::transform::TransformSystems;
 
 pub use backend::{ActiveClothBackend, ClothBackend};
 pub use bvh_cloth_core;
+pub use bvh_cloth_core::{ClothPins, ColorChannel, Integrator, SpringStiffness};
 pub use clock::ClothClock;
-pub use cloth::{Cloth, ClothIntegrator, ClothPins, ClothShape, SpringScales};
+pub use cloth::{Cloth, ClothAnchor, ClothShape};
 pub use collider::{ASYNC_BUILD_MIN_VERTICES, AutoCollider, ClothCollider, ColliderStatus};
 pub use collider_mesh::{ColliderFailure, collider_from_mesh};
 pub use messages::{ClothMessage, ResetCloth};
@@ -122,9 +123,10 @@ pub mod prelude {
     #[cfg(feature = "egui")]
     pub use crate::panel::ClothPanelPlugin;
     pub use crate::{
-        ActiveClothBackend, AutoCollider, BvhClothPlugin, BvhClothPlugins, Cloth, ClothBackend, ClothClock,
-        ClothDebugViewPlugin, ClothIntegrator, ClothMessage, ClothPins, ClothReadback, ClothSettings, ClothShape,
-        ClothSimulation, ClothStats, ClothSystems, ColliderStatus, ResetCloth, SpringScales,
+        ActiveClothBackend, AutoCollider, BvhClothPlugin, BvhClothPlugins, Cloth, ClothAnchor, ClothBackend,
+        ClothClock, ClothDebugViewPlugin, ClothMessage, ClothPins, ClothReadback, ClothSettings, ClothShape,
+        ClothSimulation, ClothStats, ClothSystems, ColliderStatus, ColorChannel, Integrator, ResetCloth,
+        SpringStiffness,
     };
 }
 

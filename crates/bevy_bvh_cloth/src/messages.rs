@@ -31,6 +31,15 @@ pub enum ClothMessage {
         /// since the last report, so one particle may count more than once.
         particles: u32,
     },
+    /// A [`ClothAnchor`](crate::ClothAnchor)'s target was despawned (or lost its
+    /// [`GlobalTransform`]). The particles it held stay where they were last held, and the
+    /// cloth keeps running; give the cloth a new anchor to carry them again.
+    AnchorLost {
+        /// The cloth entity.
+        entity: Entity,
+        /// The anchor's target.
+        target: Entity,
+    },
     /// An [`AutoCollider`](crate::AutoCollider) could not be built; that entity does not collide.
     ColliderFailed {
         /// The collider entity.

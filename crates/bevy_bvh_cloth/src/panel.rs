@@ -6,7 +6,7 @@ use core::ops::DerefMut;
 use bevy::prelude::*;
 use bevy_egui::{EguiContexts, EguiPlugin, EguiPrimaryContextPass, egui};
 
-use crate::{AutoCollider, Cloth, ClothIntegrator, ClothSettings, ClothShape, ClothStats, ColliderStatus, ResetCloth};
+use crate::{AutoCollider, Cloth, ClothSettings, ClothShape, ClothStats, ColliderStatus, Integrator, ResetCloth};
 
 /// Adds the panel (and [`EguiPlugin`] if the app has none).
 pub struct ClothPanelPlugin;
@@ -85,8 +85,8 @@ fn cloth_panel(
                     }
                 });
                 ui.horizontal(|ui| {
-                    ui.radio_value(&mut c.integrator, ClothIntegrator::Rk4, "RK4");
-                    ui.radio_value(&mut c.integrator, ClothIntegrator::SemiImplicitEuler, "Semi-implicit Euler");
+                    ui.radio_value(&mut c.integrator, Integrator::Rk4, "RK4");
+                    ui.radio_value(&mut c.integrator, Integrator::SemiImplicitEuler, "Semi-implicit Euler");
                 });
             });
         }

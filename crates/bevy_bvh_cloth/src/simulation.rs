@@ -7,11 +7,11 @@ use std::sync::Arc;
 use bevy::camera::visibility::NoAutoAabb;
 use bevy::ecs::entity::EntityHashSet;
 use bevy::prelude::*;
-use bvh_cloth_core::{Affine3A, ClothError, ClothGrid, ClothSim, ClothTopology, Vec3};
+use bvh_cloth_core::{Affine3A, ClothError, ClothGrid, ClothSim, ClothTopology, MeshVertices, Vec3};
 
 use crate::clock::ClothClock;
 use crate::cloth::{Cloth, ClothShape};
-use crate::cloth_mesh::{authored_topology, new_authored_mesh, new_grid_mesh};
+use crate::cloth_mesh::{authored_topology, authored_vertices, new_authored_mesh, new_grid_mesh};
 use crate::messages::{ClothMessage, ResetCloth};
 use crate::settings::ClothSettings;
 
@@ -35,8 +35,12 @@ pub struct ClothSimulation {
     pub(crate) mesh: Handle<Mesh>,
     /// The authored mesh a [`ClothShape::Mesh`] cloth was built from, kept for rebuilds.
     source: Option<Handle<Mesh>>,
+    /// The pinned particles the entity itself holds (those no anchor claims).
+    own_pins: Vec<u32>,
+    /// The groups other entities hold, one per [`Cloth::anchors`] entry.
+    anchors: Vec<AnchorBinding>,
     /// Where the pins go in each tick of this frame (`(particle, world position)` per pin), from
-    /// the entity's pose at the end of last frame to this frame's: see [`plan_anchors`].
+    /// their holders' poses at the end of last frame to this frame's: see [`plan_anchors`].
     pub(crate) anchor_targets: Vec<Vec<(u32, Vec3)>>,
     /// Positions changed since the mesh was last written.
     pub(crate) dirty: bool,
@@ -50,6 +54,20 @@ pub struct ClothSimulation {
     /// Changes whenever the state is replaced (a new grid, a reset), so that the GPU backend
     /// knows to upload it. Unique across cloths.
     pub(crate) generation: u64,
+}
+
+/// A [`ClothAnchor`](crate::ClothAnchor) as built: its particles in its target's frame.
+#[derive(Debug)]
+struct AnchorBinding {
+    target: Entity,
+    /// Each held particle and its place in the target's rigid frame, offset not included.
+    particles: Vec<(u32, Vec3)>,
+    /// The anchor's offset along the target's axes.
+    offset: Vec3,
+    /// The target's rigid pose at the end of the last tick (its last known one once lost).
+    pose: Affine3A,
+    /// The target is gone: the particles stay where they were last held.
+    lost: bool,
 }
 
 /// The source of [`ClothSimulation::generation`].
@@ -111,38 +129,82 @@ struct Built {
     sim: ClothSim,
     mesh: Mesh,
     source: Option<Handle<Mesh>>,
+    own_pins: Vec<u32>,
+    anchors: Vec<AnchorBinding>,
 }
 
-/// Builds the simulation of `cloth` at `transform`. `Ok(None)` while its authored mesh is still
-/// loading.
+/// Builds the simulation of `cloth` at `transform`, its anchors bound to where `target_pose`
+/// puts their targets now. `Ok(None)` while its authored mesh is still loading.
 fn build(
     cloth: &Cloth,
     gravity: Vec3,
     transform: &GlobalTransform,
     source: Option<Handle<Mesh>>,
     meshes: &Assets<Mesh>,
+    target_pose: impl Fn(Entity) -> Option<Affine3A>,
 ) -> Result<Option<Built>, ClothError> {
     let params = cloth.to_params(gravity)?;
     let pose = rigid_pose(transform);
-    match &cloth.shape {
+    // What the cloth is made from: a grid (with its vertices' rest positions for the pins to
+    // select from), or an authored mesh.
+    enum Made<'a> {
+        Grid(ClothGrid, Vec<[f32; 3]>),
+        Authored(&'a Mesh, Handle<Mesh>),
+    }
+    let (topology, from) = match &cloth.shape {
         ClothShape::Grid { size, particles } => {
             let grid = ClothGrid::new(*size, *particles);
             let topology = ClothTopology::grid(grid)?;
-            let pins = cloth.pins.particles(&topology, Some(&grid))?;
-            let sim = ClothSim::new(params, Arc::new(topology), pose, &pins)?;
-            let mesh = new_grid_mesh(&grid, &sim, transform);
-            Ok(Some(Built { sim, mesh, source: None }))
+            let local = topology.rest_positions().iter().map(|p| p.to_array()).collect();
+            (topology, Made::Grid(grid, local))
         }
         ClothShape::Mesh => {
             let source = source.ok_or(ClothError::NoTriangleMesh)?;
             let Some(authored) = meshes.get(&source) else { return Ok(None) };
-            let topology = authored_topology(authored, transform.scale())?;
-            let pins = cloth.pins.particles(&topology, None)?;
-            let sim = ClothSim::new(params, Arc::new(topology), pose, &pins)?;
-            let mesh = new_authored_mesh(authored, &sim, transform);
-            Ok(Some(Built { sim, mesh, source: Some(source) }))
+            (authored_topology(authored, transform.scale())?, Made::Authored(authored, source))
+        }
+    };
+    let vertices = match &from {
+        Made::Grid(_, positions) => MeshVertices { positions, colors: None },
+        Made::Authored(mesh, _) => authored_vertices(mesh),
+    };
+    // Each particle goes to the last holder that claims it: the entity, then the anchors.
+    let mut holder = vec![None::<usize>; topology.len()];
+    let mut held = vec![false; topology.len()];
+    for &i in &cloth.pins.particles(&topology, vertices)? {
+        held[i as usize] = true;
+    }
+    for (a, anchor) in cloth.anchors.iter().enumerate() {
+        for i in anchor.pins.particles(&topology, vertices)? {
+            holder[i as usize] = Some(a);
         }
     }
+    let own_pins: Vec<u32> =
+        (0..topology.len() as u32).filter(|&i| held[i as usize] && holder[i as usize].is_none()).collect();
+    let anchors = cloth
+        .anchors
+        .iter()
+        .enumerate()
+        .map(|(a, anchor)| {
+            // A target that cannot be found holds its particles where the cloth starts (and
+            // `plan_anchors` reports it lost).
+            let target = target_pose(anchor.target).unwrap_or(pose);
+            let to_target = target.inverse() * pose;
+            let particles = (0..topology.len() as u32)
+                .filter(|&i| holder[i as usize] == Some(a))
+                .map(|i| (i, to_target.transform_point3(topology.rest_positions()[i as usize])))
+                .collect();
+            AnchorBinding { target: anchor.target, particles, offset: anchor.offset, pose: target, lost: false }
+        })
+        .collect::<Vec<_>>();
+    let pins: Vec<u32> =
+        (0..topology.len() as u32).filter(|&i| held[i as usize] || holder[i as usize].is_some()).collect();
+    let sim = ClothSim::new(params, Arc::new(topology), pose, &pins)?;
+    let (mesh, source) = match from {
+        Made::Grid(grid, _) => (new_grid_mesh(&grid, &sim, transform), None),
+        Made::Authored(authored, source) => (new_authored_mesh(authored, &sim, transform), Some(source)),
+    };
+    Ok(Some(Built { sim, mesh, source, own_pins, anchors }))
 }
 
 /// Creates, updates, rebuilds and resets the simulation of every [`Cloth`].
@@ -152,6 +214,7 @@ pub(crate) fn sync_cloths(
     settings: Res<ClothSettings>,
     mut meshes: ResMut<Assets<Mesh>>,
     mut cloths: Query<(Entity, Ref<Cloth>, &GlobalTransform, Option<&mut ClothSimulation>, Option<&Mesh3d>)>,
+    targets: Query<&GlobalTransform>,
     mut resets: MessageReader<ResetCloth>,
     mut messages: MessageWriter<ClothMessage>,
     mut loading: Local<EntityHashSet>,
@@ -172,6 +235,9 @@ pub(crate) fn sync_cloths(
                         Ok(()) => {
                             state.built_from = Cloth::clone(&cloth);
                             state.divergence_warned = false;
+                            for (binding, anchor) in state.anchors.iter_mut().zip(&cloth.anchors) {
+                                binding.offset = anchor.offset;
+                            }
                         }
                         Err(error) => reject(error),
                     }
@@ -187,7 +253,8 @@ pub(crate) fn sync_cloths(
                     Some(state) => state.source.clone(),
                     None => mesh3d.map(|m| m.0.clone()),
                 };
-                let built = match build(&cloth, settings.gravity, transform, source, &meshes) {
+                let target_pose = |target| targets.get(target).ok().map(rigid_pose);
+                let built = match build(&cloth, settings.gravity, transform, source, &meshes, target_pose) {
                     Ok(Some(built)) => built,
                     Ok(None) => {
                         loading.insert(entity);
@@ -217,6 +284,8 @@ pub(crate) fn sync_cloths(
                         pose,
                         mesh: mesh.clone(),
                         source: built.source,
+                        own_pins: built.own_pins,
+                        anchors: built.anchors,
                         anchor_targets: Vec::new(),
                         dirty: true,
                         guard_warned: None,
@@ -233,22 +302,60 @@ pub(crate) fn sync_cloths(
     loading.retain(|&entity| cloths.contains(entity));
 }
 
-/// Plans this frame's ticks for the pins of every cloth, on either backend: within a frame the
-/// entity's pose moves smoothly from last frame's to this frame's, one step per tick, and each
-/// tick's pins go where that pose puts them. The CPU backend applies them before each tick; the
-/// GPU backend uploads them for its `apply_anchors` kernel.
-pub(crate) fn plan_anchors(clock: Res<ClothClock>, mut cloths: Query<(&mut ClothSimulation, &GlobalTransform)>) {
-    for (mut state, transform) in &mut cloths {
+/// Plans this frame's ticks for the pins of every cloth, on either backend: within a frame each
+/// holder's pose (the cloth entity's for its own pins, the target's for an anchor) moves
+/// smoothly from last frame's to this frame's, one step per tick, and each tick's pins go where
+/// that pose puts them. The CPU backend applies them before each tick; the GPU backend uploads
+/// them for its `apply_anchors` kernel. An anchor whose target has gone is reported once and
+/// holds its particles where they were.
+pub(crate) fn plan_anchors(
+    clock: Res<ClothClock>,
+    mut cloths: Query<(Entity, &mut ClothSimulation, &GlobalTransform)>,
+    targets: Query<&GlobalTransform>,
+    mut messages: MessageWriter<ClothMessage>,
+) {
+    for (entity, mut state, transform) in &mut cloths {
         let state = &mut *state;
         state.anchor_targets.clear();
         if clock.ticks == 0 {
             continue;
         }
         let (from, to) = (state.pose, rigid_pose(transform));
+        let mut target_poses = Vec::with_capacity(state.anchors.len());
+        for binding in &mut state.anchors {
+            let now = match targets.get(binding.target) {
+                Ok(target) if !binding.lost => rigid_pose(target),
+                Ok(_) => binding.pose,
+                Err(_) => {
+                    if !binding.lost {
+                        warn!(
+                            "Cloth on {entity}: anchor target {} is gone (despawned, or without a GlobalTransform); \
+                             its particles stay where they are",
+                            binding.target
+                        );
+                        messages.write(ClothMessage::AnchorLost { entity, target: binding.target });
+                        binding.lost = true;
+                    }
+                    binding.pose
+                }
+            };
+            target_poses.push((binding.pose, now));
+            binding.pose = now;
+        }
         if !state.sim.pins().is_empty() {
+            let rest = state.sim.topology().rest_positions();
             for k in 1..=clock.ticks {
-                let pose = interpolate(&from, &to, k as f32 / clock.ticks as f32);
-                state.anchor_targets.push(state.sim.pin_targets(&pose).collect());
+                let t = k as f32 / clock.ticks as f32;
+                let pose = interpolate(&from, &to, t);
+                let mut tick: Vec<(u32, Vec3)> =
+                    state.own_pins.iter().map(|&i| (i, pose.transform_point3(rest[i as usize]))).collect();
+                for (binding, (was, now)) in state.anchors.iter().zip(&target_poses) {
+                    let pose = interpolate(was, now, t);
+                    tick.extend(
+                        binding.particles.iter().map(|&(i, local)| (i, pose.transform_point3(local + binding.offset))),
+                    );
+                }
+                state.anchor_targets.push(tick);
             }
         }
         state.pose = to;

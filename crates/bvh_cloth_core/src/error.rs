@@ -83,6 +83,15 @@ pub enum ClothError {
     /// Pins chosen by grid position (the two ends, the first row) on a cloth that is not a
     /// generated grid.
     PinsNeedGrid,
+    /// Pins chosen by painted weight on a mesh without a `Float32x4` colour per vertex.
+    PinsNeedColors,
+    /// Pins chosen by region without a position per vertex of the mesh.
+    PinsNeedPositions,
+    /// A painted pin weight threshold outside `(0, 1]`.
+    PinThreshold {
+        /// The threshold given.
+        value: f32,
+    },
     /// The cloth has more particles than the core accepts.
     TooManyParticles {
         /// Particles after welding.
@@ -133,6 +142,13 @@ impl fmt::Display for ClothError {
             Self::MeshWithoutArea => write!(f, "cloth mesh has no triangle with any area"),
             Self::PinsNeedGrid => {
                 write!(f, "cloth pins by grid position (two ends, first row) need a generated grid; pin vertex indices")
+            }
+            Self::PinsNeedColors => {
+                write!(f, "cloth pins by painted weight need a Float32x4 vertex colour on every vertex of the mesh")
+            }
+            Self::PinsNeedPositions => write!(f, "cloth pins by region need a position for every vertex of the mesh"),
+            Self::PinThreshold { value } => {
+                write!(f, "cloth pin weight threshold must be in (0, 1], got {value}")
             }
             Self::TooManyParticles { particles, max } => {
                 write!(f, "cloth has {particles} particles; at most {max} are supported")

@@ -169,35 +169,6 @@ impl ClothGrid {
     }
 }
 
-/// Which particles are held in place.
-#[derive(Clone, Debug, Default, PartialEq, Eq)]
-pub enum Pins {
-    /// Nothing is pinned: the cloth falls freely.
-    #[default]
-    None,
-    /// The two ends of the first row (paper Fig. 5: "two ends fixed").
-    TwoEnds,
-    /// The whole first row.
-    FirstRow,
-    /// Explicit row-major particle indices.
-    Indices(Vec<u32>),
-}
-
-impl Pins {
-    /// The pinned particle indices for a grid, sorted and without duplicates.
-    pub fn indices(&self, grid: &ClothGrid) -> Vec<u32> {
-        let mut out: Vec<u32> = match self {
-            Pins::None => Vec::new(),
-            Pins::TwoEnds => vec![0, grid.cols as u32 - 1],
-            Pins::FirstRow => (0..grid.cols as u32).collect(),
-            Pins::Indices(indices) => indices.clone(),
-        };
-        out.sort_unstable();
-        out.dedup();
-        out
-    }
-}
-
 #[cfg(test)]
 mod tests {
     use super::*;

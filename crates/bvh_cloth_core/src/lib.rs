@@ -8,7 +8,7 @@
 //!
 //! | module | paper |
 //! |---|---|
-//! | [`params`], [`grid`], [`topology`], [`forces`] | 2.1, eq. 1–3, Table V |
+//! | [`params`], [`grid`], [`topology`], [`pins`], [`forces`] | 2.1, eq. 1–3, Table V |
 //! | [`sim`] (RK4, semi-implicit Euler) | 2.2, eq. 4 |
 //! | [`voxel_spheres`] | 2.4.1 |
 //! | [`morton`], [`lbvh`] | 2.4.2 (Karras 2012) |
@@ -56,6 +56,7 @@ pub mod morton;
 pub mod normals;
 pub mod obj;
 pub mod params;
+pub mod pins;
 pub mod sim;
 pub mod topology;
 pub mod traversal;
@@ -65,9 +66,10 @@ pub mod voxel_spheres;
 pub use collider::{Collider, ColliderPose};
 pub use error::{ClothError, ColliderError};
 pub use glam::{Affine3A, Quat, UVec2, Vec2, Vec3};
-pub use grid::{ClothGrid, MAX_PARTICLES, Pins};
+pub use grid::{ClothGrid, MAX_PARTICLES};
 pub use lbvh::{BvhNode, Lbvh, Sphere};
 pub use params::{ClothParams, Integrator, SpringStiffness};
+pub use pins::{ClothPins, ColorChannel, MeshVertices};
 pub use sim::ClothSim;
 pub use topology::{ClothTopology, SpringEnd};
 pub use voxel_spheres::MeshRef;

@@ -1,5 +1,7 @@
 //! The cloth's parameters (paper Table V) and their validation.
 
+#[cfg(feature = "bevy_reflect")]
+use bevy_reflect::std_traits::ReflectDefault;
 use glam::Vec3;
 
 use crate::error::ClothError;
@@ -12,6 +14,7 @@ pub const MAX_SUBSTEPS_PER_TICK: u32 = 256;
 
 /// Which time integrator advances the cloth (paper section 2.2).
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Hash)]
+#[cfg_attr(feature = "bevy_reflect", derive(bevy_reflect::Reflect), reflect(Default, Debug, PartialEq, Hash))]
 pub enum Integrator {
     /// Classic fourth-order Runge–Kutta over the whole system (paper eq. 4): each of the four
     /// slopes is evaluated for every particle before the next stage starts.
@@ -27,6 +30,7 @@ pub enum Integrator {
 /// one coefficient `c_e`; separate scales let a bending-soft cloth fold while staying
 /// inextensible. A scale of zero removes that kind of spring.
 #[derive(Clone, Copy, Debug, PartialEq)]
+#[cfg_attr(feature = "bevy_reflect", derive(bevy_reflect::Reflect), reflect(Default, Debug, PartialEq))]
 pub struct SpringStiffness {
     /// Springs to the 4-neighbourhood.
     pub structural: f32,
@@ -45,6 +49,7 @@ impl Default for SpringStiffness {
 /// Everything that defines a cloth's material and how it is stepped (paper Table V, plus
 /// gravity and the integrator). The cloth's shape is its [`ClothTopology`].
 #[derive(Clone, Debug, PartialEq)]
+#[cfg_attr(feature = "bevy_reflect", derive(bevy_reflect::Reflect), reflect(Default, Debug, PartialEq))]
 pub struct ClothParams {
     /// Total mass of the cloth in kilograms ("Cloth Mass"). Each particle carries the share of
     /// it that [`ClothTopology::mass_share`] gives: its share of the surface for an authored

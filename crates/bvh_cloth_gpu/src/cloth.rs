@@ -151,9 +151,9 @@ impl GpuCloth {
     }
 
     /// Where the pinned particles go in each tick of the coming frame: `ticks[k]` holds tick
-    /// `k`'s `(index, world position)` pairs, one per pin (as [`ClothSim::pin_targets`] gives
-    /// them), applied at the start of that tick, as the CPU stepper's
-    /// [`ClothSim::move_pins`]. Ticks left without targets keep the pins where they are.
+    /// `k`'s `(index, world position)` pairs, at most one per pin (as [`ClothSim::pin_targets`]
+    /// gives them), applied at the start of that tick, as the CPU stepper's
+    /// [`ClothSim::move_pins`]. Pins, and ticks, left without targets stay where they are.
     pub fn write_anchor_targets(
         &mut self,
         device: &Device,
@@ -198,11 +198,16 @@ impl GpuCloth {
         }
         let Some(anchors) = &mut self.anchors else { return };
         let mut bytes = vec![0u8; (anchors.stride * u64::from(needed)) as usize];
+        // A tick with fewer targets than pins leaves the rest where they are: their slots name
+        // no particle, which apply_anchors skips.
+        let unused = [0.0, 0.0, 0.0, f32::from_bits(u32::MAX)];
         for (k, targets) in ticks.iter().enumerate() {
             let words: Vec<[f32; 4]> = targets
                 .iter()
                 .take(self.anchor_count as usize)
                 .map(|&(index, p)| [p.x, p.y, p.z, f32::from_bits(index)])
+                .chain(std::iter::repeat(unused))
+                .take(self.anchor_count as usize)
                 .collect();
             let start = k * anchors.stride as usize;
             let data: &[u8] = bytemuck::cast_slice(&words);
