@@ -117,7 +117,7 @@ impl ClothSimulation {
 }
 
 /// The rotation and translation of a transform: the pose a cloth's pins follow. Scale is left
-/// out, because the cloth's size is set by [`Cloth::size`].
+/// out: a grid cloth is sized by its shape, a mesh cloth by its scale when built.
 pub(crate) fn rigid_pose(transform: &GlobalTransform) -> Affine3A {
     let (_, rotation, translation) = transform.to_scale_rotation_translation();
     Affine3A::from_rotation_translation(rotation, translation)
