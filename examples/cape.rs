@@ -117,8 +117,11 @@ fn setup(mut commands: Commands, mut meshes: ResMut<Assets<Mesh>>, mut materials
     let painted = ClothPins::Painted { channel: ColorChannel::Alpha, threshold: 0.5 };
     commands.spawn((
         Mesh3d(meshes.add(cape_mesh())),
-        Cloth { mass: 0.5, damping: 0.6, spring_k: 300.0, looper: 20, ..Cloth::mesh() }
-            .with_anchor(ClothAnchor::new(painted, shoulders)),
+        Cloth {
+            params: ClothParams { mass: 0.5, damping: 0.6, spring_k: 300.0, looper: 20, ..default() },
+            ..Cloth::mesh()
+        }
+        .with_anchor(ClothAnchor::new(painted, shoulders)),
         common::cloth_material(&mut materials, Color::srgb(0.6, 0.08, 0.1)),
         at_shoulders,
     ));

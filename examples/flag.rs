@@ -42,8 +42,11 @@ fn setup(mut commands: Commands, mut meshes: ResMut<Assets<Mesh>>, mut materials
         .id();
     commands.spawn((
         Mesh3d(meshes.add(flag)),
-        Cloth { damping: 0.3, spring_k: 400.0, mass: 0.3, looper: 24, ..Cloth::mesh() }
-            .with_pins(ClothPins::Indices(pole_edge)),
+        Cloth {
+            params: ClothParams { damping: 0.3, spring_k: 400.0, mass: 0.3, looper: 24, ..default() },
+            ..Cloth::mesh()
+        }
+        .with_pins(ClothPins::Indices(pole_edge)),
         common::cloth_material(&mut materials, Color::srgb(0.15, 0.3, 0.7)),
         Transform::from_xyz(0.0, 2.9, 0.0),
         ChildOf(pole),
@@ -81,6 +84,6 @@ fn gusts(time: Res<Time>, mut cloths: Query<&mut Cloth>) {
     let t = time.elapsed_secs();
     for mut cloth in &mut cloths {
         let gust = 1.0 + 0.5 * (0.9 * t).sin() + 0.25 * (2.3 * t).sin();
-        cloth.external_force = Vec3::new(2.5 * gust, 0.4, 0.6 * (1.7 * t).sin());
+        cloth.params.external_force = Vec3::new(2.5 * gust, 0.4, 0.6 * (1.7 * t).sin());
     }
 }

@@ -43,7 +43,12 @@ fn count(
                 if let Ok(c) = cloths.get(*entity) {
                     let line = format!(
                         "tick {}: {particles} particles; {:?}, looper {}, spring_k {:.0}, damping {:.2}, force {:.1?}",
-                        tally.ticks, c.integrator, c.looper, c.spring_k, c.damping, c.external_force
+                        tally.ticks,
+                        c.params.integrator,
+                        c.params.looper,
+                        c.params.spring_k,
+                        c.params.damping,
+                        c.params.external_force
                     );
                     tally.divergences.push(line);
                 }
@@ -74,17 +79,18 @@ fn sweep(tick: u64, period: u64, lo: f32, hi: f32, log: bool) -> f32 {
 /// 0-10 /s, External Force ±20 N), SpringK swept on to 100 times the panel's top, both
 /// integrators, and now and then a value the component must refuse.
 fn parameters(cloth: &mut Cloth, tick: u64) {
-    cloth.looper = sweep(tick, 7_919, 1.0, 64.0, false).round() as u32;
-    cloth.spring_k = sweep(tick, 10_007, 10.0, 40_000.0, true);
-    cloth.damping = sweep(tick, 3_001, 0.0, 10.0, false);
+    cloth.params.looper = sweep(tick, 7_919, 1.0, 64.0, false).round() as u32;
+    cloth.params.spring_k = sweep(tick, 10_007, 10.0, 40_000.0, true);
+    cloth.params.damping = sweep(tick, 3_001, 0.0, 10.0, false);
     let f = |period| sweep(tick, period, -20.0, 20.0, false);
-    cloth.external_force = Vec3::new(f(1_009), f(2_003), f(4_001));
-    cloth.integrator = if (tick / 25_000).is_multiple_of(2) { Integrator::Rk4 } else { Integrator::SemiImplicitEuler };
+    cloth.params.external_force = Vec3::new(f(1_009), f(2_003), f(4_001));
+    cloth.params.integrator =
+        if (tick / 25_000).is_multiple_of(2) { Integrator::Rk4 } else { Integrator::SemiImplicitEuler };
     match tick % 9_973 {
-        0 => cloth.external_force.x = f32::NAN,
-        1 => cloth.mass = -1.0,
-        2 => cloth.looper = 0,
-        _ => cloth.mass = 1.0,
+        0 => cloth.params.external_force.x = f32::NAN,
+        1 => cloth.params.mass = -1.0,
+        2 => cloth.params.looper = 0,
+        _ => cloth.params.mass = 1.0,
     }
 }
 

@@ -163,7 +163,10 @@ pub fn model_drop_scene(
             AutoCollider::new(5),
         ));
         commands.spawn((
-            Cloth { damping: 1.0, ..Cloth::grid(Vec2::splat(1.4), UVec2::splat(64)) },
+            Cloth {
+                params: ClothParams { damping: 1.0, ..default() },
+                ..Cloth::grid(Vec2::splat(1.4), UVec2::splat(64))
+            },
             cloth_material(&mut materials, Color::srgb(0.2, 0.35, 0.75)),
             Transform::from_xyz(drop_over.x, top + 0.3, drop_over.y),
         ));

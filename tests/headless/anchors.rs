@@ -31,7 +31,7 @@ fn an_anchored_row_rides_its_target_tick_by_tick_as_the_core_would() {
     let mut app = app_at(15.0);
     let pole = app.world_mut().spawn(Transform::from_xyz(0.5, 2.0, -0.5)).id();
     let cloth_pose = Transform::from_xyz(0.0, 2.0, 0.0);
-    let cloth = Cloth { damping: 0.5, ..Cloth::grid(Vec2::ONE, UVec2::splat(8)) }
+    let cloth = Cloth { params: ClothParams { damping: 0.5, ..default() }, ..Cloth::grid(Vec2::ONE, UVec2::splat(8)) }
         .with_anchor(ClothAnchor::new(first_row(), pole));
     let cloth = app.world_mut().spawn((cloth, cloth_pose)).id();
     app.update();
@@ -114,7 +114,7 @@ fn a_despawned_target_is_reported_once_and_its_particles_stay_put() {
     let cloth = app
         .world_mut()
         .spawn((
-            Cloth { damping: 1.0, ..Cloth::grid(Vec2::ONE, UVec2::splat(8)) }
+            Cloth { params: ClothParams { damping: 1.0, ..default() }, ..Cloth::grid(Vec2::ONE, UVec2::splat(8)) }
                 .with_anchor(ClothAnchor::new(first_row(), pole)),
             Transform::from_xyz(0.0, 2.0, 0.0),
         ))

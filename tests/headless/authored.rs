@@ -63,7 +63,8 @@ fn a_seamed_flag_stays_closed_and_its_pole_follows_the_entity() {
         .world_mut()
         .spawn((
             Mesh3d(handle.clone()),
-            Cloth { damping: 0.5, ..Cloth::mesh() }.with_pins(ClothPins::Indices(pole.clone())),
+            Cloth { params: ClothParams { damping: 0.5, ..default() }, ..Cloth::mesh() }
+                .with_pins(ClothPins::Indices(pole.clone())),
             start,
         ))
         .id();

@@ -41,7 +41,10 @@ fn cloth_drapes_over_the_low_resolution_bunny() {
     let cloth = app
         .world_mut()
         .spawn((
-            Cloth { damping: 1.0, ..Cloth::grid(Vec2::splat(1.2), UVec2::splat(32)) },
+            Cloth {
+                params: ClothParams { damping: 1.0, ..default() },
+                ..Cloth::grid(Vec2::splat(1.2), UVec2::splat(32))
+            },
             Transform::from_xyz(-0.2, 1.2, 0.0),
         ))
         .id();
@@ -79,7 +82,10 @@ fn moving_the_collider_moves_the_collision() {
     let cloth = app
         .world_mut()
         .spawn((
-            Cloth { damping: 2.0, ..Cloth::grid(Vec2::splat(0.6), UVec2::splat(16)) },
+            Cloth {
+                params: ClothParams { damping: 2.0, ..default() },
+                ..Cloth::grid(Vec2::splat(0.6), UVec2::splat(16))
+            },
             Transform::from_xyz(0.0, 1.0, 0.0),
         ))
         .id();
@@ -194,7 +200,10 @@ fn a_broken_collider_reports_and_a_valid_one_still_works() {
     let cloth = app
         .world_mut()
         .spawn((
-            Cloth { damping: 2.0, ..Cloth::grid(Vec2::splat(0.6), UVec2::splat(16)) },
+            Cloth {
+                params: ClothParams { damping: 2.0, ..default() },
+                ..Cloth::grid(Vec2::splat(0.6), UVec2::splat(16))
+            },
             Transform::from_xyz(0.0, 1.0, 0.0),
         ))
         .id();

@@ -10,7 +10,10 @@ use bevy_bvh_cloth::prelude::*;
 use crate::harness::{app, app_at, positions, run};
 
 fn hanging_cloth() -> Cloth {
-    Cloth { damping: 2.0, ..Cloth::grid(Vec2::splat(1.0), UVec2::splat(16)).with_pins(ClothPins::TwoEnds) }
+    Cloth {
+        params: ClothParams { damping: 2.0, ..default() },
+        ..Cloth::grid(Vec2::splat(1.0), UVec2::splat(16)).with_pins(ClothPins::TwoEnds)
+    }
 }
 
 /// Where pin `index` of a 16 x 16, 1 m cloth belongs under `transform`.

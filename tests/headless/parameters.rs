@@ -10,7 +10,10 @@ use crate::harness::{app, max_distance, positions, run, sent};
 /// its positions and velocities.
 fn run_with(edit: impl FnOnce(&mut Cloth)) -> (Vec<Vec3>, Vec<Vec3>) {
     let mut app = app();
-    let cloth = Cloth { damping: 0.5, ..Cloth::grid(Vec2::splat(1.0), UVec2::splat(12)).with_pins(ClothPins::TwoEnds) };
+    let cloth = Cloth {
+        params: ClothParams { damping: 0.5, ..default() },
+        ..Cloth::grid(Vec2::splat(1.0), UVec2::splat(12)).with_pins(ClothPins::TwoEnds)
+    };
     let entity = app.world_mut().spawn((cloth, Transform::from_xyz(0.0, 2.0, 0.0))).id();
     run(&mut app, 1.0);
     edit(&mut app.world_mut().get_mut::<Cloth>(entity).unwrap());
@@ -41,10 +44,10 @@ fn each_live_parameter_changes_the_result_the_way_it_should() {
     let (p0, v0) = run_with(|_| {});
     assert_eq!((p0.clone(), v0.clone()), run_with(|_| {}), "the simulation is deterministic");
     let edits: [(&str, Edit); 4] = [
-        ("spring_k", |c| c.spring_k *= 3.0),
-        ("looper", |c| c.looper = 4),
-        ("damping", |c| c.damping = 5.0),
-        ("external_force", |c| c.external_force = Vec3::new(0.0, 0.0, 2.0)),
+        ("spring_k", |c| c.params.spring_k *= 3.0),
+        ("looper", |c| c.params.looper = 4),
+        ("damping", |c| c.params.damping = 5.0),
+        ("external_force", |c| c.params.external_force = Vec3::new(0.0, 0.0, 2.0)),
     ];
     for (name, edit) in edits {
         let (p, v) = run_with(edit);
@@ -95,7 +98,7 @@ fn invalid_parameters_are_refused_and_the_cloth_keeps_running() {
 
     // A NaN pushed at runtime is refused; the cloth keeps its last valid parameters and moves on.
     let before = positions(&app, good);
-    app.world_mut().get_mut::<Cloth>(good).unwrap().external_force = Vec3::NAN;
+    app.world_mut().get_mut::<Cloth>(good).unwrap().params.external_force = Vec3::NAN;
     run(&mut app, 0.5);
     let after = positions(&app, good);
     assert!(after.iter().all(|p| p.is_finite()));

@@ -150,7 +150,7 @@ fn render_bunny_scene(app: &mut App) -> Image {
     let world = app.world_mut();
     let cloth_material = unlit(&mut world.resource_mut::<Assets<StandardMaterial>>(), CLOTH);
     world.spawn((
-        Cloth { damping: 1.0, ..Cloth::grid(Vec2::splat(1.2), UVec2::splat(48)) },
+        Cloth { params: ClothParams { damping: 1.0, ..default() }, ..Cloth::grid(Vec2::splat(1.2), UVec2::splat(48)) },
         cloth_material,
         Transform::from_xyz(-0.2, 1.3, 0.0),
     ));
@@ -227,7 +227,10 @@ fn the_gpu_backend_resets_and_reports_a_diverged_cloth() {
     app.init_resource::<DivergedReports>().add_systems(Last, collect_diverged);
     let hanging = |x: f32| {
         (
-            Cloth { damping: 0.5, ..Cloth::grid(Vec2::splat(1.0), UVec2::splat(16)).with_pins(ClothPins::TwoEnds) },
+            Cloth {
+                params: ClothParams { damping: 0.5, ..default() },
+                ..Cloth::grid(Vec2::splat(1.0), UVec2::splat(16)).with_pins(ClothPins::TwoEnds)
+            },
             Transform::from_xyz(x, 2.0, 0.0),
         )
     };
@@ -331,7 +334,10 @@ fn gpu_cloths_spawned_changed_and_despawned_leave_no_gpu_resource() {
 fn the_gpu_backend_reads_a_cloth_back_when_asked() {
     let Some(mut app) = gpu_backend_app() else { return };
     let cloth = |x: f32| {
-        (Cloth { damping: 0.5, ..Cloth::grid(Vec2::ONE, UVec2::splat(12)) }, Transform::from_xyz(x, 10.0, 0.0))
+        (
+            Cloth { params: ClothParams { damping: 0.5, ..default() }, ..Cloth::grid(Vec2::ONE, UVec2::splat(12)) },
+            Transform::from_xyz(x, 10.0, 0.0),
+        )
     };
     let read = app.world_mut().spawn((cloth(0.0), ClothReadback::default())).id();
     let unread = app.world_mut().spawn(cloth(3.0)).id();
@@ -375,7 +381,8 @@ fn the_gpu_backend_carries_anchors_on_another_entity() {
     let cloth = app
         .world_mut()
         .spawn((
-            Cloth { damping: 1.0, ..Cloth::grid(Vec2::ONE, UVec2::splat(12)) }.with_anchor(ClothAnchor::new(row, pole)),
+            Cloth { params: ClothParams { damping: 1.0, ..default() }, ..Cloth::grid(Vec2::ONE, UVec2::splat(12)) }
+                .with_anchor(ClothAnchor::new(row, pole)),
             Transform::from_xyz(0.0, 2.0, 0.0),
             ClothReadback::default(),
         ))

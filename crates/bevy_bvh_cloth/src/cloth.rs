@@ -1,7 +1,7 @@
 //! The `Cloth` component: the paper's parameters (Table V) as a Bevy component.
 
 use bevy::prelude::*;
-use bvh_cloth_core::{ClothError, ClothParams, ClothPins, Integrator, SpringStiffness};
+use bvh_cloth_core::{ClothError, ClothParams, ClothPins};
 
 /// A simulated cloth. Put it on an entity with a material: either with a generated sheet
 /// ([`Cloth::grid`]), for which the plugin makes the mesh, or on an entity with an authored
@@ -14,36 +14,30 @@ use bvh_cloth_core::{ClothError, ClothParams, ClothPins, Integrator, SpringStiff
 /// holder's motion over the frame spread evenly over the frame's ticks. The free particles are
 /// simulated in world space.
 ///
-/// Editing `looper`, `spring_k`, `damping`, `external_force`, `mass`, `stiffness`,
-/// `integrator` or an anchor's `offset` takes effect on the next tick and keeps the cloth's
+/// Editing `params` or an anchor's `offset` takes effect on the next tick and keeps the cloth's
 /// state. Editing `shape`, `pins` or which vertices or entity an anchor holds rebuilds the
 /// cloth at rest. Invalid values are refused with an error (see
 /// [`ClothMessage::Rejected`](crate::ClothMessage)), and the cloth keeps running with its last
 /// valid parameters.
-#[derive(Component, Clone, Debug, PartialEq, Reflect)]
+///
+/// ```
+/// # use bevy::prelude::*;
+/// # use bevy_bvh_cloth::prelude::*;
+/// let curtain = Cloth::grid(Vec2::new(2.0, 1.5), UVec2::new(48, 36))
+///     .with_params(ClothParams { spring_k: 300.0, damping: 1.0, ..default() })
+///     .with_pins(ClothPins::FirstRow);
+/// ```
+#[derive(Component, Clone, Debug, Default, PartialEq, Reflect)]
 #[reflect(Component, Default, Debug)]
 #[require(Transform, Visibility)]
 pub struct Cloth {
     /// What the cloth is made of: a generated grid, or the entity's own mesh.
     pub shape: ClothShape,
-    /// Total mass in kilograms ("Cloth Mass"). On a mesh each particle carries the share of
-    /// the surface its triangles give it; on the grid the particles share it equally.
-    pub mass: f32,
-    /// Simulation substeps per tick ("Looper"). When `spring_k` is too stiff for substeps this
-    /// long, more are run (and a warning says so), so that no slider setting can make the
-    /// cloth explode; see [`ClothParams::max_stable_substep`].
-    pub looper: u32,
-    /// Stiffness of the fabric in N/m ("SpringK", paper eq. 1), the same material at any
-    /// resolution: see [`ClothParams::spring_k`].
-    pub spring_k: f32,
-    /// Velocity damping rate in 1/s ("Damping", paper eq. 2).
-    pub damping: f32,
-    /// A force on the whole cloth in newtons, world axes ("External Force"): wind, a push.
-    pub external_force: Vec3,
-    /// Per-kind stiffness scales on top of `spring_k`.
-    pub stiffness: SpringStiffness,
-    /// The time integrator.
-    pub integrator: Integrator,
+    /// The material and how it is stepped: the paper's Cloth Mass, Looper, SpringK, Damping and
+    /// External Force (Table V), gravity, the per-kind stiffness scales and the integrator. When
+    /// `spring_k` is too stiff for `looper` substeps, more are run (and a warning says so), so
+    /// that no setting can make the cloth explode; see [`ClothParams::max_stable_substep`].
+    pub params: ClothParams,
     /// Which particles the entity itself holds.
     pub pins: ClothPins,
     /// Groups of particles held by other entities. Where a particle is chosen more than once,
@@ -110,24 +104,6 @@ impl Default for ClothShape {
     }
 }
 
-impl Default for Cloth {
-    fn default() -> Self {
-        let core = ClothParams::default();
-        Self {
-            shape: ClothShape::default(),
-            mass: core.mass,
-            looper: core.looper,
-            spring_k: core.spring_k,
-            damping: core.damping,
-            external_force: Vec3::ZERO,
-            stiffness: core.stiffness,
-            integrator: core.integrator,
-            pins: ClothPins::default(),
-            anchors: Vec::new(),
-        }
-    }
-}
-
 impl Cloth {
     /// A generated sheet `size` metres across (`x` along the columns, `y` along the rows) of
     /// `particles.x` columns by `particles.y` rows, with every other parameter at its default.
@@ -138,6 +114,12 @@ impl Cloth {
     /// The entity's own [`Mesh3d`] as cloth, with every other parameter at its default.
     pub fn mesh() -> Self {
         Self { shape: ClothShape::Mesh, ..default() }
+    }
+
+    /// Sets the material and solver parameters.
+    pub fn with_params(mut self, params: ClothParams) -> Self {
+        self.params = params;
+        self
     }
 
     /// Sets which particles the entity itself holds.
@@ -152,20 +134,10 @@ impl Cloth {
         self
     }
 
-    /// The core parameters under the given gravity, validated.
-    pub fn to_params(&self, gravity: Vec3) -> Result<ClothParams, ClothError> {
-        let params = ClothParams {
-            mass: self.mass,
-            looper: self.looper,
-            spring_k: self.spring_k,
-            damping: self.damping,
-            external_force: self.external_force,
-            gravity,
-            stiffness: self.stiffness,
-            integrator: self.integrator,
-        };
-        params.validate()?;
-        Ok(params)
+    /// The parameters, validated.
+    pub fn to_params(&self) -> Result<ClothParams, ClothError> {
+        self.params.validate()?;
+        Ok(self.params.clone())
     }
 
     /// Whether going from `self` to `other` needs a new topology (and a new mesh).

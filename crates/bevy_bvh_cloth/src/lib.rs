@@ -107,7 +107,7 @@ use bevy::transform::TransformSystems;
 
 pub use backend::{ActiveClothBackend, ClothBackend};
 pub use bvh_cloth_core;
-pub use bvh_cloth_core::{ClothPins, ColorChannel, Integrator, SpringStiffness};
+pub use bvh_cloth_core::{ClothParams, ClothPins, ColorChannel, Integrator, SpringStiffness};
 pub use clock::ClothClock;
 pub use cloth::{Cloth, ClothAnchor, ClothShape};
 pub use collider::{ASYNC_BUILD_MIN_VERTICES, AutoCollider, ClothCollider, ColliderStatus};
@@ -124,8 +124,8 @@ pub mod prelude {
     pub use crate::panel::ClothPanelPlugin;
     pub use crate::{
         ActiveClothBackend, AutoCollider, BvhClothPlugin, BvhClothPlugins, Cloth, ClothAnchor, ClothBackend,
-        ClothClock, ClothDebugViewPlugin, ClothMessage, ClothPins, ClothReadback, ClothSettings, ClothShape,
-        ClothSimulation, ClothStats, ClothSystems, ColliderStatus, ColorChannel, Integrator, ResetCloth,
+        ClothClock, ClothDebugViewPlugin, ClothMessage, ClothParams, ClothPins, ClothReadback, ClothSettings,
+        ClothShape, ClothSimulation, ClothStats, ClothSystems, ColliderStatus, ColorChannel, Integrator, ResetCloth,
         SpringStiffness,
     };
 }

@@ -75,18 +75,18 @@ fn cloth_panel(
             };
             ui.label(format!("Cloth {entity}: {shape}"));
             edit_in_place(&mut cloth, |c| {
-                ui.add(egui::Slider::new(&mut c.looper, 1..=64).text("Looper"));
-                ui.add(egui::Slider::new(&mut c.spring_k, 10.0..=400.0).logarithmic(true).text("SpringK (N/m)"));
-                ui.add(egui::Slider::new(&mut c.damping, 0.0..=10.0).text("Damping (1/s)"));
+                ui.add(egui::Slider::new(&mut c.params.looper, 1..=64).text("Looper"));
+                ui.add(egui::Slider::new(&mut c.params.spring_k, 10.0..=400.0).logarithmic(true).text("SpringK (N/m)"));
+                ui.add(egui::Slider::new(&mut c.params.damping, 0.0..=10.0).text("Damping (1/s)"));
                 ui.label("External Force (N)");
                 ui.horizontal(|ui| {
-                    for (axis, value) in ["x", "y", "z"].into_iter().zip(c.external_force.as_mut()) {
+                    for (axis, value) in ["x", "y", "z"].into_iter().zip(c.params.external_force.as_mut()) {
                         ui.add(egui::DragValue::new(value).speed(0.05).range(-20.0..=20.0).prefix(format!("{axis} ")));
                     }
                 });
                 ui.horizontal(|ui| {
-                    ui.radio_value(&mut c.integrator, Integrator::Rk4, "RK4");
-                    ui.radio_value(&mut c.integrator, Integrator::SemiImplicitEuler, "Semi-implicit Euler");
+                    ui.radio_value(&mut c.params.integrator, Integrator::Rk4, "RK4");
+                    ui.radio_value(&mut c.params.integrator, Integrator::SemiImplicitEuler, "Semi-implicit Euler");
                 });
             });
         }

@@ -1,4 +1,4 @@
-//! Global simulation settings: the fixed tick rate, gravity, pause and the debug view.
+//! Global simulation settings: the fixed tick rate, pause and the debug view.
 
 use bevy::prelude::*;
 
@@ -12,8 +12,6 @@ pub struct ClothSettings {
     /// Most ticks run in one frame. After a long hitch the simulation drops time instead of
     /// trying to catch up (which would make the next frame slower still).
     pub max_ticks_per_frame: u32,
-    /// Gravitational acceleration in m/s².
-    pub gravity: Vec3,
     /// While `true`, no tick runs: cloths freeze where they are.
     pub paused: bool,
     /// Draw every collider's leaf spheres and inner boxes with gizmos (paper Table VI).
@@ -22,12 +20,6 @@ pub struct ClothSettings {
 
 impl Default for ClothSettings {
     fn default() -> Self {
-        Self {
-            tick_rate: 60.0,
-            max_ticks_per_frame: 4,
-            gravity: Vec3::new(0.0, -9.81, 0.0),
-            paused: false,
-            debug_view: false,
-        }
+        Self { tick_rate: 60.0, max_ticks_per_frame: 4, paused: false, debug_view: false }
     }
 }

@@ -13,7 +13,6 @@ use crate::clock::ClothClock;
 use crate::cloth::{Cloth, ClothShape};
 use crate::cloth_mesh::{authored_topology, authored_vertices, new_authored_mesh, new_grid_mesh};
 use crate::messages::{ClothMessage, ResetCloth};
-use crate::settings::ClothSettings;
 
 /// The running simulation of a [`Cloth`] entity, added by the plugin.
 ///
@@ -137,13 +136,12 @@ struct Built {
 /// puts their targets now. `Ok(None)` while its authored mesh is still loading.
 fn build(
     cloth: &Cloth,
-    gravity: Vec3,
     transform: &GlobalTransform,
     source: Option<Handle<Mesh>>,
     meshes: &Assets<Mesh>,
     target_pose: impl Fn(Entity) -> Option<Affine3A>,
 ) -> Result<Option<Built>, ClothError> {
-    let params = cloth.to_params(gravity)?;
+    let params = cloth.to_params()?;
     let pose = rigid_pose(transform);
     // What the cloth is made from: a grid (with its vertices' rest positions for the pins to
     // select from), or an authored mesh.
@@ -211,7 +209,6 @@ fn build(
 #[allow(clippy::type_complexity, clippy::too_many_arguments)]
 pub(crate) fn sync_cloths(
     mut commands: Commands,
-    settings: Res<ClothSettings>,
     mut meshes: ResMut<Assets<Mesh>>,
     mut cloths: Query<(Entity, Ref<Cloth>, &GlobalTransform, Option<&mut ClothSimulation>, Option<&Mesh3d>)>,
     targets: Query<&GlobalTransform>,
@@ -220,7 +217,6 @@ pub(crate) fn sync_cloths(
     mut loading: Local<EntityHashSet>,
 ) {
     let resets: Vec<ResetCloth> = resets.read().copied().collect();
-    let settings_changed = settings.is_changed();
     for (entity, cloth, transform, state, mesh3d) in &mut cloths {
         let pose = rigid_pose(transform);
         let reset = resets.iter().any(|r| *r == ResetCloth::All || *r == ResetCloth::One(entity));
@@ -230,8 +226,8 @@ pub(crate) fn sync_cloths(
         };
         match state {
             Some(mut state) if !state.built_from.shape_differs(&cloth) => {
-                if cloth.is_changed() || settings_changed {
-                    match cloth.to_params(settings.gravity).and_then(|params| state.sim.set_params(params)) {
+                if cloth.is_changed() {
+                    match cloth.to_params().and_then(|params| state.sim.set_params(params)) {
                         Ok(()) => {
                             state.built_from = Cloth::clone(&cloth);
                             state.divergence_warned = false;
@@ -254,7 +250,7 @@ pub(crate) fn sync_cloths(
                     None => mesh3d.map(|m| m.0.clone()),
                 };
                 let target_pose = |target| targets.get(target).ok().map(rigid_pose);
-                let built = match build(&cloth, settings.gravity, transform, source, &meshes, target_pose) {
+                let built = match build(&cloth, transform, source, &meshes, target_pose) {
                     Ok(Some(built)) => built,
                     Ok(None) => {
                         loading.insert(entity);
