@@ -315,10 +315,10 @@ fn gpu_cloths_spawned_changed_and_despawned_leave_no_gpu_resource() {
     for round in 20..320 {
         busiest = busiest.max(gpu_round(&mut app, round, &meshes));
     }
-    // The rounds did reach the GPU: a cloth holds six buffers (parameters, state, stage, fault
-    // count, its fault staging buffer and its writeback uniform); the collider set replaces the
-    // empty set's three.
-    assert!(busiest.0 >= before.0 + 6, "{busiest:?} while running, {before:?} idle");
+    // The rounds did reach the GPU: the cloths live in the batch's shared buffers (which stay,
+    // sized for the largest round), and each holds its own fault staging buffer and is written
+    // through a bind group of its mesh's slab.
+    assert!(busiest.0 > before.0 && busiest.1 > before.1, "{busiest:?} while running, {before:?} idle");
     let after = idle(&mut app);
     eprintln!("live (buffers, bind groups): {before:?} after the warm-up, {after:?} after 300 more rounds");
     assert_eq!(after, before, "GPU resources grew over 300 rounds");

@@ -1,6 +1,7 @@
 //! The GPU backend: the paper's kernels (from [`bvh_cloth_gpu`]) run in the render world every
-//! frame, and `normal_shader` writes positions and normals straight into each cloth mesh's
-//! vertex slab. The only thing read back is each cloth's four-byte count of quarantined
+//! frame for every cloth at once (one [`ClothBatch`]: shared buffers, one dispatch per
+//! integrator stage), and `normal_shader` writes positions and normals straight into each cloth
+//! mesh's vertex slab. The only thing read back is each cloth's four-byte count of quarantined
 //! particles, without waiting for it.
 //!
 //! Per frame:
@@ -8,14 +9,14 @@
 //!    targets of its pins for each tick of the frame, its transform and mesh, and every
 //!    collider's pose into [`GpuClothWorld`]; a cloth's whole state only when it was rebuilt or
 //!    reset.
-//! 2. [`prepare_cloths`] (`Render`, `PrepareResources`) creates buffers for new or resized
-//!    cloths and drops those of despawned ones, uploads the parameter uniforms (a SpringK
-//!    change is one 64-byte write), the pins' targets, the collider frames, and where each
-//!    mesh's vertices lie in their slab.
-//! 3. [`simulate_cloths`] (`RenderGraph`, before the camera driver) records the ticks, the
-//!    writeback, a copy of each cloth's fault count and, for cloths with [`ClothReadback`], a
-//!    copy of its particles; [`request_fault_reads`] (`Cleanup`, after the submit) asks for
-//!    those copies to be mapped.
+//! 2. [`prepare_cloths`] (`Render`, `PrepareResources`) adds new or reshaped cloths to the
+//!    batch and takes out despawned ones, uploads each cloth's constants (a SpringK change is
+//!    one 60-byte write), the pins' targets, the collider frames, and where each mesh's
+//!    vertices lie in their slab.
+//! 3. [`simulate_cloths`] (`RenderGraph`, before the camera driver) records the ticks of the
+//!    whole batch, each cloth's writeback, a copy of its fault count and, for cloths with
+//!    [`ClothReadback`], a copy of its particles; [`request_fault_reads`] (`Cleanup`, after the
+//!    submit) asks for those copies to be mapped.
 //! 4. A later frame's [`report_faults`] (`ExtractSchedule`) sends the counts and states that
 //!    have arrived to the main world, as [`GpuClothDiverged`] and [`GpuClothState`];
 //!    [`reset_diverged_cloths`] resets the diverged cloths there (which the next extract
@@ -35,8 +36,7 @@ use bevy::render::renderer::{RenderContext, RenderDevice, RenderGraph, RenderQue
 use bevy::render::{Extract, ExtractSchedule, MainWorld, Render, RenderSystems};
 use bvh_cloth_core::gpu_layout::GpuMeshWriteback;
 use bvh_cloth_core::{Affine3A, ClothParams, ClothSim, Collider, Lbvh};
-use bvh_cloth_gpu::wgpu::{self, BufferUsages};
-use bvh_cloth_gpu::{ClothKernels, FaultReadback, GpuCloth, GpuColliders, ParticleReadback};
+use bvh_cloth_gpu::{ClothBatch, ClothId, ClothKernels, FaultReadback, GpuColliders, ParticleReadback};
 
 use crate::clock::ClothClock;
 use crate::collider::ClothCollider;
@@ -86,19 +86,13 @@ struct ExtractedCloth {
     read_back: bool,
 }
 
-/// Where `normal_shader` writes one cloth: its mesh, and the layout of that mesh's vertices.
-struct Writeback {
-    mesh: AssetId<Mesh>,
-    uniform: wgpu::Buffer,
-    /// Whether the mesh is allocated and has float positions and normals this frame.
-    ready: bool,
-}
-
-/// A cloth's GPU resources.
+/// A cloth in the render world: its place in the batch and its readbacks.
 struct RenderCloth {
-    gpu: GpuCloth,
+    id: ClothId,
     generation: u64,
-    writeback: Writeback,
+    /// The mesh `normal_shader` writes, when it is allocated and has float positions and
+    /// normals this frame.
+    writeback: Option<AssetId<Mesh>>,
     faults: FaultReadback,
     /// The state read back for gameplay, and the ticks run by the copy in flight.
     state: Option<(ParticleReadback, AtomicU64)>,
@@ -108,6 +102,8 @@ struct RenderCloth {
 #[derive(Resource, Default)]
 pub(crate) struct GpuClothWorld {
     kernels: Option<ClothKernels>,
+    /// Every cloth's GPU state.
+    batch: Option<ClothBatch>,
     /// The kernels could not be built; said once.
     failed: bool,
     /// The colliders, keyed by their (shared) trees. Holding the trees keeps them alive, so an
@@ -219,20 +215,28 @@ fn prepare_cloths(
     }
     let Some((_, colliders)) = &world.colliders else { return };
 
-    // Cloths that are gone take their buffers with them.
+    let batch = world.batch.get_or_insert_with(|| ClothBatch::new(device, &queue));
+
+    // Cloths that are gone leave the batch.
     let present: bevy::ecs::entity::EntityHashSet = world.extracted.iter().map(|c| c.entity).collect();
-    world.cloths.retain(|entity, _| present.contains(entity));
+    world.cloths.retain(|entity, render| {
+        let keep = present.contains(entity);
+        if !keep {
+            batch.remove(&queue, render.id);
+        }
+        keep
+    });
     world.refused.retain(|entity, _| present.contains(entity));
 
+    let mut slabs = Vec::new();
     for cloth in world.extracted.drain(..) {
         let existing = world.cloths.remove(&cloth.entity);
         let render = match (existing, &cloth.fresh) {
             (Some(render), None) => Some(render),
-            (Some(render), Some(sim)) if Arc::ptr_eq(render.gpu.topology(), sim.topology()) => {
-                // The upload clears the fault count; a read still in flight counts the old
-                // state's faults, so it is dropped with its readback.
-                render.gpu.upload_state(&queue, sim);
-                // Reads in flight are of the old state: they are dropped with their readbacks.
+            (Some(render), Some(sim)) if batch.topology(render.id).is_some_and(|t| Arc::ptr_eq(t, sim.topology())) => {
+                // The upload clears the fault count; reads in flight are of the old state, so
+                // they are dropped with their readbacks.
+                batch.upload_state(&queue, render.id, sim);
                 Some(RenderCloth {
                     generation: cloth.generation,
                     faults: FaultReadback::new(device),
@@ -240,81 +244,73 @@ fn prepare_cloths(
                     ..render
                 })
             }
-            (_, Some(sim)) => match GpuCloth::new(device, kernels, sim) {
-                Ok(gpu) => Some(RenderCloth {
-                    gpu,
-                    generation: cloth.generation,
-                    writeback: Writeback {
-                        mesh: cloth.mesh,
-                        uniform: device.create_buffer(&wgpu::BufferDescriptor {
-                            label: Some("bvh_cloth_mesh_writeback"),
-                            size: size_of::<GpuMeshWriteback>() as u64,
-                            usage: BufferUsages::UNIFORM | BufferUsages::COPY_DST,
-                            mapped_at_creation: false,
-                        }),
-                        ready: false,
-                    },
-                    faults: FaultReadback::new(device),
-                    state: None,
-                }),
-                Err(error) => {
-                    error!("Cloth on {}: cannot run on the GPU: {error}; it stays at rest", cloth.entity);
-                    world.refused.insert(cloth.entity, cloth.generation);
-                    None
+            (existing, Some(sim)) => {
+                if let Some(old) = existing {
+                    batch.remove(&queue, old.id);
                 }
-            },
+                match batch.insert(device, &queue, sim) {
+                    Ok(id) => Some(RenderCloth {
+                        id,
+                        generation: cloth.generation,
+                        writeback: None,
+                        faults: FaultReadback::new(device),
+                        state: None,
+                    }),
+                    Err(error) => {
+                        error!("Cloth on {}: cannot run on the GPU: {error}; it stays at rest", cloth.entity);
+                        world.refused.insert(cloth.entity, cloth.generation);
+                        None
+                    }
+                }
+            }
             (None, None) => None,
         };
         let Some(mut render) = render else { continue };
+        let particles = batch.topology(render.id).map_or(0, |t| t.len());
         if !cloth.read_back {
             render.state = None;
         } else if render.state.is_none() {
-            render.state = Some((ParticleReadback::new(device, &render.gpu), AtomicU64::new(0)));
+            render.state = Some((ParticleReadback::new(device, particles), AtomicU64::new(0)));
         }
-        render.gpu.set_params(&queue, &cloth.params, world.tick_seconds.max(f32::MIN_POSITIVE), colliders);
-        render.gpu.write_anchor_targets(device, &queue, kernels, &cloth.anchor_targets);
+        batch.set_params(&queue, render.id, &cloth.params, world.tick_seconds.max(f32::MIN_POSITIVE));
+        batch.set_anchor_targets(render.id, &cloth.anchor_targets);
 
         // Where the mesh's vertices are this frame (slabs can move).
-        render.writeback.mesh = cloth.mesh;
         let layout = render_meshes.get(cloth.mesh).and_then(vertex_words);
         let slice = mesh_allocator.mesh_vertex_slice(&cloth.mesh);
-        render.writeback.ready = match (layout, slice) {
+        render.writeback = match (layout, slice) {
             (Some((stride, position, normal)), Some(slice)) => {
-                let uniform =
+                let writeback =
                     GpuMeshWriteback::new(cloth.mesh_to_world, slice.range.start * stride, stride, position, normal);
-                queue.write_buffer(&render.writeback.uniform, 0, bytemuck::bytes_of(&uniform));
-                true
+                batch.set_writeback(device, &queue, kernels, render.id, writeback, slice.buffer);
+                slabs.push(slice.buffer.clone());
+                Some(cloth.mesh)
             }
-            _ => false,
+            _ => None,
         };
         world.cloths.insert(cloth.entity, render);
     }
+    // Bind groups of slabs no cloth is written to any more go.
+    batch.forget_vertex_buffers(|buffer| slabs.iter().any(|slab| **slab == *buffer));
+    batch.prepare(device, &queue, kernels, colliders);
 }
 
 fn simulate_cloths(mut render_context: RenderContext, world: Res<GpuClothWorld>, mesh_allocator: Res<MeshAllocator>) {
-    let (Some(kernels), Some((_, colliders))) = (&world.kernels, &world.colliders) else { return };
+    let (Some(kernels), Some(batch)) = (&world.kernels, &world.batch) else { return };
     let device = render_context.render_device().clone();
     let device = device.wgpu_device();
+    let encoder = render_context.command_encoder();
+    batch.encode_ticks(encoder, kernels, world.ticks);
     for render in world.cloths.values() {
-        let encoder = render_context.command_encoder();
-        render.gpu.encode_ticks(device, encoder, kernels, colliders, world.ticks);
-        render.faults.record(encoder, &render.gpu);
+        render.faults.record(encoder, batch, render.id);
         if let Some((state, ticks)) = &render.state
-            && state.record(encoder, &render.gpu)
+            && state.record(encoder, batch, render.id)
         {
             ticks.store(world.total_ticks, Ordering::Relaxed);
         }
-        if !render.writeback.ready {
-            continue;
-        }
-        let Some(slice) = mesh_allocator.mesh_vertex_slice(&render.writeback.mesh) else { continue };
-        render.gpu.encode_writeback(
-            device,
-            encoder,
-            kernels,
-            &render.writeback.uniform,
-            slice.buffer.as_entire_buffer_binding(),
-        );
+        let Some(mesh) = render.writeback else { continue };
+        let Some(slice) = mesh_allocator.mesh_vertex_slice(&mesh) else { continue };
+        batch.encode_writeback(device, encoder, kernels, render.id, slice.buffer);
     }
 }
 

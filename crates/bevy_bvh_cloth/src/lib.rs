@@ -57,7 +57,8 @@
 //! Who runs the ticks is decided once at start-up ([`ClothBackend`], [`ActiveClothBackend`]):
 //! * **GPU** (where the render device runs compute shaders): the render world runs the paper's
 //!   kernels from [`bvh_cloth_gpu`] in Bevy's `RenderGraph` schedule, before the camera driver,
-//!   and `normal_shader` writes positions and normals straight into the cloth mesh's vertex
+//!   for every cloth at once (one batch: shared buffers, one dispatch per integrator stage), and
+//!   `normal_shader` writes positions and normals straight into the cloth mesh's vertex
 //!   slab. Nothing on the hot path waits for the GPU: each cloth's count of non-finite
 //!   particles is read back without waiting for it, and so is its whole state when the cloth
 //!   has [`ClothReadback`] (then [`ClothSimulation`] is one or two frames late; without it,

@@ -7,12 +7,13 @@
 //! 3. Collider fidelity: cloths resting on the spheres, measured against the true mesh.
 //! 4. Scaling: step time against cloth size; the cost of any topology (an authored mesh against
 //!    the grid at the same particle count); collider build time against n.
-//! 5. Precision far from the origin: how far from it a stiff cloth still steps finitely.
+//! 5. Many cloths: one GPU batch against a batch per cloth, 1 to 512 cloths.
+//! 6. Precision far from the origin: how far from it a stiff cloth still steps finitely.
 //!
 //! `WGPU_BACKEND=vulkan cargo bench -p bvh_cloth_bench --bench report`
 //! (without a GPU adapter the GPU columns say so and the rest still runs). Append `-- NAME` to
 //! run only the sections whose name contains NAME: `table_vii`, `queries`, `fidelity`,
-//! `step_scaling`, `topology`, `build_scaling`, `far_from_origin`.
+//! `step_scaling`, `topology`, `many_cloths`, `build_scaling`, `far_from_origin`.
 
 use std::fmt::Write as _;
 use std::sync::Arc;
@@ -26,7 +27,7 @@ use bvh_cloth_core::obj::ObjMesh;
 use bvh_cloth_core::{
     Affine3A, ClothGrid, ClothParams, ClothSim, ClothTopology, Collider, Integrator, UVec2, Vec2, Vec3,
 };
-use bvh_cloth_gpu::{ClothKernels, GpuCloth, GpuColliders, headless, wgpu};
+use bvh_cloth_gpu::{ClothBatch, ClothKernels, GpuColliders, headless, wgpu};
 use parry3d::math::Vector;
 use parry3d::query::{PointQuery, Ray, RayCast};
 use parry3d::shape::{TriMesh, TriMeshFlags};
@@ -85,6 +86,9 @@ fn main() {
     if run("topology") {
         topology(gpu.as_ref(), &single, threads);
     }
+    if run("many_cloths") {
+        many_cloths(gpu.as_ref());
+    }
     if run("build_scaling") {
         build_scaling(&meshes);
     }
@@ -135,21 +139,94 @@ fn gpu_frame_ms(gpu: &Gpu, colliders: &[Collider], size: u32, ticks: u32) -> f64
 
 /// Median wall time (ms) of `ticks` ticks of `cpu`'s cloth on the GPU, as [`gpu_frame_ms`].
 fn gpu_sim_frame_ms(gpu: &Gpu, colliders: &[Collider], cpu: &ClothSim, ticks: u32) -> f64 {
-    let size = (cpu.len() as f64).sqrt() as u32;
+    let samples = if cpu.len() > 128 * 128 { 5 } else { FRAMES };
+    gpu_cloths_frame_ms(gpu, colliders, std::slice::from_ref(cpu), true, ticks, samples)
+}
+
+/// Median wall time (ms), around a blocking submit, of `ticks` ticks of every cloth of `cpus`
+/// on the GPU, after 60 ticks of falling (10 on a software adapter): all in one batch when
+/// `batched`, otherwise each in a batch of its own, encoded one after the other (the cost of
+/// dispatching cloth by cloth).
+fn gpu_cloths_frame_ms(
+    gpu: &Gpu,
+    colliders: &[Collider],
+    cpus: &[ClothSim],
+    batched: bool,
+    ticks: u32,
+    samples: usize,
+) -> f64 {
     let gpu_colliders = GpuColliders::new(&gpu.device, colliders);
-    let mut cloth = GpuCloth::new(&gpu.device, &gpu.kernels, cpu).expect("the cloth fits the device");
-    cloth.set_params(&gpu.queue, cpu.params(), TICK, &gpu_colliders);
+    let mut batches: Vec<ClothBatch> = Vec::new();
+    for (k, cpu) in cpus.iter().enumerate() {
+        if k == 0 || !batched {
+            batches.push(ClothBatch::new(&gpu.device, &gpu.queue));
+        }
+        let batch = batches.last_mut().expect("a batch was pushed");
+        let id = batch.insert(&gpu.device, &gpu.queue, cpu).expect("the cloth fits the device");
+        batch.set_params(&gpu.queue, id, cpu.params(), TICK);
+    }
+    for batch in &mut batches {
+        batch.prepare(&gpu.device, &gpu.queue, &gpu.kernels, &gpu_colliders);
+    }
     let frame = |ticks: u32| {
         time(|| {
             let mut encoder = gpu.device.create_command_encoder(&Default::default());
-            cloth.encode_ticks(&gpu.device, &mut encoder, &gpu.kernels, &gpu_colliders, ticks);
+            for batch in &batches {
+                batch.encode_ticks(&mut encoder, &gpu.kernels, ticks);
+            }
             gpu.queue.submit([encoder.finish()]);
             headless::wait(&gpu.device);
         }) * 1e3
     };
-    frame(60);
-    let samples = if size > 128 { 5 } else { FRAMES };
+    frame(if gpu.software { 10 } else { 60 });
     median((0..samples).map(|_| frame(ticks)).collect())
+}
+
+/// Many cloths at once: ms per 60 Hz tick for 1 to 512 cloths of 16 x 16, 32 x 32 and 64 x 64
+/// (Looper 16, RK4), stacked 5 cm apart above the bunny at n = 5 and timed after a second of
+/// falling, all in one batch and each in a batch of its own.
+fn many_cloths(gpu: Option<&Gpu>) {
+    println!(
+        "
+## Many cloths: ms per 60 Hz tick, RK4 Looper 16, above the bunny (n = 5), wall time around a blocking submit
+"
+    );
+    let Some(gpu) = gpu else {
+        println!("No GPU adapter: skipped.");
+        return;
+    };
+    println!("| cloth | cloths | particles | one batch ms | a batch per cloth ms | per cloth / one batch |");
+    println!("|---|---|---|---|---|---|");
+    let bunny = [collider(&model("bunny"), 5)];
+    // A software adapter runs on the CPU cores: it stops at 8,192 particles.
+    let most = if gpu.software { 8 * 1024 } else { 4 * 1024 * 1024 };
+    // Untimed: the first dispatches of a pipeline may compile it.
+    gpu_cloths_frame_ms(gpu, &bunny, &[cloth_above(&bunny[0], 16, Integrator::Rk4)], true, 1, 1);
+    for size in [16u32, 32, 64] {
+        for count in [1usize, 8, 32, 128, 512] {
+            let particles = count * (size * size) as usize;
+            if particles > most {
+                continue;
+            }
+            let cloths: Vec<ClothSim> = (0..count)
+                .map(|k| {
+                    let mut sim = cloth_above(&bunny[0], size, Integrator::Rk4);
+                    sim.reset(Affine3A::from_translation(Vec3::new(-0.2, 1.3 + 0.05 * k as f32, 0.0)));
+                    sim
+                })
+                .collect();
+            let samples = if gpu.software || particles > 256 * 1024 { 5 } else { 15 };
+            let one = gpu_cloths_frame_ms(gpu, &bunny, &cloths, true, 1, samples);
+            let each = gpu_cloths_frame_ms(gpu, &bunny, &cloths, false, 1, samples);
+            println!("| {size}x{size} | {count} | {particles} | {one:.3} | {each:.3} | {:.1}x |", each / one);
+        }
+    }
+    if gpu.software {
+        println!(
+            "
+The GPU here is a software adapter on the same CPU cores: only the ratios mean anything."
+        );
+    }
 }
 
 /// The exact mesh as parry3d sees it, oriented so that its pseudo-normals tell inside from outside.

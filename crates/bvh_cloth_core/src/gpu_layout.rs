@@ -1,5 +1,5 @@
 //! The buffer layouts the GPU kernels use (paper Table II), defined once here and mirrored
-//! field for field in WGSL (`bvh_cloth_gpu`'s `cloth.wgsl`, whose tests compare the two).
+//! field for field in WGSL (`bvh_cloth_gpu`'s `types.wgsl`, whose tests compare the two).
 //! [`crate::BvhNode`] and [`crate::Sphere`] are uploaded unchanged.
 
 use bytemuck::{Pod, Zeroable};
@@ -8,7 +8,7 @@ use glam::{Affine3A, Mat4, Vec3};
 use crate::collider::Collider;
 use crate::collision::ColliderFrame;
 use crate::forces::ForceModel;
-use crate::params::ClothParams;
+use crate::params::{ClothParams, Integrator};
 use crate::sim::ClothSim;
 use crate::topology::ClothTopology;
 
@@ -22,74 +22,109 @@ pub struct GpuParticle {
     pub velocity: [f32; 4],
 }
 
-/// The simulation constants of one cloth for one frame (a uniform). 64 bytes.
-///
-/// The cloth's shape is in two storage buffers of `u32` words, laid out by
-/// [`gpu_topology_words`] and [`gpu_surface_words`].
+/// Marks a particle slot of the batched buffers that belongs to no cloth.
+pub const NO_CLOTH: u32 = u32::MAX;
+
+/// [`GpuBatchCloth::integrator`] of fourth-order Runge–Kutta.
+pub const INTEGRATOR_RK4: u32 = 0;
+/// [`GpuBatchCloth::integrator`] of semi-implicit Euler.
+pub const INTEGRATOR_EULER: u32 = 1;
+
+/// One cloth of a batch: where its data lies in the shared buffers, and its constants for the
+/// coming ticks. An array of these is one storage buffer. 64 bytes; the last word is the
+/// cloth's count of quarantined particles, which the kernels add to and the host reads and
+/// clears (so the host writes only the first 60 bytes).
 #[repr(C)]
 #[derive(Clone, Copy, Debug, Default, PartialEq, Pod, Zeroable)]
-pub struct GpuClothParams {
-    /// Number of particles.
-    pub particle_count: u32,
-    /// Number of render vertices `normal_shader` writes.
-    pub vertex_count: u32,
-    /// Number of [`GpuCollider`]s to test.
-    pub collider_count: u32,
-    /// Threads along `x` of every dispatch (workgroups along `x` times 64): a thread's index is
-    /// `y * dispatch_width + x`.
-    pub dispatch_width: u32,
-    /// Substep length in seconds.
-    pub h: f32,
-    /// Damping rate in 1/s.
-    pub damping: f32,
-    /// Number of pinned particles `apply_anchors` moves each tick.
-    pub anchor_count: u32,
-    /// Padding.
-    pub _pad: u32,
+pub struct GpuBatchCloth {
     /// `scale * spring_k / mass` for structural, shear and bending springs; `w` unused.
     pub k_over_mass: [f32; 4],
     /// Gravity plus the external force per unit mass; `w` unused.
     pub uniform_accel: [f32; 4],
+    /// Index of the cloth's first particle in the particle buffers.
+    pub particle_start: u32,
+    /// Number of particles.
+    pub particle_count: u32,
+    /// Index of the cloth's first spring end in the spring-end buffer.
+    pub ends_start: u32,
+    /// Substeps per tick: the cloth sits out the batch's substeps past this count.
+    pub substeps: u32,
+    /// Substep length in seconds.
+    pub h: f32,
+    /// Damping rate in 1/s.
+    pub damping: f32,
+    /// [`INTEGRATOR_RK4`] or [`INTEGRATOR_EULER`].
+    pub integrator: u32,
+    /// Particles quarantined since the host last cleared this word.
+    pub faults: u32,
 }
 
-impl GpuClothParams {
-    /// The constants of a cloth with `params` on `topology` and `anchor_count` pins, for
-    /// substeps of `h` seconds against `collider_count` colliders, dispatched `dispatch_width`
-    /// threads wide.
+impl GpuBatchCloth {
+    /// Bytes of a [`GpuBatchCloth`] the host writes: everything but the fault count.
+    pub const HOST_BYTES: u64 = 60;
+
+    /// The constants of a cloth with `params` on `topology`, whose particles and spring ends
+    /// start at the given indices, for `substeps` substeps of `h` seconds per tick.
     pub fn new(
         params: &ClothParams,
         topology: &ClothTopology,
-        anchor_count: u32,
+        particle_start: u32,
+        ends_start: u32,
+        substeps: u32,
         h: f32,
-        collider_count: u32,
-        dispatch_width: u32,
     ) -> Self {
         let model = ForceModel::new(params);
         let [s, sh, b] = model.k_over_mass;
         Self {
-            particle_count: topology.len() as u32,
-            vertex_count: topology.vertex_particle().len() as u32,
-            collider_count,
-            dispatch_width,
-            h,
-            damping: model.damping,
-            anchor_count,
             k_over_mass: [s, sh, b, 0.0],
             uniform_accel: model.uniform_accel.extend(0.0).to_array(),
-            ..Zeroable::zeroed()
+            particle_start,
+            particle_count: topology.len() as u32,
+            ends_start,
+            substeps,
+            h,
+            damping: model.damping,
+            integrator: match params.integrator {
+                Integrator::Rk4 => INTEGRATOR_RK4,
+                Integrator::SemiImplicitEuler => INTEGRATOR_EULER,
+            },
+            faults: 0,
         }
     }
 }
 
-/// What `node_update` reads of a cloth's shape, as `u32` words: the `N + 1` spring offsets of
-/// [`ClothTopology::spring_offsets`], then the `N` inverse mass shares (`f32` bits), then every
-/// [`crate::topology::SpringEnd`] as four words.
-pub fn gpu_topology_words(topology: &ClothTopology) -> Vec<u32> {
-    let mut words = Vec::with_capacity(2 * topology.len() + 1 + 4 * topology.spring_ends().len());
-    words.extend_from_slice(topology.spring_offsets());
-    words.extend(topology.inv_mass_share().iter().map(|s| s.to_bits()));
-    words.extend_from_slice(bytemuck::cast_slice(topology.spring_ends()));
-    words
+/// What every dispatch of a batch reads (a uniform). 16 bytes.
+#[repr(C)]
+#[derive(Clone, Copy, Debug, Default, PartialEq, Pod, Zeroable)]
+pub struct GpuBatchFrame {
+    /// Particle slots the integrator dispatches cover (the used part of the particle buffers).
+    pub particle_slots: u32,
+    /// Anchor targets per tick.
+    pub anchor_count: u32,
+    /// Number of [`GpuCollider`]s to test.
+    pub collider_count: u32,
+    /// Threads along `x` of the integrator and anchor dispatches: a thread's index is
+    /// `y * dispatch_width + x`.
+    pub dispatch_width: u32,
+}
+
+/// Which substep of a tick a dispatch runs (a uniform bound at a dynamic offset, one per
+/// substep). 16 bytes.
+#[repr(C)]
+#[derive(Clone, Copy, Debug, Default, PartialEq, Pod, Zeroable)]
+pub struct GpuBatchStep {
+    /// The substep, from 0.
+    pub substep: u32,
+    /// Padding.
+    pub _pad: [u32; 3],
+}
+
+/// Per particle of a batch, indexed like the particle buffers: its springs (a range of the
+/// cloth's spring ends, from [`ClothTopology::spring_offsets`]), its inverse mass share (`f32`
+/// bits) and its cloth's index in the [`GpuBatchCloth`] array.
+pub fn gpu_particle_info(topology: &ClothTopology, slot: u32) -> Vec<[u32; 4]> {
+    let offsets = topology.spring_offsets();
+    (0..topology.len()).map(|i| [offsets[i], offsets[i + 1], topology.inv_mass_share()[i].to_bits(), slot]).collect()
 }
 
 /// What `normal_shader` reads of a cloth's surface, as `u32` words: the particle of each of
@@ -123,7 +158,8 @@ pub struct GpuCollider {
     pub friction: f32,
     /// Index of the collider's root in the node array.
     pub node_offset: u32,
-    /// Index of its first sphere in the sphere array.
+    /// Index of its first sphere in the tree buffer, which holds every collider's nodes (two
+    /// `vec4`s each) and then every sphere (one `vec4` each), counted in `vec4`s.
     pub sphere_offset: u32,
     /// Number of inner nodes (0 for a single-sphere collider).
     pub node_count: u32,
@@ -156,6 +192,27 @@ impl GpuCollider {
             _pad: 0,
         })
     }
+}
+
+/// A batched cloth's [`GpuMeshWriteback`] with where its data lies (a uniform bound at a
+/// dynamic offset, one per cloth). 176 bytes.
+#[repr(C)]
+#[derive(Clone, Copy, Debug, Default, PartialEq, Pod, Zeroable)]
+pub struct GpuBatchWriteback {
+    /// Where and how the vertices are written.
+    pub mesh: GpuMeshWriteback,
+    /// Index of the cloth's first particle in the particle buffers.
+    pub particle_start: u32,
+    /// Index of the cloth's first word in the surface buffer ([`gpu_surface_words`]).
+    pub surface_start: u32,
+    /// Number of render vertices.
+    pub vertex_count: u32,
+    /// Number of particles.
+    pub particle_count: u32,
+    /// Threads along `x` of the dispatch.
+    pub dispatch_width: u32,
+    /// Padding.
+    pub _pad: [u32; 3],
 }
 
 /// Where `normal_shader` writes a cloth's positions and normals: an interleaved vertex buffer
@@ -227,7 +284,11 @@ mod tests {
     #[test]
     fn sizes_are_multiples_of_sixteen() {
         assert_eq!(size_of::<GpuParticle>(), 32);
-        assert_eq!(size_of::<GpuClothParams>(), 64);
+        assert_eq!(size_of::<GpuBatchCloth>(), 64);
+        assert_eq!(std::mem::offset_of!(GpuBatchCloth, faults) as u64, GpuBatchCloth::HOST_BYTES);
+        assert_eq!(size_of::<GpuBatchFrame>(), 16);
+        assert_eq!(size_of::<GpuBatchStep>(), 16);
+        assert_eq!(size_of::<GpuBatchWriteback>(), 176);
         assert_eq!(size_of::<GpuCollider>(), 176);
         assert_eq!(size_of::<GpuMeshWriteback>(), 144);
     }

@@ -10,14 +10,16 @@ use crate::kernels::storage_binding_limit;
 /// The colliders' frames and trees. Trees are uploaded once; [`Self::update_frames`] moves the
 /// colliders without touching them.
 ///
-/// The trees are concatenated into one node and one sphere buffer, each of which must fit one
-/// storage binding of the device: colliders that would overflow them are left out (see
+/// The trees are concatenated into one buffer, nodes first and spheres after, which must fit
+/// one storage binding of the device: colliders that would overflow it are left out (see
 /// [`Self::left_out`]) rather than failing the rest.
 #[derive(Debug)]
 pub struct GpuColliders {
     pub(crate) frames: Buffer,
-    pub(crate) nodes: Buffer,
-    pub(crate) spheres: Buffer,
+    /// Every tree's nodes, then every tree's spheres (`vec4`s: a node is two).
+    pub(crate) tree: Buffer,
+    /// Nodes of all trees: the spheres start at `2 * nodes` `vec4`s.
+    nodes: u32,
     /// Colliders usable on the GPU (a collider with an invalid pose is left out).
     pub(crate) count: u32,
     /// Offsets of each input collider's tree, in input order; `None` for one left out.
@@ -42,16 +44,15 @@ impl GpuColliders {
     /// fit the device's storage bindings; the others are left out.
     pub fn new(device: &Device, colliders: &[Collider]) -> Self {
         let max = storage_binding_limit(device);
-        let fits = |items: usize, size: usize| (items * size) as u64 <= max;
+        let fits =
+            |nodes: usize, spheres: usize| (nodes * size_of::<BvhNode>() + spheres * size_of::<Sphere>()) as u64 <= max;
         let mut nodes: Vec<BvhNode> = Vec::new();
         let mut spheres: Vec<Sphere> = Vec::new();
         let mut offsets = Vec::with_capacity(colliders.len());
         let mut left_out = Vec::new();
         for (k, collider) in colliders.iter().enumerate() {
             let tree = &collider.lbvh;
-            if !(fits(nodes.len() + tree.nodes.len(), size_of::<BvhNode>())
-                && fits(spheres.len() + tree.spheres.len(), size_of::<Sphere>()))
-            {
+            if !fits(nodes.len() + tree.nodes.len(), spheres.len() + tree.spheres.len()) {
                 offsets.push(None);
                 left_out.push(k);
                 continue;
@@ -60,29 +61,37 @@ impl GpuColliders {
             nodes.extend_from_slice(&tree.nodes);
             spheres.extend_from_slice(&tree.spheres);
         }
-        let frames = Self::frames_of(colliders, &offsets);
+        let node_count = nodes.len() as u32;
+        let frames = Self::frames_of(colliders, &offsets, node_count);
+        let mut tree: Vec<[f32; 4]> = Vec::with_capacity(2 * nodes.len() + spheres.len());
+        tree.extend_from_slice(bytemuck::cast_slice(&nodes));
+        tree.extend_from_slice(bytemuck::cast_slice(&spheres));
         Self {
             count: frames.len() as u32,
             frames: storage_buffer(device, "bvh_cloth_collider_frames", &pad_frames(frames, colliders.len())),
-            nodes: storage_buffer(device, "bvh_cloth_bvh_nodes", &nodes),
-            spheres: storage_buffer(device, "bvh_cloth_bvh_spheres", &spheres),
+            tree: storage_buffer(device, "bvh_cloth_bvh_trees", &tree),
+            nodes: node_count,
             offsets,
             left_out,
         }
     }
 
-    fn frames_of(colliders: &[Collider], offsets: &[Option<(u32, u32)>]) -> Vec<GpuCollider> {
+    /// The frames of the colliders whose trees were uploaded; `sphere_offset` counts `vec4`s of
+    /// the tree buffer, past the `nodes` nodes.
+    fn frames_of(colliders: &[Collider], offsets: &[Option<(u32, u32)>], nodes: u32) -> Vec<GpuCollider> {
         colliders
             .iter()
             .zip(offsets)
-            .filter_map(|(collider, offset)| offset.and_then(|(node, sphere)| GpuCollider::new(collider, node, sphere)))
+            .filter_map(|(collider, offset)| {
+                offset.and_then(|(node, sphere)| GpuCollider::new(collider, node, 2 * nodes + sphere))
+            })
             .collect()
     }
 
     /// Uploads new poses, margins and frictions for the same colliders, in the same order, as
     /// [`Self::new`] was given.
     pub fn update_frames(&mut self, queue: &Queue, colliders: &[Collider]) {
-        let frames = Self::frames_of(colliders, &self.offsets);
+        let frames = Self::frames_of(colliders, &self.offsets, self.nodes);
         self.count = frames.len() as u32;
         if !frames.is_empty() {
             queue.write_buffer(&self.frames, 0, bytemuck::cast_slice(&frames));

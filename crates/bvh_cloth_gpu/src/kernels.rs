@@ -1,4 +1,5 @@
-//! The compute pipelines of the three kernels and their bind group layouts.
+//! The compute pipelines of the kernels and their bind group layouts, and the WGSL they are
+//! built from.
 
 use core::fmt;
 
@@ -6,14 +7,37 @@ use wgpu::{
     BindGroupLayout, BindGroupLayoutEntry, BindingType, BufferBindingType, ComputePipeline, Device, ShaderStages,
 };
 
-/// The WGSL source of the three kernels.
-pub const SHADER_SOURCE: &str = include_str!("cloth.wgsl");
+/// The kernels' WGSL files, in the order [`shader_source`] joins them: the shared types, the
+/// collision response, then one file per kernel. Each starts with naga_oil directives
+/// (`#define_import_path`, `#import`) for engines that compose shaders that way.
+pub const SHADER_FILES: [(&str, &str); 6] = [
+    ("types.wgsl", include_str!("shaders/types.wgsl")),
+    ("collision.wgsl", include_str!("shaders/collision.wgsl")),
+    ("node_update.wgsl", include_str!("shaders/node_update.wgsl")),
+    ("node_update_final.wgsl", include_str!("shaders/node_update_final.wgsl")),
+    ("apply_anchors.wgsl", include_str!("shaders/apply_anchors.wgsl")),
+    ("normal_shader.wgsl", include_str!("shaders/normal_shader.wgsl")),
+];
+
+/// The kernels as one WGSL module: [`SHADER_FILES`] joined, their import directives dropped.
+pub fn shader_source() -> String {
+    let mut source = String::new();
+    for (name, text) in SHADER_FILES {
+        source.push_str(&format!("// ---- {name}\n"));
+        for line in text.lines().filter(|line| !line.starts_with("#define_import_path") && !line.starts_with("#import"))
+        {
+            source.push_str(line);
+            source.push('\n');
+        }
+    }
+    source
+}
 
 /// Threads per workgroup along each grid axis (workgroups are 8 x 8 x 1, paper Table I).
 pub const WORKGROUP_SIZE: u32 = 8;
 
-/// Storage buffers the busiest kernel (`node_update`) binds at once.
-pub const STORAGE_BUFFERS_NEEDED: u32 = 6;
+/// Storage buffers the busiest kernel (`node_update_final`) binds at once.
+pub const STORAGE_BUFFERS_NEEDED: u32 = 8;
 
 /// Threads per workgroup (8 x 8 x 1).
 const THREADS_PER_WORKGROUP: u32 = WORKGROUP_SIZE * WORKGROUP_SIZE;
@@ -25,7 +49,7 @@ pub(crate) fn storage_binding_limit(device: &Device) -> u64 {
     limits.max_storage_buffer_binding_size.min(limits.max_buffer_size)
 }
 
-/// Why the kernels cannot run on a device.
+/// Why the kernels cannot run on a device, or a cloth cannot join a batch.
 #[derive(Clone, Debug, PartialEq, Eq)]
 pub enum KernelError {
     /// The device allows fewer storage buffers per shader stage than the kernels bind.
@@ -33,8 +57,8 @@ pub enum KernelError {
         /// What the device allows.
         allowed: u32,
     },
-    /// A cloth has more particles (or render vertices) than one dispatch can cover on this
-    /// device.
+    /// The batch would have more particles (or a cloth more render vertices) than one
+    /// dispatch can cover on this device.
     TooManyThreads {
         /// Particles or vertices to cover.
         count: u32,
@@ -59,8 +83,8 @@ impl fmt::Display for KernelError {
             ),
             Self::TooManyThreads { count, max_workgroups } => write!(
                 f,
-                "a cloth of {count} particles or vertices needs more than the device's {max_workgroups} x \
-                 {max_workgroups} workgroups per dispatch"
+                "{count} particles or vertices need more than the device's {max_workgroups} x {max_workgroups} \
+                 workgroups per dispatch"
             ),
             Self::BufferTooLarge { bytes, max } => {
                 write!(f, "a buffer of {bytes} bytes is larger than the device's largest storage binding ({max} bytes)")
@@ -71,32 +95,32 @@ impl fmt::Display for KernelError {
 
 impl std::error::Error for KernelError {}
 
-/// The compiled kernels: five `node_update` pipelines (the four RK4 stages and semi-implicit
-/// Euler, selected by the WGSL override constant `STAGE`), `collision_detection_with_bvh`,
-/// `normal_shader` and `apply_anchors`.
+/// The compiled kernels: three `node_update` pipelines (RK4's first three stages, selected by
+/// the WGSL override constant `STAGE`), `node_update_final` (the last stage with the collision
+/// response), `apply_anchors` and `normal_shader`.
 #[derive(Debug)]
 pub struct ClothKernels {
-    pub(crate) node_update: [ComputePipeline; 5],
-    pub(crate) collision: ComputePipeline,
-    pub(crate) normal: ComputePipeline,
+    pub(crate) node_update: [ComputePipeline; 3],
+    pub(crate) node_update_final: ComputePipeline,
     pub(crate) anchors: ComputePipeline,
+    pub(crate) normal: ComputePipeline,
     pub(crate) node_update_layout: BindGroupLayout,
-    pub(crate) collision_layout: BindGroupLayout,
-    pub(crate) normal_layout: BindGroupLayout,
+    pub(crate) final_layout: BindGroupLayout,
     pub(crate) anchors_layout: BindGroupLayout,
+    pub(crate) normal_layout: BindGroupLayout,
 }
 
-fn entry(binding: u32, ty: BufferBindingType) -> BindGroupLayoutEntry {
+fn entry(binding: u32, ty: BufferBindingType, dynamic: bool) -> BindGroupLayoutEntry {
     BindGroupLayoutEntry {
         binding,
         visibility: ShaderStages::COMPUTE,
-        ty: BindingType::Buffer { ty, has_dynamic_offset: false, min_binding_size: None },
+        ty: BindingType::Buffer { ty, has_dynamic_offset: dynamic, min_binding_size: None },
         count: None,
     }
 }
 
 fn storage(binding: u32, read_only: bool) -> BindGroupLayoutEntry {
-    entry(binding, BufferBindingType::Storage { read_only })
+    entry(binding, BufferBindingType::Storage { read_only }, false)
 }
 
 impl ClothKernels {
@@ -108,43 +132,50 @@ impl ClothKernels {
         }
         let module = device.create_shader_module(wgpu::ShaderModuleDescriptor {
             label: Some("bvh_cloth_kernels"),
-            source: wgpu::ShaderSource::Wgsl(SHADER_SOURCE.into()),
+            source: wgpu::ShaderSource::Wgsl(shader_source().into()),
         });
-        let params = entry(0, BufferBindingType::Uniform);
+        let frame = entry(0, BufferBindingType::Uniform, false);
+        let step = entry(1, BufferBindingType::Uniform, true);
         let layout = |label: &str, entries: &[BindGroupLayoutEntry]| {
             device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor { label: Some(label), entries })
         };
         let node_update_layout = layout(
             "bvh_cloth_node_update_layout",
             &[
-                params,
-                storage(1, true),
+                frame,
+                step,
                 storage(2, true),
-                storage(3, false),
+                storage(3, true),
                 storage(4, false),
-                storage(13, false),
-                storage(16, true),
+                storage(5, false),
+                storage(6, true),
+                storage(7, true),
+                storage(8, false),
             ],
         );
-        let collision_layout = layout(
-            "bvh_cloth_collision_layout",
-            &[params, storage(5, false), storage(6, true), storage(7, true), storage(8, true), storage(9, true)],
+        let final_layout = layout(
+            "bvh_cloth_node_update_final_layout",
+            &[
+                frame,
+                step,
+                storage(9, false),
+                storage(10, true),
+                storage(11, true),
+                storage(12, true),
+                storage(19, true),
+                storage(20, true),
+                storage(21, true),
+                storage(22, false),
+            ],
+        );
+        let anchors_layout = layout(
+            "bvh_cloth_anchors_layout",
+            &[frame, storage(13, false), entry(14, BufferBindingType::Storage { read_only: true }, true)],
         );
         let normal_layout = layout(
             "bvh_cloth_normal_layout",
-            &[params, storage(10, true), entry(11, BufferBindingType::Uniform), storage(12, false), storage(17, true)],
+            &[entry(15, BufferBindingType::Uniform, true), storage(16, true), storage(17, true), storage(18, false)],
         );
-        let targets = BindGroupLayoutEntry {
-            binding: 15,
-            visibility: ShaderStages::COMPUTE,
-            ty: BindingType::Buffer {
-                ty: BufferBindingType::Storage { read_only: true },
-                has_dynamic_offset: true,
-                min_binding_size: None,
-            },
-            count: None,
-        };
-        let anchors_layout = layout("bvh_cloth_anchors_layout", &[params, storage(14, false), targets]);
         let pipeline = |label: &str, layout: &BindGroupLayout, entry_point: &str, constants: &[(&str, f64)]| {
             let pipeline_layout = device.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
                 label: Some(label),
@@ -160,22 +191,17 @@ impl ClothKernels {
                 cache: None,
             })
         };
-        let node_update = [0.0, 1.0, 2.0, 3.0, 4.0]
+        let node_update = [0.0, 1.0, 2.0]
             .map(|stage| pipeline("bvh_cloth_node_update", &node_update_layout, "node_update", &[("STAGE", stage)]));
         Ok(Self {
             node_update,
-            collision: pipeline(
-                "bvh_cloth_collision_detection_with_bvh",
-                &collision_layout,
-                "collision_detection_with_bvh",
-                &[],
-            ),
-            normal: pipeline("bvh_cloth_normal_shader", &normal_layout, "normal_shader", &[]),
+            node_update_final: pipeline("bvh_cloth_node_update_final", &final_layout, "node_update_final", &[]),
             anchors: pipeline("bvh_cloth_apply_anchors", &anchors_layout, "apply_anchors", &[]),
+            normal: pipeline("bvh_cloth_normal_shader", &normal_layout, "normal_shader", &[]),
             node_update_layout,
-            collision_layout,
-            normal_layout,
+            final_layout,
             anchors_layout,
+            normal_layout,
         })
     }
 

@@ -1,10 +1,13 @@
 //! # bvh_cloth_gpu
 //!
-//! The paper's three compute kernels (Table I) in WGSL, on plain wgpu: `node_update` (spring
-//! forces and one RK4 or semi-implicit Euler stage per dispatch), `collision_detection_with_bvh`
-//! (stack traversal of every collider's LBVH and the collision response) and `normal_shader`
+//! The paper's three compute kernels (Table I) in WGSL, on plain wgpu, for every cloth of a
+//! scene at once: `node_update` (spring forces and one RK4 stage per dispatch, semi-implicit
+//! Euler in one of them), `node_update_final` (the last stage, fused with the paper's
+//! `collision_detection_with_bvh`: stack traversal of every collider's LBVH and the collision
+//! response), `apply_anchors` (pins moved at the start of each tick) and `normal_shader`
 //! (normals, written with the positions into an interleaved vertex buffer such as a mesh's
-//! vertex slab).
+//! vertex slab). The WGSL is one file per kernel beside a shared types file
+//! ([`SHADER_FILES`]).
 //!
 //! It knows no engine, so that the kernels can be tested against the CPU reference of
 //! [`bvh_cloth_core`] and benchmarked without one; `bevy_bvh_cloth` drives the same kernels
@@ -15,21 +18,21 @@
 //! |---|---|
 //! | [`ClothKernels`] | the compiled pipelines and their bind group layouts (one per device) |
 //! | [`GpuColliders`] | every collider's frame, nodes and spheres |
-//! | [`GpuCloth`] | one cloth's particle buffers and parameters; encodes ticks and writeback |
+//! | [`ClothBatch`] | every cloth's particles, shapes and constants in shared buffers; encodes the ticks of all of them and each one's writeback |
 //! | [`FaultReadback`] | reads a cloth's count of quarantined particles without stalling |
 //! | [`ParticleReadback`] | reads a cloth's positions and velocities without stalling |
 //! | [`headless`] | a device without a window, and blocking readback, for tests and benchmarks |
 
 #![deny(missing_docs)]
 
-mod cloth;
+mod batch;
 mod colliders;
 pub mod headless;
 mod kernels;
 mod readback;
 
-pub use cloth::GpuCloth;
+pub use batch::{ClothBatch, ClothId};
 pub use colliders::GpuColliders;
-pub use kernels::{ClothKernels, KernelError, SHADER_SOURCE, STORAGE_BUFFERS_NEEDED, WORKGROUP_SIZE};
+pub use kernels::{ClothKernels, KernelError, SHADER_FILES, STORAGE_BUFFERS_NEEDED, WORKGROUP_SIZE, shader_source};
 pub use readback::{FaultReadback, ParticleReadback};
 pub use wgpu;

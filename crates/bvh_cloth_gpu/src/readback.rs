@@ -16,7 +16,7 @@ use std::sync::atomic::{AtomicU8, Ordering};
 use bvh_cloth_core::gpu_layout::GpuParticle;
 use wgpu::{Buffer, BufferUsages, CommandEncoder, Device, MapMode};
 
-use crate::GpuCloth;
+use crate::{ClothBatch, ClothId};
 
 /// Nothing in flight: the next record copies.
 const IDLE: u8 = 0;
@@ -81,7 +81,7 @@ impl Staged {
 }
 
 /// A non-blocking read of one cloth's count of quarantined particles (see
-/// [`GpuCloth::faults`]): [`record`](Self::record) with the frame's commands,
+/// [`ClothBatch::faults`]): [`record`](Self::record) with the frame's commands,
 /// [`submitted`](Self::submitted) after they are submitted, [`take`](Self::take) on a later
 /// frame. Faults counted while a read is in flight stay in the counter for the next read.
 #[derive(Debug)]
@@ -93,14 +93,16 @@ impl FaultReadback {
         Self(Staged::new(device, "bvh_cloth_faults_readback", COUNTER_BYTES))
     }
 
-    /// Records into `encoder` a copy of `cloth`'s counter, then the counter's clearing, unless a
-    /// read is already in flight. Returns whether it recorded.
-    pub fn record(&self, encoder: &mut CommandEncoder, cloth: &GpuCloth) -> bool {
+    /// Records into `encoder` a copy of cloth `id`'s counter, then the counter's clearing,
+    /// unless a read is already in flight (or `id` is not in `batch`). Returns whether it
+    /// recorded.
+    pub fn record(&self, encoder: &mut CommandEncoder, batch: &ClothBatch, id: ClothId) -> bool {
+        let Some((buffer, offset)) = batch.faults(id) else { return false };
         if !self.0.begin() {
             return false;
         }
-        encoder.copy_buffer_to_buffer(cloth.faults(), 0, &self.0.buffer, 0, COUNTER_BYTES);
-        encoder.clear_buffer(cloth.faults(), 0, None);
+        encoder.copy_buffer_to_buffer(buffer, offset, &self.0.buffer, 0, COUNTER_BYTES);
+        encoder.clear_buffer(buffer, offset, Some(COUNTER_BYTES));
         true
     }
 
@@ -126,18 +128,20 @@ impl FaultReadback {
 pub struct ParticleReadback(Staged);
 
 impl ParticleReadback {
-    /// A readback sized for `cloth`'s particles, idle.
-    pub fn new(device: &Device, cloth: &GpuCloth) -> Self {
-        Self(Staged::new(device, "bvh_cloth_particles_readback", cloth.particles().size()))
+    /// A readback sized for `particles` particles, idle.
+    pub fn new(device: &Device, particles: usize) -> Self {
+        Self(Staged::new(device, "bvh_cloth_particles_readback", (particles.max(1) * size_of::<GpuParticle>()) as u64))
     }
 
-    /// Records into `encoder` a copy of `cloth`'s particles, unless a read is already in
-    /// flight. Returns whether it recorded.
-    pub fn record(&self, encoder: &mut CommandEncoder, cloth: &GpuCloth) -> bool {
-        if !self.0.begin() {
+    /// Records into `encoder` a copy of cloth `id`'s particles, unless a read is already in
+    /// flight (or `id` is not in `batch`, or has another particle count than this readback
+    /// was made for). Returns whether it recorded.
+    pub fn record(&self, encoder: &mut CommandEncoder, batch: &ClothBatch, id: ClothId) -> bool {
+        let Some((buffer, offset, size)) = batch.particles(id) else { return false };
+        if size != self.0.buffer.size() || !self.0.begin() {
             return false;
         }
-        encoder.copy_buffer_to_buffer(cloth.particles(), 0, &self.0.buffer, 0, self.0.buffer.size());
+        encoder.copy_buffer_to_buffer(buffer, offset, &self.0.buffer, 0, size);
         true
     }
 

@@ -2,16 +2,15 @@
 //! (lavapipe in CI), gives a typed refusal instead of a wgpu validation error. wgpu's default
 //! error handler panics on a validation error, so a test that returns had none.
 //!
-//! Also: thousands of cloths created, stepped and dropped leave no GPU resource behind.
+//! Also: thousands of cloths added to a batch, stepped and removed leave no GPU resource behind.
 
 use bvh_cloth_core::gpu_layout::GpuParticle;
 use std::sync::Arc;
 
-use bvh_cloth_core::gpu_layout::gpu_topology_words;
 use bvh_cloth_core::{Affine3A, ClothGrid, ClothParams, ClothSim, ClothTopology, Collider, MeshRef, UVec2, Vec2, Vec3};
 use bvh_cloth_gpu::headless::{self, HeadlessGpu};
 use bvh_cloth_gpu::wgpu;
-use bvh_cloth_gpu::{ClothKernels, FaultReadback, GpuCloth, GpuColliders, KernelError, STORAGE_BUFFERS_NEEDED};
+use bvh_cloth_gpu::{ClothBatch, ClothKernels, FaultReadback, GpuColliders, KernelError, STORAGE_BUFFERS_NEEDED};
 
 /// A device with the limits `limit` makes of the adapter's, or `None` (with a note) when there
 /// is no adapter and none is required.
@@ -39,9 +38,12 @@ fn boxy(n: u32) -> Collider {
 
 #[test]
 fn a_device_with_too_few_storage_buffers_is_refused() {
-    let Some(gpu) = gpu(|limits| wgpu::Limits { max_storage_buffers_per_shader_stage: 4, ..limits }) else { return };
+    let allowed = STORAGE_BUFFERS_NEEDED - 1;
+    let Some(gpu) = gpu(|limits| wgpu::Limits { max_storage_buffers_per_shader_stage: allowed, ..limits }) else {
+        return;
+    };
     let error = ClothKernels::new(&gpu.device).unwrap_err();
-    assert_eq!(error, KernelError::TooFewStorageBuffers { allowed: 4 });
+    assert_eq!(error, KernelError::TooFewStorageBuffers { allowed });
     assert!(error.to_string().contains(&format!("need {STORAGE_BUFFERS_NEEDED}")), "{error}");
 }
 
@@ -50,18 +52,25 @@ fn a_cloth_beyond_one_dispatch_is_refused_and_smaller_ones_run() {
     // Four by four workgroups of 8 x 8 threads: at most 1,024 particles.
     let Some(gpu) = gpu(|limits| wgpu::Limits { max_compute_workgroups_per_dimension: 4, ..limits }) else { return };
     let kernels = ClothKernels::new(&gpu.device).unwrap();
-    let error = GpuCloth::new(&gpu.device, &kernels, &cloth(33, 32)).unwrap_err();
+    let mut batch = ClothBatch::new(&gpu.device, &gpu.queue);
+    let error = batch.insert(&gpu.device, &gpu.queue, &cloth(33, 32)).unwrap_err();
     assert_eq!(error, KernelError::TooManyThreads { count: 33 * 32, max_workgroups: 4 });
     assert!(error.to_string().contains("1056 particles"), "{error}");
+    assert!(batch.is_empty(), "the refused cloth left nothing behind");
 
     let sim = cloth(32, 32);
-    let mut fits = GpuCloth::new(&gpu.device, &kernels, &sim).expect("32 x 32 fits 4 x 4 workgroups");
+    let id = batch.insert(&gpu.device, &gpu.queue, &sim).expect("32 x 32 fits 4 x 4 workgroups");
+    let error = batch.insert(&gpu.device, &gpu.queue, &cloth(2, 2)).unwrap_err();
+    assert_eq!(error, KernelError::TooManyThreads { count: 32 * 32 + 4, max_workgroups: 4 }, "the batch is full");
     let none = GpuColliders::new(&gpu.device, &[]);
-    fits.set_params(&gpu.queue, sim.params(), 1.0 / 60.0, &none);
+    batch.set_params(&gpu.queue, id, sim.params(), 1.0 / 60.0);
+    batch.prepare(&gpu.device, &gpu.queue, &kernels, &none);
     let mut encoder = gpu.device.create_command_encoder(&Default::default());
-    fits.encode_ticks(&gpu.device, &mut encoder, &kernels, &none, 2);
+    batch.encode_ticks(&mut encoder, &kernels, 2);
     gpu.queue.submit([encoder.finish()]);
-    let particles: Vec<GpuParticle> = headless::read(&gpu.device, &gpu.queue, fits.particles());
+    let (buffer, offset, size) = batch.particles(id).unwrap();
+    let particles: Vec<GpuParticle> = headless::read(&gpu.device, &gpu.queue, buffer);
+    let particles = &particles[offset as usize / 32..(offset + size) as usize / 32];
     assert!(particles.iter().all(|p| p.position[1] < 1.0 && p.position.iter().all(|x| x.is_finite())), "it fell");
 }
 
@@ -70,16 +79,16 @@ fn a_cloth_beyond_one_storage_binding_is_refused() {
     // The largest buffer of a cloth is its spring list (16 bytes per spring end, about 12 per
     // particle): bindings of exactly a 16 x 16 grid's spring list take that cloth and refuse one
     // row more.
-    let spring_bytes = |sim: &ClothSim| 4 * gpu_topology_words(sim.topology()).len() as u64;
+    let spring_bytes = |sim: &ClothSim| 16 * sim.topology().spring_ends().len() as u64;
     let (fits, too_big) = (cloth(16, 16), cloth(17, 16));
     let max = spring_bytes(&fits);
     assert!(max > 16 * 16 * size_of::<GpuParticle>() as u64, "the springs are the largest buffer");
     let Some(gpu) = gpu(|limits| wgpu::Limits { max_storage_buffer_binding_size: max, ..limits }) else { return };
-    let kernels = ClothKernels::new(&gpu.device).unwrap();
-    let error = GpuCloth::new(&gpu.device, &kernels, &too_big).unwrap_err();
+    let mut batch = ClothBatch::new(&gpu.device, &gpu.queue);
+    let error = batch.insert(&gpu.device, &gpu.queue, &too_big).unwrap_err();
     assert_eq!(error, KernelError::BufferTooLarge { bytes: spring_bytes(&too_big), max });
     assert!(error.to_string().contains(&format!("{} bytes", spring_bytes(&too_big))), "{error}");
-    assert!(GpuCloth::new(&gpu.device, &kernels, &fits).is_ok(), "a spring list of exactly the limit fits");
+    assert!(batch.insert(&gpu.device, &gpu.queue, &fits).is_ok(), "a spring list of exactly the limit fits");
 }
 
 #[test]
@@ -87,9 +96,10 @@ fn colliders_beyond_one_storage_binding_are_left_out_and_the_rest_kept() {
     let (small, large) = (boxy(1), boxy(8));
     let node_bytes = |c: &Collider| c.lbvh.nodes.len() * size_of::<bvh_cloth_core::BvhNode>();
     let sphere_bytes = |c: &Collider| c.lbvh.spheres.len() * size_of::<bvh_cloth_core::Sphere>();
-    // Room for the small tree twice, not for the large one beside it.
-    let room = (2 * node_bytes(&small).max(sphere_bytes(&small))) as u64;
-    assert!(node_bytes(&large).max(sphere_bytes(&large)) as u64 > room);
+    // Room for the small tree twice (nodes and spheres share one buffer), not for the large
+    // one beside it.
+    let room = (2 * (node_bytes(&small) + sphere_bytes(&small))) as u64;
+    assert!((node_bytes(&large) + sphere_bytes(&large)) as u64 > room);
     let Some(gpu) = gpu(|limits| wgpu::Limits { max_storage_buffer_binding_size: room.next_multiple_of(4), ..limits })
     else {
         return;
@@ -106,33 +116,44 @@ fn live(gpu: &HeadlessGpu) -> (usize, usize) {
 }
 
 #[test]
-fn thousands_of_cloths_created_stepped_and_dropped_leave_no_gpu_resource() {
+fn thousands_of_cloths_added_stepped_and_removed_leave_no_gpu_resource() {
     let Some(gpu) = gpu(|limits| limits) else { return };
     let kernels = ClothKernels::new(&gpu.device).unwrap();
     let collider = boxy(3);
     let before = live(&gpu);
+    let colliders = GpuColliders::new(&gpu.device, std::slice::from_ref(&collider));
+    let mut batch = ClothBatch::new(&gpu.device, &gpu.queue);
+    let resident = batch.insert(&gpu.device, &gpu.queue, &cloth(8, 8)).unwrap();
+    batch.set_params(&gpu.queue, resident, &ClothParams::default(), 1.0 / 60.0);
+    let mut settled = None;
     for round in 0..2000u32 {
         let sim = cloth(2 + round % 13, 2 + round % 7);
-        let colliders = GpuColliders::new(&gpu.device, std::slice::from_ref(&collider));
-        let mut cloth = GpuCloth::new(&gpu.device, &kernels, &sim).unwrap();
-        cloth.set_params(&gpu.queue, sim.params(), 1.0 / 60.0, &colliders);
+        let id = batch.insert(&gpu.device, &gpu.queue, &sim).unwrap();
+        batch.set_params(&gpu.queue, id, sim.params(), 1.0 / 60.0);
+        batch.prepare(&gpu.device, &gpu.queue, &kernels, &colliders);
         let faults = FaultReadback::new(&gpu.device);
-        if round == 0 {
-            // The count sees the handles held: the cloth's params, state, stage, fault and
-            // surface buffers (two more stages and the springs live inside its bind groups),
-            // 3 collider buffers, and the staging buffer.
-            assert_eq!(live(&gpu), (before.0 + 9, before.1 + 5));
-        }
         let mut encoder = gpu.device.create_command_encoder(&Default::default());
-        cloth.encode_ticks(&gpu.device, &mut encoder, &kernels, &colliders, 1);
-        faults.record(&mut encoder, &cloth);
+        batch.encode_ticks(&mut encoder, &kernels, 1);
+        faults.record(&mut encoder, &batch, id);
         gpu.queue.submit([encoder.finish()]);
         faults.submitted();
+        batch.remove(&gpu.queue, id);
+        // Dropped with its map possibly still in flight.
+        drop(faults);
         if round % 100 == 0 {
             headless::wait(&gpu.device);
         }
-        // Everything is dropped here, some of it with work or a map still in flight.
+        // The batch settles on buffers big enough for the largest round; from then on the
+        // rounds reuse them.
+        if round == 200 {
+            headless::wait(&gpu.device);
+            settled = Some(live(&gpu));
+        }
     }
     headless::wait(&gpu.device);
-    assert_eq!(live(&gpu), before, "(buffers, bind groups) alive before and after 2,000 cloths");
+    assert_eq!(Some(live(&gpu)), settled, "(buffers, bind groups) alive after round 200 and after round 2,000");
+    assert_eq!(batch.len(), 1);
+    drop((batch, colliders));
+    headless::wait(&gpu.device);
+    assert_eq!(live(&gpu), before, "(buffers, bind groups) alive before and after");
 }

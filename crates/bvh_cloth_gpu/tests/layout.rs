@@ -1,15 +1,19 @@
-//! The WGSL passes naga's validation, and every struct it shares with Rust has the same size
-//! and the same member offsets as the core's `#[repr(C)]` definition. Needs no GPU.
+//! The WGSL (the kernel files joined as the crate compiles them) passes naga's validation,
+//! and every struct it shares with Rust has the same size and the same member offsets as the
+//! core's `#[repr(C)]` definition. Needs no GPU.
 
 use core::mem::{offset_of, size_of};
 
-use bvh_cloth_core::gpu_layout::{GpuClothParams, GpuCollider, GpuMeshWriteback, GpuParticle};
+use bvh_cloth_core::gpu_layout::{
+    GpuBatchCloth, GpuBatchFrame, GpuBatchStep, GpuBatchWriteback, GpuCollider, GpuMeshWriteback, GpuParticle,
+};
 use bvh_cloth_core::{BvhNode, Sphere};
-use bvh_cloth_gpu::SHADER_SOURCE;
+use bvh_cloth_gpu::{SHADER_FILES, shader_source};
 use naga::valid::{Capabilities, ValidationFlags, Validator};
 
 fn module() -> naga::Module {
-    naga::front::wgsl::parse_str(SHADER_SOURCE).unwrap_or_else(|e| panic!("{}", e.emit_to_string(SHADER_SOURCE)))
+    let source = shader_source();
+    naga::front::wgsl::parse_str(&source).unwrap_or_else(|e| panic!("{}", e.emit_to_string(&source)))
 }
 
 /// `(size, [(member, offset)])` of the WGSL struct called `name`.
@@ -37,9 +41,9 @@ fn wgsl_is_valid() {
     let module = module();
     Validator::new(ValidationFlags::all(), Capabilities::all())
         .validate(&module)
-        .unwrap_or_else(|e| panic!("{}", e.emit_to_string(SHADER_SOURCE)));
+        .unwrap_or_else(|e| panic!("{}", e.emit_to_string(&shader_source())));
     let entry_points: Vec<&str> = module.entry_points.iter().map(|e| e.name.as_str()).collect();
-    assert_eq!(entry_points, ["node_update", "collision_detection_with_bvh", "normal_shader", "apply_anchors"]);
+    assert_eq!(entry_points, ["node_update", "node_update_final", "apply_anchors", "normal_shader"]);
     for entry in &module.entry_points {
         assert_eq!(entry.workgroup_size, [8, 8, 1], "{} runs 8x8x1 workgroups", entry.name);
     }
@@ -51,21 +55,40 @@ fn wgsl_structs_match_the_rust_layouts() {
     assert_layout!(&module, "GpuParticle", GpuParticle, [position, velocity]);
     assert_layout!(
         &module,
-        "GpuClothParams",
-        GpuClothParams,
+        "BatchCloth",
+        GpuBatchCloth,
         [
+            k_over_mass,
+            uniform_accel,
+            particle_start,
             particle_count,
-            vertex_count,
-            collider_count,
-            dispatch_width,
+            ends_start,
+            substeps,
             h,
             damping,
-            anchor_count,
-            _pad,
-            k_over_mass,
-            uniform_accel
+            integrator,
+            faults
         ]
     );
+    assert_layout!(
+        &module,
+        "BatchFrame",
+        GpuBatchFrame,
+        [particle_slots, anchor_count, collider_count, dispatch_width]
+    );
+    let (size, members) = wgsl_layout(&module, "BatchStep");
+    assert_eq!((size as usize, members[0].1), (size_of::<GpuBatchStep>(), offset_of!(GpuBatchStep, substep) as u32));
+    let (size, members) = wgsl_layout(&module, "BatchWriteback");
+    assert_eq!(size as usize, size_of::<GpuBatchWriteback>());
+    let rust = [
+        offset_of!(GpuBatchWriteback, mesh),
+        offset_of!(GpuBatchWriteback, particle_start),
+        offset_of!(GpuBatchWriteback, surface_start),
+        offset_of!(GpuBatchWriteback, vertex_count),
+        offset_of!(GpuBatchWriteback, particle_count),
+        offset_of!(GpuBatchWriteback, dispatch_width),
+    ];
+    assert_eq!(members[..6].iter().map(|m| m.1 as usize).collect::<Vec<_>>(), rust, "members of BatchWriteback");
     assert_layout!(
         &module,
         "GpuCollider",
@@ -91,15 +114,18 @@ fn wgsl_structs_match_the_rust_layouts() {
         GpuMeshWriteback,
         [local_from_world, normal_from_world, first_word, stride_words, position_word, normal_word]
     );
-    // Spheres are bound as vec4<f32>: centre and radius.
+    // Nodes and spheres share one array of vec4<f32>: a node is two (box minimum and left
+    // child, box maximum and right child), a sphere one (centre and radius).
+    assert_eq!(size_of::<BvhNode>(), 32);
     assert_eq!(size_of::<Sphere>(), 16);
     assert_eq!((offset_of!(Sphere, center), offset_of!(Sphere, radius)), (0, 12));
 }
 
 #[test]
 fn shared_constants_match_the_core() {
+    let source = shader_source();
     let constant = |name: &str| -> String {
-        let line = SHADER_SOURCE.lines().find(|l| l.starts_with(&format!("const {name}:"))).unwrap();
+        let line = source.lines().find(|l| l.starts_with(&format!("const {name}:"))).unwrap();
         line.split('=').nth(1).unwrap().split(';').next().unwrap().trim().to_string()
     };
     assert_eq!(constant("STACK_SIZE"), format!("{}u", bvh_cloth_core::traversal::STACK_SIZE));
@@ -107,4 +133,21 @@ fn shared_constants_match_the_core() {
     assert_eq!(constant("LEAF_BIT"), format!("{:#x}u", bvh_cloth_core::lbvh::LEAF_BIT));
     assert_eq!(constant("SURFACE_TOLERANCE").parse::<f32>().unwrap(), bvh_cloth_core::traversal::SURFACE_TOLERANCE);
     assert_eq!(constant("CONTACT_BAND").parse::<f32>().unwrap(), bvh_cloth_core::collision::CONTACT_BAND);
+    assert_eq!(constant("NO_CLOTH"), format!("{:#x}u", bvh_cloth_core::gpu_layout::NO_CLOTH));
+    assert_eq!(constant("INTEGRATOR_EULER"), format!("{}u", bvh_cloth_core::gpu_layout::INTEGRATOR_EULER));
+}
+
+/// Each kernel file names its import path or imports as naga_oil reads them, so that an engine
+/// composing shaders that way (Bevy's shader assets) can load the files as they are.
+#[test]
+fn every_file_declares_what_it_imports() {
+    for (name, text) in SHADER_FILES {
+        let imports: Vec<&str> = text.lines().filter(|l| l.starts_with("#import")).collect();
+        if name == "types.wgsl" {
+            assert!(text.contains("#define_import_path bvh_cloth::types"), "{name}");
+            assert!(imports.is_empty(), "{name} imports nothing");
+        } else {
+            assert!(imports.contains(&"#import bvh_cloth::types"), "{name} imports the shared types");
+        }
+    }
 }

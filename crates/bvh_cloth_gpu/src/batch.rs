@@ -1,0 +1,711 @@
+//! Every cloth on the GPU in one batch: shared, packed buffers, and one dispatch per integrator
+//! stage for all of them.
+//!
+//! A cloth's particles are a range of the shared particle buffers, its spring ends a range of
+//! the spring-end buffer, its surface a range of the surface buffer, and its constants one
+//! [`GpuBatchCloth`]; every index stored inside those ranges is relative to the cloth's own
+//! start, so a range can move without rewriting it. A tick is one `apply_anchors` dispatch,
+//! then for each substep RK4's three `node_update` stages and `node_update_final` (the last
+//! stage fused with the collision response), each one dispatch over every particle slot.
+//!
+//! Cloths that need different substep counts share the tick: the batch runs the largest count,
+//! and a cloth sits out the substeps past its own (each cloth keeps its own substep length, so
+//! its trajectory is the one it would have alone, and the CPU stepper's). A semi-implicit Euler
+//! cloth integrates in the third stage and lands in the last; its other stages skip it.
+//!
+//! Adding a cloth writes its ranges at the end of the used space. When that is full, the
+//! buffers are rebuilt, larger where needed and with the live cloths packed together: their
+//! state is copied on the GPU (a submitted copy, which the CPU never waits for) and their
+//! shapes uploaded again. Removing a cloth marks its particles as no cloth's; the space comes
+//! back at the next rebuild. Other cloths' state is never touched.
+
+use std::sync::Arc;
+
+use bvh_cloth_core::gpu_layout::{
+    GpuBatchCloth, GpuBatchFrame, GpuBatchStep, GpuBatchWriteback, GpuMeshWriteback, GpuParticle, NO_CLOTH,
+    gpu_particle_info, gpu_particles, gpu_surface_words,
+};
+use bvh_cloth_core::{ClothParams, ClothSim, ClothTopology, Vec3};
+use wgpu::{BindGroup, Buffer, BufferUsages, CommandEncoder, Device, Queue};
+
+use crate::colliders::GpuColliders;
+use crate::kernels::{ClothKernels, KernelError, WORKGROUP_SIZE, storage_binding_limit};
+
+/// A cloth in a [`ClothBatch`], valid until it is removed.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, PartialOrd, Ord)]
+pub struct ClothId(u32);
+
+/// Bytes between two dynamic-offset uniforms (the largest alignment wgpu allows a device to
+/// ask for).
+const UNIFORM_STRIDE: u64 = 256;
+
+/// Most substeps one tick may run ([`bvh_cloth_core::params::MAX_SUBSTEPS_PER_TICK`]).
+const MAX_SUBSTEPS: u32 = bvh_cloth_core::params::MAX_SUBSTEPS_PER_TICK;
+
+/// One cloth of the batch.
+#[derive(Debug)]
+struct Slot {
+    topology: Arc<ClothTopology>,
+    particle_start: u32,
+    ends_start: u32,
+    surface_start: u32,
+    constants: GpuBatchCloth,
+    /// Pinned particles: `apply_anchors` targets per tick at most.
+    pins: u32,
+    /// This frame's anchor targets per tick, particle indices relative to the cloth.
+    targets: Vec<Vec<(u32, Vec3)>>,
+    /// The cloth's state, waiting for the next rebuild or first upload.
+    pending_state: Option<Vec<GpuParticle>>,
+}
+
+impl Slot {
+    fn surface_len(&self) -> u32 {
+        surface_len(&self.topology)
+    }
+}
+
+fn surface_len(topology: &ClothTopology) -> u32 {
+    (topology.vertex_particle().len()
+        + topology.len()
+        + 1
+        + topology.triangle_list().len()
+        + 3 * topology.triangles().len()) as u32
+}
+
+/// The shared buffers, sized in elements.
+#[derive(Debug)]
+struct Buffers {
+    particles: u32,
+    ends: u32,
+    surface: u32,
+    cloths: u32,
+    base: Buffer,
+    stage_a: Buffer,
+    stage_b: Buffer,
+    slope_sum: Buffer,
+    info: Buffer,
+    spring_ends: Buffer,
+    surface_words: Buffer,
+    cloth_constants: Buffer,
+    writebacks: Buffer,
+}
+
+impl Buffers {
+    fn new(device: &Device, particles: u32, ends: u32, surface: u32, cloths: u32) -> Self {
+        let storage = |label: &str, bytes: u64| {
+            device.create_buffer(&wgpu::BufferDescriptor {
+                label: Some(label),
+                size: bytes.max(16),
+                usage: BufferUsages::STORAGE | BufferUsages::COPY_DST | BufferUsages::COPY_SRC,
+                mapped_at_creation: false,
+            })
+        };
+        let particle_bytes = u64::from(particles) * size_of::<GpuParticle>() as u64;
+        Self {
+            particles,
+            ends,
+            surface,
+            cloths,
+            base: storage("bvh_cloth_particles", particle_bytes),
+            stage_a: storage("bvh_cloth_stage_a", particle_bytes),
+            stage_b: storage("bvh_cloth_stage_b", particle_bytes),
+            slope_sum: storage("bvh_cloth_slope_sum", particle_bytes),
+            info: storage("bvh_cloth_particle_info", u64::from(particles) * 16),
+            spring_ends: storage("bvh_cloth_spring_ends", u64::from(ends) * 16),
+            surface_words: storage("bvh_cloth_surface", u64::from(surface) * 4),
+            cloth_constants: storage("bvh_cloth_cloths", u64::from(cloths) * size_of::<GpuBatchCloth>() as u64),
+            writebacks: device.create_buffer(&wgpu::BufferDescriptor {
+                label: Some("bvh_cloth_mesh_writebacks"),
+                size: u64::from(cloths.max(1)) * UNIFORM_STRIDE,
+                usage: BufferUsages::UNIFORM | BufferUsages::COPY_DST,
+                mapped_at_creation: false,
+            }),
+        }
+    }
+}
+
+/// This frame's anchor targets: tick `k`'s start at `k * stride` bytes.
+#[derive(Debug)]
+struct AnchorTargets {
+    buffer: Buffer,
+    stride: u64,
+    /// Ticks the buffer has room for, and targets per tick.
+    ticks: u32,
+    per_tick: u32,
+}
+
+/// Bind groups that stay valid until the buffers (or the colliders') are replaced.
+#[derive(Debug)]
+struct Groups {
+    /// The collider buffers they were made with.
+    colliders: (Buffer, Buffer),
+    /// The anchor buffer they were made with.
+    anchors: Option<Buffer>,
+    stages: [BindGroup; 3],
+    last: BindGroup,
+    apply_anchors: Option<BindGroup>,
+}
+
+/// Every cloth of a scene on the GPU; see the [module docs](self).
+#[derive(Debug)]
+pub struct ClothBatch {
+    slots: Vec<Option<Slot>>,
+    /// Used extents of the particle, spring-end and surface buffers.
+    used: (u32, u32, u32),
+    buffers: Buffers,
+    frame: Buffer,
+    steps: Buffer,
+    anchors: Option<AnchorTargets>,
+    groups: Option<Groups>,
+    /// Vertex buffers `normal_shader` wrote, with the bind group for each.
+    writeback_groups: Vec<(Buffer, BindGroup)>,
+    /// Workgroups of the integrator dispatches, and the batch's substeps per tick.
+    workgroups: (u32, u32),
+    substeps: u32,
+    /// Anchor targets per tick this frame.
+    anchor_count: u32,
+}
+
+impl ClothBatch {
+    /// An empty batch.
+    pub fn new(device: &Device, queue: &Queue) -> Self {
+        let frame = device.create_buffer(&wgpu::BufferDescriptor {
+            label: Some("bvh_cloth_frame"),
+            size: size_of::<GpuBatchFrame>() as u64,
+            usage: BufferUsages::UNIFORM | BufferUsages::COPY_DST,
+            mapped_at_creation: false,
+        });
+        let steps = device.create_buffer(&wgpu::BufferDescriptor {
+            label: Some("bvh_cloth_steps"),
+            size: u64::from(MAX_SUBSTEPS) * UNIFORM_STRIDE,
+            usage: BufferUsages::UNIFORM | BufferUsages::COPY_DST,
+            mapped_at_creation: false,
+        });
+        let mut bytes = vec![0u8; (u64::from(MAX_SUBSTEPS) * UNIFORM_STRIDE) as usize];
+        for k in 0..MAX_SUBSTEPS {
+            let step = GpuBatchStep { substep: k, _pad: [0; 3] };
+            let at = (u64::from(k) * UNIFORM_STRIDE) as usize;
+            bytes[at..at + size_of::<GpuBatchStep>()].copy_from_slice(bytemuck::bytes_of(&step));
+        }
+        queue.write_buffer(&steps, 0, &bytes);
+        Self {
+            slots: Vec::new(),
+            used: (0, 0, 0),
+            buffers: Buffers::new(device, 64, 64, 64, 4),
+            frame,
+            steps,
+            anchors: None,
+            groups: None,
+            writeback_groups: Vec::new(),
+            workgroups: (1, 1),
+            substeps: 0,
+            anchor_count: 0,
+        }
+    }
+
+    /// Adds `sim` (its shape, pins and current state) to the batch. It runs once
+    /// [`Self::set_params`] has given it its constants. Refused, leaving the batch as it was,
+    /// when the batch would outgrow the device.
+    pub fn insert(&mut self, device: &Device, queue: &Queue, sim: &ClothSim) -> Result<ClothId, KernelError> {
+        let topology = Arc::clone(sim.topology());
+        let (n, e, s) = (topology.len() as u32, topology.spring_ends().len() as u32, surface_len(&topology));
+        ClothKernels::workgroups(device, topology.vertex_particle().len() as u32)?;
+        ClothKernels::workgroups(device, self.used.0.saturating_add(n))?;
+        let slot = Slot {
+            topology,
+            particle_start: 0,
+            ends_start: 0,
+            surface_start: 0,
+            constants: GpuBatchCloth::default(),
+            pins: sim.pins().len() as u32,
+            targets: Vec::new(),
+            pending_state: Some(gpu_particles(sim)),
+        };
+        let index = match self.slots.iter().position(Option::is_none) {
+            Some(free) => free,
+            None => self.slots.len(),
+        };
+        let fits = self.used.0.checked_add(n).is_some_and(|p| p <= self.buffers.particles)
+            && self.used.1 + e <= self.buffers.ends
+            && self.used.2 + s <= self.buffers.surface
+            && (index as u32) < self.buffers.cloths;
+        if index == self.slots.len() {
+            self.slots.push(None);
+        }
+        self.slots[index] = Some(slot);
+        if fits {
+            let (p, e0, s0) = self.used;
+            self.place(queue, index, p, e0, s0);
+            self.used = (p + n, e0 + e, s0 + s);
+        } else if let Err(error) = self.rebuild(device, queue) {
+            self.slots[index] = None;
+            return Err(error);
+        }
+        self.refresh_workgroups(device)?;
+        Ok(ClothId(index as u32))
+    }
+
+    /// Writes slot `index`'s shape, constants and pending state at the given starts.
+    fn place(&mut self, queue: &Queue, index: usize, particle_start: u32, ends_start: u32, surface_start: u32) {
+        let Some(slot) = self.slots[index].as_mut() else { return };
+        slot.particle_start = particle_start;
+        slot.ends_start = ends_start;
+        slot.surface_start = surface_start;
+        slot.constants.particle_start = particle_start;
+        slot.constants.ends_start = ends_start;
+        let b = &self.buffers;
+        queue.write_buffer(
+            &b.info,
+            u64::from(particle_start) * 16,
+            bytemuck::cast_slice(&gpu_particle_info(&slot.topology, index as u32)),
+        );
+        queue.write_buffer(
+            &b.spring_ends,
+            u64::from(ends_start) * 16,
+            bytemuck::cast_slice(slot.topology.spring_ends()),
+        );
+        queue.write_buffer(
+            &b.surface_words,
+            u64::from(surface_start) * 4,
+            bytemuck::cast_slice(&gpu_surface_words(&slot.topology)),
+        );
+        queue.write_buffer(
+            &b.cloth_constants,
+            index as u64 * size_of::<GpuBatchCloth>() as u64,
+            &bytemuck::bytes_of(&slot.constants)[..GpuBatchCloth::HOST_BYTES as usize],
+        );
+        if let Some(state) = slot.pending_state.take() {
+            queue.write_buffer(
+                &b.base,
+                u64::from(particle_start) * size_of::<GpuParticle>() as u64,
+                bytemuck::cast_slice(&state),
+            );
+        }
+    }
+
+    /// New buffers with the live cloths packed from the start, each about twice what they
+    /// use; the live cloths' state copied over on the GPU. The fault counts start again from
+    /// zero.
+    fn rebuild(&mut self, device: &Device, queue: &Queue) -> Result<(), KernelError> {
+        let (n, e, s) = self.slots.iter().flatten().fold((0u64, 0u64, 0u64), |(n, e, s), slot| {
+            (
+                n + slot.topology.len() as u64,
+                e + slot.topology.spring_ends().len() as u64,
+                s + u64::from(slot.surface_len()),
+            )
+        });
+        let max = storage_binding_limit(device);
+        let particle_size = size_of::<GpuParticle>() as u64;
+        for (count, size) in [(n, particle_size), (e, 16), (s, 4)] {
+            if count * size > max {
+                return Err(KernelError::BufferTooLarge { bytes: count * size, max });
+            }
+        }
+        // Twice the need where that fits a binding, the need where only that does.
+        let room = |needed: u64, size: u64| {
+            u32::try_from((2 * needed).max(64).min(max / size).max(needed)).unwrap_or(u32::MAX)
+        };
+        let particles = room(n, particle_size);
+        let cloths = (self.slots.len() as u32).saturating_mul(2).max(4);
+        let old =
+            std::mem::replace(&mut self.buffers, Buffers::new(device, particles, room(e, 16), room(s, 4), cloths));
+        // Every particle slot is no cloth's until a cloth is placed on it.
+        queue.write_buffer(&self.buffers.info, 0, bytemuck::cast_slice(&vec![[NO_CLOTH; 4]; particles as usize]));
+        let mut encoder =
+            device.create_command_encoder(&wgpu::CommandEncoderDescriptor { label: Some("bvh_cloth_rebuild") });
+        let mut used = (0u32, 0u32, 0u32);
+        for index in 0..self.slots.len() {
+            let Some(slot) = self.slots[index].as_ref() else { continue };
+            let (len, ends, surface) =
+                (slot.topology.len() as u32, slot.topology.spring_ends().len() as u32, slot.surface_len());
+            if slot.pending_state.is_none() {
+                encoder.copy_buffer_to_buffer(
+                    &old.base,
+                    u64::from(slot.particle_start) * particle_size,
+                    &self.buffers.base,
+                    u64::from(used.0) * particle_size,
+                    u64::from(len) * particle_size,
+                );
+            }
+            self.place(queue, index, used.0, used.1, used.2);
+            used = (used.0 + len, used.1 + ends, used.2 + surface);
+        }
+        // The writes above run before this submit's copies, which touch only the ranges of
+        // cloths that had a state on the GPU (the writes fill the others').
+        queue.submit([encoder.finish()]);
+        self.used = used;
+        self.groups = None;
+        self.writeback_groups.clear();
+        Ok(())
+    }
+
+    fn refresh_workgroups(&mut self, device: &Device) -> Result<(), KernelError> {
+        self.workgroups = ClothKernels::workgroups(device, self.used.0)?;
+        Ok(())
+    }
+
+    /// Takes a cloth out of the batch. The other cloths are not touched; its space is reused
+    /// at the next rebuild (or at once when it was the last placed).
+    pub fn remove(&mut self, queue: &Queue, id: ClothId) {
+        let Some(slot) = self.slots.get_mut(id.0 as usize).and_then(Option::take) else { return };
+        let len = slot.topology.len() as u32;
+        queue.write_buffer(
+            &self.buffers.info,
+            u64::from(slot.particle_start) * 16,
+            bytemuck::cast_slice(&vec![[NO_CLOTH; 4]; len as usize]),
+        );
+        let inactive = GpuBatchCloth::default();
+        queue.write_buffer(
+            &self.buffers.cloth_constants,
+            u64::from(id.0) * size_of::<GpuBatchCloth>() as u64,
+            &bytemuck::bytes_of(&inactive)[..GpuBatchCloth::HOST_BYTES as usize],
+        );
+        if slot.particle_start + len == self.used.0
+            && slot.ends_start + slot.topology.spring_ends().len() as u32 == self.used.1
+            && slot.surface_start + slot.surface_len() == self.used.2
+        {
+            self.used = (slot.particle_start, slot.ends_start, slot.surface_start);
+        }
+        while matches!(self.slots.last(), Some(None)) {
+            self.slots.pop();
+        }
+    }
+
+    /// Whether `id` names a cloth of the batch.
+    pub fn contains(&self, id: ClothId) -> bool {
+        self.slot(id).is_some()
+    }
+
+    /// Number of cloths.
+    pub fn len(&self) -> usize {
+        self.slots.iter().flatten().count()
+    }
+
+    /// Whether the batch has no cloth.
+    pub fn is_empty(&self) -> bool {
+        self.len() == 0
+    }
+
+    fn slot(&self, id: ClothId) -> Option<&Slot> {
+        self.slots.get(id.0 as usize).and_then(Option::as_ref)
+    }
+
+    /// The shape `id` was added with.
+    pub fn topology(&self, id: ClothId) -> Option<&Arc<ClothTopology>> {
+        self.slot(id).map(|slot| &slot.topology)
+    }
+
+    /// Gives `id` its constants for ticks of `tick_seconds`: the substep count and length the
+    /// CPU stepper would use (stability guard included).
+    pub fn set_params(&mut self, queue: &Queue, id: ClothId, params: &ClothParams, tick_seconds: f32) {
+        let Some(slot) = self.slots.get_mut(id.0 as usize).and_then(Option::as_mut) else { return };
+        let substeps = params.substeps(tick_seconds, &slot.topology).min(MAX_SUBSTEPS);
+        let h = tick_seconds / substeps as f32;
+        slot.constants = GpuBatchCloth::new(params, &slot.topology, slot.particle_start, slot.ends_start, substeps, h);
+        queue.write_buffer(
+            &self.buffers.cloth_constants,
+            u64::from(id.0) * size_of::<GpuBatchCloth>() as u64,
+            &bytemuck::bytes_of(&slot.constants)[..GpuBatchCloth::HOST_BYTES as usize],
+        );
+    }
+
+    /// Substeps per tick `id` runs under its last parameters.
+    pub fn substeps(&self, id: ClothId) -> u32 {
+        self.slot(id).map_or(0, |slot| slot.constants.substeps)
+    }
+
+    /// Where `id`'s pinned particles go in each tick of the coming frame: `ticks[k]` holds tick
+    /// `k`'s `(index, world position)` pairs, indices into the cloth, at most one per pin (as
+    /// [`ClothSim::pin_targets`] gives them), applied at the start of that tick, as the CPU
+    /// stepper's [`ClothSim::move_pins`]. Pins, and ticks, without targets stay where they are.
+    pub fn set_anchor_targets(&mut self, id: ClothId, ticks: &[Vec<(u32, Vec3)>]) {
+        if let Some(slot) = self.slots.get_mut(id.0 as usize).and_then(Option::as_mut) {
+            slot.targets.clear();
+            slot.targets.extend(ticks.iter().map(|tick| tick.iter().copied().take(slot.pins as usize).collect()));
+        }
+    }
+
+    /// Replaces `id`'s GPU state with `sim`'s (a reset, or pins moved by the caller), and
+    /// clears its fault count.
+    pub fn upload_state(&self, queue: &Queue, id: ClothId, sim: &ClothSim) {
+        let Some(slot) = self.slot(id) else { return };
+        let particles = gpu_particles(sim);
+        let count = particles.len().min(slot.topology.len());
+        queue.write_buffer(
+            &self.buffers.base,
+            u64::from(slot.particle_start) * size_of::<GpuParticle>() as u64,
+            bytemuck::cast_slice(&particles[..count]),
+        );
+        queue.write_buffer(&self.buffers.cloth_constants, self.faults_offset(id), bytemuck::bytes_of(&0u32));
+    }
+
+    /// Uploads what the coming frame's ticks need: the frame constants, every cloth's anchor
+    /// targets, and the bind groups where buffers changed. Call it once per frame, after the
+    /// cloths' [`Self::set_params`] and [`Self::set_anchor_targets`] and before
+    /// [`Self::encode_ticks`].
+    pub fn prepare(&mut self, device: &Device, queue: &Queue, kernels: &ClothKernels, colliders: &GpuColliders) {
+        self.substeps = self.slots.iter().flatten().map(|slot| slot.constants.substeps).max().unwrap_or(0);
+        self.write_anchor_targets(device, queue);
+        let width = self.workgroups.0 * WORKGROUP_SIZE;
+        let frame = GpuBatchFrame {
+            particle_slots: self.used.0,
+            anchor_count: self.anchor_count,
+            collider_count: colliders.len(),
+            dispatch_width: width,
+        };
+        queue.write_buffer(&self.frame, 0, bytemuck::bytes_of(&frame));
+        let key = (colliders.frames.clone(), colliders.tree.clone());
+        let anchors = self.anchors.as_ref().map(|a| a.buffer.clone());
+        if self.groups.as_ref().is_none_or(|g| g.colliders != key || g.anchors != anchors) {
+            self.groups = Some(self.bind_groups(device, kernels, key, anchors));
+        }
+    }
+
+    fn write_anchor_targets(&mut self, device: &Device, queue: &Queue) {
+        let ticks = self.slots.iter().flatten().map(|slot| slot.targets.len()).max().unwrap_or(0) as u32;
+        let per_tick: u32 =
+            self.slots.iter().flatten().filter(|slot| !slot.targets.is_empty()).map(|slot| slot.pins).sum();
+        self.anchor_count = if ticks == 0 { 0 } else { per_tick };
+        if self.anchor_count == 0 {
+            return;
+        }
+        let align = u64::from(device.limits().min_storage_buffer_offset_alignment);
+        let stride = (u64::from(per_tick) * 16).div_ceil(align) * align;
+        if self.anchors.as_ref().is_none_or(|a| a.ticks < ticks || a.stride < stride) {
+            let capacity = ticks.max(4);
+            let buffer = device.create_buffer(&wgpu::BufferDescriptor {
+                label: Some("bvh_cloth_anchor_targets"),
+                size: stride * u64::from(capacity),
+                usage: BufferUsages::STORAGE | BufferUsages::COPY_DST,
+                mapped_at_creation: false,
+            });
+            self.anchors = Some(AnchorTargets { buffer, stride, ticks: capacity, per_tick });
+        }
+        let Some(anchors) = self.anchors.as_mut() else { return };
+        anchors.per_tick = per_tick;
+        // A pin without a target this tick keeps its slot, naming no particle.
+        let unused = [0.0, 0.0, 0.0, f32::from_bits(u32::MAX)];
+        let mut words: Vec<[f32; 4]> = vec![unused; (anchors.stride / 16 * u64::from(ticks)) as usize];
+        for k in 0..ticks as usize {
+            let mut at = k * (anchors.stride / 16) as usize;
+            for slot in self.slots.iter().flatten().filter(|slot| !slot.targets.is_empty()) {
+                if let Some(targets) = slot.targets.get(k) {
+                    for (j, &(i, p)) in targets.iter().enumerate() {
+                        words[at + j] = [p.x, p.y, p.z, f32::from_bits(slot.particle_start + i)];
+                    }
+                }
+                at += slot.pins as usize;
+            }
+        }
+        queue.write_buffer(&anchors.buffer, 0, bytemuck::cast_slice(&words));
+    }
+
+    fn bind_groups(
+        &self,
+        device: &Device,
+        kernels: &ClothKernels,
+        colliders: (Buffer, Buffer),
+        anchors: Option<Buffer>,
+    ) -> Groups {
+        let b = &self.buffers;
+        let step = wgpu::BindGroupEntry {
+            binding: 1,
+            resource: wgpu::BindingResource::Buffer(wgpu::BufferBinding {
+                buffer: &self.steps,
+                offset: 0,
+                size: wgpu::BufferSize::new(size_of::<GpuBatchStep>() as u64),
+            }),
+        };
+        let frame = wgpu::BindGroupEntry { binding: 0, resource: self.frame.as_entire_binding() };
+        let stage = |source: &Buffer, target: &Buffer| {
+            device.create_bind_group(&wgpu::BindGroupDescriptor {
+                label: Some("bvh_cloth_node_update"),
+                layout: &kernels.node_update_layout,
+                entries: &[
+                    frame.clone(),
+                    step.clone(),
+                    wgpu::BindGroupEntry { binding: 2, resource: b.base.as_entire_binding() },
+                    wgpu::BindGroupEntry { binding: 3, resource: source.as_entire_binding() },
+                    wgpu::BindGroupEntry { binding: 4, resource: b.slope_sum.as_entire_binding() },
+                    wgpu::BindGroupEntry { binding: 5, resource: target.as_entire_binding() },
+                    wgpu::BindGroupEntry { binding: 6, resource: b.info.as_entire_binding() },
+                    wgpu::BindGroupEntry { binding: 7, resource: b.spring_ends.as_entire_binding() },
+                    wgpu::BindGroupEntry { binding: 8, resource: b.cloth_constants.as_entire_binding() },
+                ],
+            })
+        };
+        // y -> a -> b -> a, then the last stage reads a and lands on y, as the CPU stepper.
+        let stages = [stage(&b.base, &b.stage_a), stage(&b.stage_a, &b.stage_b), stage(&b.stage_b, &b.stage_a)];
+        let last = device.create_bind_group(&wgpu::BindGroupDescriptor {
+            label: Some("bvh_cloth_node_update_final"),
+            layout: &kernels.final_layout,
+            entries: &[
+                frame.clone(),
+                step.clone(),
+                wgpu::BindGroupEntry { binding: 9, resource: b.base.as_entire_binding() },
+                wgpu::BindGroupEntry { binding: 10, resource: b.slope_sum.as_entire_binding() },
+                wgpu::BindGroupEntry { binding: 11, resource: colliders.0.as_entire_binding() },
+                wgpu::BindGroupEntry { binding: 12, resource: colliders.1.as_entire_binding() },
+                wgpu::BindGroupEntry { binding: 19, resource: b.stage_a.as_entire_binding() },
+                wgpu::BindGroupEntry { binding: 20, resource: b.info.as_entire_binding() },
+                wgpu::BindGroupEntry { binding: 21, resource: b.spring_ends.as_entire_binding() },
+                wgpu::BindGroupEntry { binding: 22, resource: b.cloth_constants.as_entire_binding() },
+            ],
+        });
+        let apply_anchors = self.anchors.as_ref().map(|anchors| {
+            device.create_bind_group(&wgpu::BindGroupDescriptor {
+                label: Some("bvh_cloth_anchors"),
+                layout: &kernels.anchors_layout,
+                entries: &[
+                    frame.clone(),
+                    wgpu::BindGroupEntry { binding: 13, resource: b.base.as_entire_binding() },
+                    wgpu::BindGroupEntry {
+                        binding: 14,
+                        resource: wgpu::BindingResource::Buffer(wgpu::BufferBinding {
+                            buffer: &anchors.buffer,
+                            offset: 0,
+                            size: wgpu::BufferSize::new(anchors.stride),
+                        }),
+                    },
+                ],
+            })
+        });
+        Groups { colliders, anchors, stages, last, apply_anchors }
+    }
+
+    /// Records `ticks` ticks of every cloth: per tick the anchors, then per substep the
+    /// integrator stages, the last fused with the collision response. Needs
+    /// [`Self::prepare`] this frame.
+    pub fn encode_ticks(&self, encoder: &mut CommandEncoder, kernels: &ClothKernels, ticks: u32) {
+        let Some(groups) = &self.groups else { return };
+        if ticks == 0 || self.used.0 == 0 || self.substeps == 0 {
+            return;
+        }
+        let (x, y) = self.workgroups;
+        let mut pass = encoder
+            .begin_compute_pass(&wgpu::ComputePassDescriptor { label: Some("bvh_cloth_step"), timestamp_writes: None });
+        let written = self
+            .anchors
+            .as_ref()
+            .map_or(0, |_| self.slots.iter().flatten().map(|s| s.targets.len()).max().unwrap_or(0) as u32);
+        for tick in 0..ticks {
+            if let (Some(group), Some(anchors)) = (&groups.apply_anchors, &self.anchors)
+                && tick < written
+                && self.anchor_count > 0
+            {
+                pass.set_pipeline(&kernels.anchors);
+                pass.set_bind_group(0, group, &[(u64::from(tick) * anchors.stride) as u32]);
+                // As wide as every other dispatch, since threads find their index by that width.
+                let rows = self.anchor_count.div_ceil(x * WORKGROUP_SIZE * WORKGROUP_SIZE);
+                pass.dispatch_workgroups(x, rows, 1);
+            }
+            for k in 0..self.substeps {
+                let offset = [(u64::from(k) * UNIFORM_STRIDE) as u32];
+                for (stage, group) in groups.stages.iter().enumerate() {
+                    pass.set_pipeline(&kernels.node_update[stage]);
+                    pass.set_bind_group(0, group, &offset);
+                    pass.dispatch_workgroups(x, y, 1);
+                }
+                pass.set_pipeline(&kernels.node_update_final);
+                pass.set_bind_group(0, &groups.last, &offset);
+                pass.dispatch_workgroups(x, y, 1);
+            }
+        }
+    }
+
+    /// Sets where [`Self::encode_writeback`] writes `id`: into `vertices` (a storage buffer of
+    /// `f32` words, such as a mesh's vertex slab), laid out by `mesh`. Bind groups are kept per
+    /// vertex buffer, shared by the cloths written there.
+    pub fn set_writeback(
+        &mut self,
+        device: &Device,
+        queue: &Queue,
+        kernels: &ClothKernels,
+        id: ClothId,
+        mesh: GpuMeshWriteback,
+        vertices: &Buffer,
+    ) {
+        let Some(slot) = self.slot(id) else { return };
+        let count = slot.topology.vertex_particle().len() as u32;
+        let Ok((x, _)) = ClothKernels::workgroups(device, count) else { return };
+        let writeback = GpuBatchWriteback {
+            mesh,
+            particle_start: slot.particle_start,
+            surface_start: slot.surface_start,
+            vertex_count: count,
+            particle_count: slot.topology.len() as u32,
+            dispatch_width: x * WORKGROUP_SIZE,
+            _pad: [0; 3],
+        };
+        queue.write_buffer(&self.buffers.writebacks, u64::from(id.0) * UNIFORM_STRIDE, bytemuck::bytes_of(&writeback));
+        if self.writeback_groups.iter().any(|(buffer, _)| buffer == vertices) {
+            return;
+        }
+        let b = &self.buffers;
+        let group = device.create_bind_group(&wgpu::BindGroupDescriptor {
+            label: Some("bvh_cloth_normal_shader"),
+            layout: &kernels.normal_layout,
+            entries: &[
+                wgpu::BindGroupEntry {
+                    binding: 15,
+                    resource: wgpu::BindingResource::Buffer(wgpu::BufferBinding {
+                        buffer: &b.writebacks,
+                        offset: 0,
+                        size: wgpu::BufferSize::new(size_of::<GpuBatchWriteback>() as u64),
+                    }),
+                },
+                wgpu::BindGroupEntry { binding: 16, resource: b.base.as_entire_binding() },
+                wgpu::BindGroupEntry { binding: 17, resource: b.surface_words.as_entire_binding() },
+                wgpu::BindGroupEntry { binding: 18, resource: vertices.as_entire_binding() },
+            ],
+        });
+        self.writeback_groups.push((vertices.clone(), group));
+    }
+
+    /// Records `normal_shader` for `id`, into the vertex buffer its last
+    /// [`Self::set_writeback`] named: its positions and normals, once per frame.
+    pub fn encode_writeback(
+        &self,
+        device: &Device,
+        encoder: &mut CommandEncoder,
+        kernels: &ClothKernels,
+        id: ClothId,
+        vertices: &Buffer,
+    ) {
+        let Some(slot) = self.slot(id) else { return };
+        let Ok((x, y)) = ClothKernels::workgroups(device, slot.topology.vertex_particle().len() as u32) else { return };
+        let Some((_, group)) = self.writeback_groups.iter().find(|(buffer, _)| buffer == vertices) else { return };
+        let mut pass = encoder.begin_compute_pass(&wgpu::ComputePassDescriptor {
+            label: Some("bvh_cloth_writeback"),
+            timestamp_writes: None,
+        });
+        pass.set_pipeline(&kernels.normal);
+        pass.set_bind_group(0, group, &[(u64::from(id.0) * UNIFORM_STRIDE) as u32]);
+        pass.dispatch_workgroups(x, y, 1);
+    }
+
+    /// Forgets the bind group of a vertex buffer that is gone (a mesh slab that was freed).
+    pub fn forget_vertex_buffers(&mut self, keep: impl Fn(&Buffer) -> bool) {
+        self.writeback_groups.retain(|(buffer, _)| keep(buffer));
+    }
+
+    /// The particle buffer (`GpuParticle`s, `COPY_SRC`) and where `id`'s particles lie in it,
+    /// in bytes: `(offset, size)`.
+    pub fn particles(&self, id: ClothId) -> Option<(&Buffer, u64, u64)> {
+        let slot = self.slot(id)?;
+        let size = size_of::<GpuParticle>() as u64;
+        Some((&self.buffers.base, u64::from(slot.particle_start) * size, slot.topology.len() as u64 * size))
+    }
+
+    /// The buffer holding every cloth's count of quarantined particles (`COPY_SRC | COPY_DST`),
+    /// and the byte offset of `id`'s: one `u32`, one per particle and substep whose new state
+    /// was not finite, since it was last cleared.
+    pub fn faults(&self, id: ClothId) -> Option<(&Buffer, u64)> {
+        self.slot(id)?;
+        Some((&self.buffers.cloth_constants, self.faults_offset(id)))
+    }
+
+    fn faults_offset(&self, id: ClothId) -> u64 {
+        u64::from(id.0) * size_of::<GpuBatchCloth>() as u64 + GpuBatchCloth::HOST_BYTES
+    }
+}

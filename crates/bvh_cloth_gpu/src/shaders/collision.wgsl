@@ -1,0 +1,292 @@
+// CollisionDetectionWithBVH: stack traversal (Algorithm 2) and the response of section 2.4.4,
+// as a function the final integrator stage calls for each free particle.
+
+#define_import_path bvh_cloth::collision
+#import bvh_cloth::types
+
+@group(0) @binding(11) var<storage, read> colliders: array<GpuCollider>;
+// Every collider's tree: the nodes (bvh_cloth_core::BvhNode, two vec4 each: the box's minimum
+// and left child, its maximum and right child, children as bits; references with LEAF_BIT set
+// name spheres), then the spheres (xyz centre, w radius). GpuCollider::node_offset counts
+// nodes, GpuCollider::sphere_offset vec4s.
+@group(0) @binding(12) var<storage, read> tree: array<vec4<f32>>;
+
+struct BvhNode {
+    aabb_min: vec3<f32>,
+    left: u32,
+    aabb_max: vec3<f32>,
+    right: u32,
+}
+
+fn tree_node(col: GpuCollider, index: u32) -> BvhNode {
+    let at = 2u * (col.node_offset + index);
+    let lo = tree[at];
+    let hi = tree[at + 1u];
+    return BvhNode(lo.xyz, bitcast<u32>(lo.w), hi.xyz, bitcast<u32>(hi.w));
+}
+
+fn sphere_contains(sphere: vec4<f32>, p: vec3<f32>, margin: f32) -> bool {
+    let r = sphere.w + margin;
+    let shrunk = r * (1.0 - SURFACE_TOLERANCE);
+    let d = p - sphere.xyz;
+    return dot(d, d) < shrunk * shrunk;
+}
+
+// The exact test a query makes on each sphere whose box it reaches (bvh_cloth_core::collision):
+// QUERY_CONTACTS gathers the contacts at the previous position, QUERY_SWEEP finds the first
+// sphere the path enters, QUERY_INSIDE whether a point is inside any sphere, QUERY_DEEPEST the
+// sphere a point is deepest in.
+const QUERY_CONTACTS: u32 = 0u;
+const QUERY_SWEEP: u32 = 1u;
+const QUERY_INSIDE: u32 = 2u;
+const QUERY_DEEPEST: u32 = 3u;
+
+// One query's input and what it found. `end_point` is the path's end (held by contacts);
+// `found` is 0 when nothing was found; `value` the entry parameter or the depth; `sphere` the
+// sphere found; `touched`/`inside` what the contact query saw; `velocity` has each contact's
+// normal part removed as it is found.
+struct Query {
+    kind: u32,
+    prev: vec3<f32>,
+    end_point: vec3<f32>,
+    found: u32,
+    value: f32,
+    sphere: vec4<f32>,
+    touched: bool,
+    inside: bool,
+    velocity: vec3<f32>,
+}
+
+fn entry_parameter(prev: vec3<f32>, p: vec3<f32>, c: vec3<f32>, r: f32) -> f32 {
+    let d = p - prev;
+    let f = prev - c;
+    let a = dot(d, d);
+    let b = dot(f, d);
+    let k = dot(f, f) - r * r;
+    let disc = max(b * b - a * k, 0.0);
+    return clamp((-b - sqrt(disc)) / a, 0.0, 1.0);
+}
+
+fn segment_enters(sphere: vec4<f32>, prev: vec3<f32>, p: vec3<f32>, margin: f32) -> bool {
+    if (sphere_contains(sphere, p, margin)) {
+        return true;
+    }
+    let d = p - prev;
+    let a = dot(d, d);
+    if (a == 0.0) {
+        return false;
+    }
+    let t = clamp(dot(sphere.xyz - prev, d) / a, 0.0, 1.0);
+    return sphere_contains(sphere, prev + t * d, margin);
+}
+
+fn outward_normal(p: vec3<f32>, prev: vec3<f32>, c: vec3<f32>) -> vec3<f32> {
+    let a = p - c;
+    if (dot(a, a) > 0.0) {
+        return normalize(a);
+    }
+    let b = prev - c;
+    if (dot(b, b) > 0.0) {
+        return normalize(b);
+    }
+    return vec3<f32>(0.0, 1.0, 0.0);
+}
+
+fn consider(q: ptr<function, Query>, col: GpuCollider, sphere: vec4<f32>) {
+    let margin = col.margin_local;
+    let c = sphere.xyz;
+    let r = sphere.w + margin;
+    switch (*q).kind {
+        case QUERY_CONTACTS: {
+            let band = r * (1.0 + CONTACT_BAND);
+            let f = (*q).prev - c;
+            if (dot(f, f) >= band * band) {
+                return;
+            }
+            if (sphere_contains(sphere, (*q).prev, margin)) {
+                (*q).inside = true;
+                return;
+            }
+            let n = outward_normal((*q).prev, (*q).prev, c);
+            let below = dot((*q).end_point - (c + n * r), n);
+            if (below < 0.0) {
+                (*q).end_point = (*q).end_point - below * n;
+                (*q).touched = true;
+                (*q).velocity = contact_velocity((*q).velocity, rotate(col.rotation, n), col.friction);
+            }
+        }
+        case QUERY_SWEEP: {
+            if (segment_enters(sphere, (*q).prev, (*q).end_point, margin)) {
+                let t = entry_parameter((*q).prev, (*q).end_point, c, r);
+                if ((*q).found == 0u || t < (*q).value) {
+                    (*q).found = 1u;
+                    (*q).value = t;
+                    (*q).sphere = sphere;
+                }
+            }
+        }
+        case QUERY_INSIDE: {
+            if (sphere_contains(sphere, (*q).end_point, margin)) {
+                (*q).found = 1u;
+            }
+        }
+        default: {
+            if (sphere_contains(sphere, (*q).end_point, margin)) {
+                let depth = r - distance((*q).end_point, c);
+                if ((*q).found == 0u || depth > (*q).value) {
+                    (*q).found = 1u;
+                    (*q).value = depth;
+                    (*q).sphere = sphere;
+                }
+            }
+        }
+    }
+}
+
+fn boxes_overlap(node_min: vec3<f32>, node_max: vec3<f32>, lo: vec3<f32>, hi: vec3<f32>, margin: f32) -> bool {
+    return all(hi >= node_min - margin) && all(lo <= node_max + margin);
+}
+
+fn sphere_box_overlaps(sphere: vec4<f32>, lo: vec3<f32>, hi: vec3<f32>, margin: f32) -> bool {
+    let r = sphere.w + margin;
+    return all(hi >= sphere.xyz - r) && all(lo <= sphere.xyz + r);
+}
+
+// Runs query `q` on every sphere whose box (grown by the margin) overlaps [lo, hi], in the CPU's
+// depth-first order (bvh_cloth_core::Lbvh::for_each_overlapping: right child pushed first, so
+// the left subtree is visited first).
+fn run_query(q: ptr<function, Query>, col: GpuCollider, lo: vec3<f32>, hi: vec3<f32>) {
+    let margin = col.margin_local;
+    if (col.node_count == 0u) {
+        let s = tree[col.sphere_offset];
+        if (sphere_box_overlaps(s, lo, hi, margin)) {
+            consider(q, col, s);
+        }
+        return;
+    }
+    let root = tree_node(col, 0u);
+    if (!boxes_overlap(root.aabb_min, root.aabb_max, lo, hi, margin)) {
+        return;
+    }
+    var stack: array<u32, STACK_SIZE>;
+    var top = 1u;
+    stack[0] = 0u;
+    while (top > 0u) {
+        top -= 1u;
+        let node = tree_node(col, stack[top]);
+        var children = array<u32, 2>(node.right, node.left);
+        for (var k = 0; k < 2; k++) {
+            let child = children[k];
+            if ((child & LEAF_BIT) != 0u) {
+                let s = tree[col.sphere_offset + (child & ~LEAF_BIT)];
+                if (sphere_box_overlaps(s, lo, hi, margin)) {
+                    consider(q, col, s);
+                }
+            } else if (top < STACK_SIZE) {
+                let inner = tree_node(col, child);
+                if (boxes_overlap(inner.aabb_min, inner.aabb_max, lo, hi, margin)) {
+                    stack[top] = child;
+                    top += 1u;
+                }
+            }
+        }
+    }
+}
+
+fn point_query(kind: u32, col: GpuCollider, prev: vec3<f32>, p: vec3<f32>) -> Query {
+    var q = Query(kind, prev, p, 0u, 0.0, vec4<f32>(0.0), false, false, vec3<f32>(0.0));
+    run_query(&q, col, p, p);
+    return q;
+}
+
+// The result of the response against one collider (bvh_cloth_core::collision::Response):
+// kind 0 free, 1 moved to `position` (local), 2 stay at the previous position.
+struct Response {
+    kind: u32,
+    position: vec3<f32>,
+    velocity: vec3<f32>,
+}
+
+fn respond(col: GpuCollider, prev: vec3<f32>, p: vec3<f32>, velocity: vec3<f32>) -> Response {
+    // 1. Contacts at the previous position.
+    let reach = vec3<f32>(col.contact_reach);
+    var q = Query(QUERY_CONTACTS, prev, p, 0u, 0.0, vec4<f32>(0.0), false, false, velocity);
+    run_query(&q, col, prev - reach, prev + reach);
+    if (q.inside) {
+        return push_out(col, prev, p, q.velocity);
+    }
+    // 2. Sweep.
+    let end_point = q.end_point;
+    var v = q.velocity;
+    var sweep = Query(QUERY_SWEEP, prev, end_point, 0u, 0.0, vec4<f32>(0.0), false, false, v);
+    run_query(&sweep, col, min(prev, end_point), max(prev, end_point));
+    if (sweep.found == 0u) {
+        return Response(select(0u, 1u, q.touched), end_point, v);
+    }
+    let c = sweep.sphere.xyz;
+    let normal = outward_normal(mix(prev, end_point, sweep.value), prev, c);
+    let entry = c + normal * (sweep.sphere.w + col.margin_local);
+    v = contact_velocity(v, rotate(col.rotation, normal), col.friction);
+    // 3. Guard.
+    if (point_query(QUERY_INSIDE, col, prev, entry).found != 0u) {
+        return Response(2u, entry, v);
+    }
+    return Response(1u, entry, v);
+}
+
+fn push_out(col: GpuCollider, prev: vec3<f32>, start: vec3<f32>, velocity: vec3<f32>) -> Response {
+    var p = start;
+    var v = velocity;
+    var moved = false;
+    for (var round = 0u; round < MAX_PASSES; round++) {
+        let deepest = point_query(QUERY_DEEPEST, col, prev, p);
+        if (deepest.found == 0u) {
+            break;
+        }
+        let c = deepest.sphere.xyz;
+        let normal = outward_normal(p, prev, c);
+        p = c + normal * (deepest.sphere.w + col.margin_local);
+        moved = true;
+        v = contact_velocity(v, rotate(col.rotation, normal), col.friction);
+    }
+    return Response(select(0u, 1u, moved), p, v);
+}
+
+fn rotate(q: vec4<f32>, v: vec3<f32>) -> vec3<f32> {
+    let t = 2.0 * cross(q.xyz, v);
+    return v + q.w * t + cross(q.xyz, t);
+}
+
+fn contact_velocity(velocity: vec3<f32>, n: vec3<f32>, friction: f32) -> vec3<f32> {
+    let vn = dot(velocity, n);
+    let tangential = velocity - vn * n;
+    if (vn >= 0.0 || friction == 0.0) {
+        return tangential;
+    }
+    let speed = length(tangential);
+    let slowdown = friction * -vn;
+    if (speed > slowdown) {
+        return tangential * (1.0 - slowdown / speed);
+    }
+    return vec3<f32>(0.0);
+}
+
+// The response of a free particle that moved from `prev_world` to `moved` in this substep,
+// against every collider in turn.
+fn collide(prev_world: vec3<f32>, moved: GpuParticle) -> GpuParticle {
+    var position = moved.position.xyz;
+    var velocity = moved.velocity.xyz;
+    for (var c = 0u; c < frame.collider_count; c++) {
+        let col = colliders[c];
+        let prev = (col.local_from_world * vec4(prev_world, 1.0)).xyz;
+        let p = (col.local_from_world * vec4(position, 1.0)).xyz;
+        let response = respond(col, prev, p, velocity);
+        velocity = response.velocity;
+        if (response.kind == 1u) {
+            position = (col.world_from_local * vec4(response.position, 1.0)).xyz;
+        } else if (response.kind == 2u) {
+            position = prev_world;
+        }
+    }
+    return GpuParticle(vec4(position, moved.position.w), vec4(velocity, 0.0));
+}
