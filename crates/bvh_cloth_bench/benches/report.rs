@@ -7,13 +7,14 @@
 //! 3. Collider fidelity: cloths resting on the spheres, measured against the true mesh.
 //! 4. Scaling: step time against cloth size; the cost of any topology (an authored mesh against
 //!    the grid at the same particle count); collider build time against n.
-//! 5. Many cloths: one GPU batch against a batch per cloth, 1 to 512 cloths.
+//! 5. The GPU profile: GPU ms per tick by kernel (timestamp queries), and many cloths: one
+//!    GPU batch against a batch per cloth, 1 to 512 cloths.
 //! 6. Precision far from the origin: how far from it a stiff cloth still steps finitely.
 //!
 //! `WGPU_BACKEND=vulkan cargo bench -p bvh_cloth_bench --bench report`
 //! (without a GPU adapter the GPU columns say so and the rest still runs). Append `-- NAME` to
 //! run only the sections whose name contains NAME: `table_vii`, `queries`, `fidelity`,
-//! `step_scaling`, `topology`, `many_cloths`, `build_scaling`, `far_from_origin`.
+//! `step_scaling`, `topology`, `gpu_profile`, `many_cloths`, `build_scaling`, `far_from_origin`.
 
 use std::fmt::Write as _;
 use std::sync::Arc;
@@ -27,7 +28,7 @@ use bvh_cloth_core::obj::ObjMesh;
 use bvh_cloth_core::{
     Affine3A, ClothGrid, ClothParams, ClothSim, ClothTopology, Collider, Integrator, UVec2, Vec2, Vec3,
 };
-use bvh_cloth_gpu::{ClothBatch, ClothKernels, GpuColliders, headless, wgpu};
+use bvh_cloth_gpu::{ClothBatch, ClothKernels, GpuColliders, Kernel, headless, wgpu};
 use parry3d::math::Vector;
 use parry3d::query::{PointQuery, Ray, RayCast};
 use parry3d::shape::{TriMesh, TriMeshFlags};
@@ -85,6 +86,9 @@ fn main() {
     }
     if run("topology") {
         topology(gpu.as_ref(), &single, threads);
+    }
+    if run("gpu_profile") {
+        gpu_profile(&meshes, gpu.as_ref());
     }
     if run("many_cloths") {
         many_cloths(gpu.as_ref());
@@ -180,6 +184,117 @@ fn gpu_cloths_frame_ms(
     };
     frame(if gpu.software { 10 } else { 60 });
     median((0..samples).map(|_| frame(ticks)).collect())
+}
+
+/// GPU time per 60 Hz tick by kernel, from timestamp queries written around each dispatch
+/// (each in a compute pass of its own), median of 9 ticks after a second of falling; where the
+/// adapter has no timestamp queries, the wall time around a blocking submit, marked as such.
+fn gpu_profile(meshes: &[ObjMesh], gpu: Option<&Gpu>) {
+    println!("\n## GPU profile: ms per 60 Hz tick by kernel, RK4 Looper 16, at n = 5\n");
+    let Some(gpu) = gpu else {
+        println!("No GPU adapter: skipped.");
+        return;
+    };
+    let timed = gpu.device.features().contains(wgpu::Features::TIMESTAMP_QUERY);
+    let many = if gpu.software { 8 } else { 128 };
+    let scenes: Vec<(String, Collider, Vec<ClothSim>)> = MODELS
+        .iter()
+        .zip(meshes)
+        .map(|(name, mesh)| {
+            let c = collider(mesh, 5);
+            let cloth = cloth_above(&c, 64, Integrator::Rk4);
+            (format!("one 64x64 on the {name}"), c, vec![cloth])
+        })
+        .chain(std::iter::once({
+            let c = collider(&meshes[0], 5);
+            let cloths = (0..many)
+                .map(|k| {
+                    let mut sim = cloth_above(&c, 32, Integrator::Rk4);
+                    sim.reset(Affine3A::from_translation(Vec3::new(-0.2, 1.3 + 0.05 * k as f32, 0.0)));
+                    sim
+                })
+                .collect();
+            (format!("{many} of 32x32 on the bunny"), c, cloths)
+        }))
+        .collect();
+    if !timed {
+        println!("The adapter has no timestamp queries: wall time around a blocking submit, all kernels together.\n");
+        println!("| scene | particles | tick ms (wall) |");
+        println!("|---|---|---|");
+        for (name, c, cloths) in &scenes {
+            let ms = gpu_cloths_frame_ms(gpu, std::slice::from_ref(c), cloths, true, 1, 9);
+            println!("| {name} | {} | {ms:.3} |", cloths.iter().map(ClothSim::len).sum::<usize>());
+        }
+        return;
+    }
+    println!(
+        "| scene | particles | apply_anchors | node_update (stages 1-3) | node_update_final (stage 4 + collision) | tick ms (GPU) |"
+    );
+    println!("|---|---|---|---|---|---|");
+    for (name, c, cloths) in &scenes {
+        let colliders = GpuColliders::new(&gpu.device, std::slice::from_ref(c));
+        let mut batch = ClothBatch::new(&gpu.device, &gpu.queue);
+        for cloth in cloths {
+            let id = batch.insert(&gpu.device, &gpu.queue, cloth).expect("the cloth fits the device");
+            batch.set_params(&gpu.queue, id, cloth.params(), TICK);
+        }
+        batch.prepare(&gpu.device, &gpu.queue, &gpu.kernels, &colliders);
+        let mut encoder = gpu.device.create_command_encoder(&Default::default());
+        batch.encode_ticks(&mut encoder, &gpu.kernels, if gpu.software { 10 } else { 60 });
+        gpu.queue.submit([encoder.finish()]);
+        headless::wait(&gpu.device);
+        let capacity = 2 * (1 + 4 * 256);
+        let queries = gpu.device.create_query_set(&wgpu::QuerySetDescriptor {
+            label: Some("bvh_cloth_profile"),
+            ty: wgpu::QueryType::Timestamp,
+            count: capacity,
+        });
+        let resolved = gpu.device.create_buffer(&wgpu::BufferDescriptor {
+            label: Some("bvh_cloth_profile_resolved"),
+            size: u64::from(capacity) * 8,
+            usage: wgpu::BufferUsages::QUERY_RESOLVE | wgpu::BufferUsages::COPY_SRC,
+            mapped_at_creation: false,
+        });
+        let period_ns = f64::from(gpu.queue.get_timestamp_period());
+        let mut samples: Vec<[f64; 3]> = Vec::new();
+        for _ in 0..9 {
+            let mut encoder = gpu.device.create_command_encoder(&Default::default());
+            let Some(kernels) = batch.encode_ticks_timed(&mut encoder, &gpu.kernels, 1, &queries, capacity) else {
+                println!("| {name} | too many dispatches to time |");
+                break;
+            };
+            let used = 2 * kernels.len() as u32;
+            encoder.resolve_query_set(&queries, 0..used, &resolved, 0);
+            gpu.queue.submit([encoder.finish()]);
+            let stamps: Vec<u64> = headless::read(&gpu.device, &gpu.queue, &resolved);
+            let mut ms = [0.0f64; 3];
+            for (k, kernel) in kernels.iter().enumerate() {
+                let span = stamps[2 * k + 1].saturating_sub(stamps[2 * k]) as f64 * period_ns * 1e-6;
+                ms[match kernel {
+                    Kernel::ApplyAnchors => 0,
+                    Kernel::NodeUpdate => 1,
+                    Kernel::NodeUpdateFinal => 2,
+                }] += span;
+            }
+            samples.push(ms);
+        }
+        if samples.is_empty() {
+            continue;
+        }
+        let column = |k: usize| median(samples.iter().map(|s| s[k]).collect());
+        let total = median(samples.iter().map(|s| s.iter().sum()).collect());
+        println!(
+            "| {name} | {} | {:.3} | {:.3} | {:.3} | {total:.3} |",
+            cloths.iter().map(ClothSim::len).sum::<usize>(),
+            column(0),
+            column(1),
+            column(2)
+        );
+    }
+    println!("\nEach dispatch is timed in a compute pass of its own; a tick without profiling is one pass.");
+    if gpu.software {
+        println!("The GPU here is a software adapter on the same CPU cores: its times are not GPU figures.");
+    }
 }
 
 /// Many cloths at once: ms per 60 Hz tick for 1 to 512 cloths of 16 x 16, 32 x 32 and 64 x 64

@@ -31,6 +31,17 @@ use wgpu::{BindGroup, Buffer, BufferUsages, CommandEncoder, Device, Queue};
 use crate::colliders::GpuColliders;
 use crate::kernels::{ClothKernels, KernelError, WORKGROUP_SIZE, storage_binding_limit};
 
+/// The kernel a dispatch runs, as [`ClothBatch::encode_ticks_timed`] reports it.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, PartialOrd, Ord)]
+pub enum Kernel {
+    /// `apply_anchors`: the pins moved at the start of a tick.
+    ApplyAnchors,
+    /// `node_update`: one of RK4's first three stages (semi-implicit Euler in the third).
+    NodeUpdate,
+    /// `node_update_final`: the last stage, with the collision response.
+    NodeUpdateFinal,
+}
+
 /// A cloth in a [`ClothBatch`], valid until it is removed.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, PartialOrd, Ord)]
 pub struct ClothId(u32);
@@ -574,41 +585,90 @@ impl ClothBatch {
     }
 
     /// Records `ticks` ticks of every cloth: per tick the anchors, then per substep the
-    /// integrator stages, the last fused with the collision response. Needs
-    /// [`Self::prepare`] this frame.
+    /// integrator stages, the last fused with the collision response, all in one compute pass.
+    /// Needs [`Self::prepare`] this frame.
     pub fn encode_ticks(&self, encoder: &mut CommandEncoder, kernels: &ClothKernels, ticks: u32) {
+        let mut pass = encoder
+            .begin_compute_pass(&wgpu::ComputePassDescriptor { label: Some("bvh_cloth_step"), timestamp_writes: None });
+        self.dispatch_ticks(kernels, ticks, |_, run| run(&mut pass));
+    }
+
+    /// As [`Self::encode_ticks`], with each dispatch in a compute pass of its own whose start
+    /// and end are written to `queries` (entries `2k` and `2k + 1` for the `k`th pass): GPU time
+    /// per kernel, for profiling on a device with [`wgpu::Features::TIMESTAMP_QUERY`]. Returns
+    /// the kernel of each pass in order, or `None` (and records nothing) when `queries` has
+    /// fewer than `capacity` entries than that needs.
+    pub fn encode_ticks_timed(
+        &self,
+        encoder: &mut CommandEncoder,
+        kernels: &ClothKernels,
+        ticks: u32,
+        queries: &wgpu::QuerySet,
+        capacity: u32,
+    ) -> Option<Vec<Kernel>> {
+        let mut passes = Vec::new();
+        self.dispatch_ticks(kernels, ticks, |kernel, _| passes.push(kernel));
+        if 2 * passes.len() as u64 > u64::from(capacity) {
+            return None;
+        }
+        let mut k = 0u32;
+        self.dispatch_ticks(kernels, ticks, |_, run| {
+            let mut pass = encoder.begin_compute_pass(&wgpu::ComputePassDescriptor {
+                label: Some("bvh_cloth_timed"),
+                timestamp_writes: Some(wgpu::ComputePassTimestampWrites {
+                    query_set: queries,
+                    beginning_of_pass_write_index: Some(2 * k),
+                    end_of_pass_write_index: Some(2 * k + 1),
+                }),
+            });
+            run(&mut pass);
+            k += 1;
+        });
+        Some(passes)
+    }
+
+    /// Calls `each` once per dispatch of `ticks` ticks, in order, with the kernel and a function
+    /// that records the dispatch into a pass.
+    fn dispatch_ticks(
+        &self,
+        kernels: &ClothKernels,
+        ticks: u32,
+        mut each: impl FnMut(Kernel, &dyn Fn(&mut wgpu::ComputePass<'_>)),
+    ) {
         let Some(groups) = &self.groups else { return };
         if ticks == 0 || self.used.0 == 0 || self.substeps == 0 {
             return;
         }
         let (x, y) = self.workgroups;
-        let mut pass = encoder
-            .begin_compute_pass(&wgpu::ComputePassDescriptor { label: Some("bvh_cloth_step"), timestamp_writes: None });
-        let written = self
-            .anchors
-            .as_ref()
-            .map_or(0, |_| self.slots.iter().flatten().map(|s| s.targets.len()).max().unwrap_or(0) as u32);
+        let written = self.slots.iter().flatten().map(|s| s.targets.len()).max().unwrap_or(0) as u32;
         for tick in 0..ticks {
             if let (Some(group), Some(anchors)) = (&groups.apply_anchors, &self.anchors)
                 && tick < written
                 && self.anchor_count > 0
             {
-                pass.set_pipeline(&kernels.anchors);
-                pass.set_bind_group(0, group, &[(u64::from(tick) * anchors.stride) as u32]);
                 // As wide as every other dispatch, since threads find their index by that width.
                 let rows = self.anchor_count.div_ceil(x * WORKGROUP_SIZE * WORKGROUP_SIZE);
-                pass.dispatch_workgroups(x, rows, 1);
+                let offset = [(u64::from(tick) * anchors.stride) as u32];
+                each(Kernel::ApplyAnchors, &|pass| {
+                    pass.set_pipeline(&kernels.anchors);
+                    pass.set_bind_group(0, group, &offset);
+                    pass.dispatch_workgroups(x, rows, 1);
+                });
             }
             for k in 0..self.substeps {
                 let offset = [(u64::from(k) * UNIFORM_STRIDE) as u32];
                 for (stage, group) in groups.stages.iter().enumerate() {
-                    pass.set_pipeline(&kernels.node_update[stage]);
-                    pass.set_bind_group(0, group, &offset);
-                    pass.dispatch_workgroups(x, y, 1);
+                    each(Kernel::NodeUpdate, &|pass| {
+                        pass.set_pipeline(&kernels.node_update[stage]);
+                        pass.set_bind_group(0, group, &offset);
+                        pass.dispatch_workgroups(x, y, 1);
+                    });
                 }
-                pass.set_pipeline(&kernels.node_update_final);
-                pass.set_bind_group(0, &groups.last, &offset);
-                pass.dispatch_workgroups(x, y, 1);
+                each(Kernel::NodeUpdateFinal, &|pass| {
+                    pass.set_pipeline(&kernels.node_update_final);
+                    pass.set_bind_group(0, &groups.last, &offset);
+                    pass.dispatch_workgroups(x, y, 1);
+                });
             }
         }
     }

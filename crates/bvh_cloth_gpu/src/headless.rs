@@ -18,7 +18,8 @@ pub struct HeadlessGpu {
 }
 
 /// A device on the first adapter `WGPU_BACKEND` (or the platform default) offers, with all of
-/// the adapter's limits, or `None` when there is none.
+/// the adapter's limits and its timestamp queries where it has them, or `None` when there is
+/// none.
 pub fn device() -> Option<HeadlessGpu> {
     device_with_limits(|limits| limits)
 }
@@ -32,6 +33,7 @@ pub fn device_with_limits(limit: impl FnOnce(wgpu::Limits) -> wgpu::Limits) -> O
     let (device, queue) = futures_lite::future::block_on(adapter.request_device(&wgpu::DeviceDescriptor {
         label: Some("bvh_cloth_headless"),
         required_limits: limit(adapter.limits()),
+        required_features: adapter.features() & wgpu::Features::TIMESTAMP_QUERY,
         ..Default::default()
     }))
     .ok()?;

@@ -31,7 +31,7 @@ pub mod headless;
 mod kernels;
 mod readback;
 
-pub use batch::{ClothBatch, ClothId};
+pub use batch::{ClothBatch, ClothId, Kernel};
 pub use colliders::GpuColliders;
 pub use kernels::{ClothKernels, KernelError, SHADER_FILES, STORAGE_BUFFERS_NEEDED, WORKGROUP_SIZE, shader_source};
 pub use readback::{FaultReadback, ParticleReadback};

@@ -15,7 +15,7 @@ use bvh_cloth_core::{
 };
 use bvh_cloth_gpu::wgpu::util::DeviceExt;
 use bvh_cloth_gpu::wgpu::{self, Device, Queue};
-use bvh_cloth_gpu::{ClothBatch, ClothId, ClothKernels, FaultReadback, GpuColliders, headless};
+use bvh_cloth_gpu::{ClothBatch, ClothId, ClothKernels, FaultReadback, GpuColliders, Kernel, headless};
 
 struct Rig {
     device: Device,
@@ -706,4 +706,38 @@ fn a_batch_of_cloths_agrees_with_each_alone_on_the_cpu_as_cloths_come_and_go() {
         landed.1.positions().iter().any(|p| colliders[0].contains(*p + Vec3::new(0.0, -0.02, 0.0))),
         "the Euler cloth reached the ball"
     );
+}
+
+/// Profiling splits a tick into one compute pass per dispatch, timed: the same dispatches in
+/// the same order, so the same state as an untimed tick, bit for bit, and one kernel reported per
+/// dispatch (four per substep without pins). Too small a query set records nothing.
+#[test]
+fn timed_ticks_step_as_untimed_ones_and_name_each_dispatch() {
+    let Some(rig) = rig() else { return };
+    let params = ClothParams { damping: 1.0, looper: 3, ..Default::default() };
+    let sim = grid_cloth(square(1.0, 12), params, Affine3A::from_translation(Vec3::Y), &[]);
+    let none = GpuColliders::new(&rig.device, &[]);
+    let (mut plain, mut timed) = (rig.cloth(&sim, 1.0 / 60.0), rig.cloth(&sim, 1.0 / 60.0));
+    rig.ticks(&mut plain, &none, 2);
+    timed.batch.prepare(&rig.device, &rig.queue, &rig.kernels, &none);
+    if !rig.device.features().contains(wgpu::Features::TIMESTAMP_QUERY) {
+        eprintln!("the adapter has no timestamp queries: only the untimed path ran");
+        return;
+    }
+    let queries = rig.device.create_query_set(&wgpu::QuerySetDescriptor {
+        label: None,
+        ty: wgpu::QueryType::Timestamp,
+        count: 64,
+    });
+    let mut encoder = rig.device.create_command_encoder(&Default::default());
+    assert_eq!(
+        timed.batch.encode_ticks_timed(&mut encoder, &rig.kernels, 2, &queries, 8),
+        None,
+        "8 queries are too few"
+    );
+    let kernels = timed.batch.encode_ticks_timed(&mut encoder, &rig.kernels, 2, &queries, 64).expect("64 queries fit");
+    rig.queue.submit([encoder.finish()]);
+    let substep = [Kernel::NodeUpdate, Kernel::NodeUpdate, Kernel::NodeUpdate, Kernel::NodeUpdateFinal];
+    assert_eq!(kernels, substep.repeat(6), "2 ticks of 3 substeps");
+    assert_eq!(rig.particles(&timed), rig.particles(&plain));
 }
