@@ -108,15 +108,17 @@ pub struct GpuBatchFrame {
     pub dispatch_width: u32,
 }
 
-/// Which substep of a tick a dispatch runs (a uniform bound at a dynamic offset, one per
-/// substep). 16 bytes.
+/// Which substep of a tick, and which of RK4's first three stages, a dispatch runs (a uniform
+/// bound at a dynamic offset, one per substep and stage). 16 bytes.
 #[repr(C)]
 #[derive(Clone, Copy, Debug, Default, PartialEq, Pod, Zeroable)]
 pub struct GpuBatchStep {
     /// The substep, from 0.
     pub substep: u32,
+    /// The stage, 0 to 2 (`node_update_final` ignores it).
+    pub stage: u32,
     /// Padding.
-    pub _pad: [u32; 3],
+    pub _pad: [u32; 2],
 }
 
 /// Per particle of a batch, indexed like the particle buffers: its springs (a range of the

@@ -186,17 +186,21 @@ impl ClothBatch {
             usage: BufferUsages::UNIFORM | BufferUsages::COPY_DST,
             mapped_at_creation: false,
         });
+        // One entry per substep and stage: entry 3k + s is substep k's stage s.
+        let entries = u64::from(MAX_SUBSTEPS) * 3;
         let steps = device.create_buffer(&wgpu::BufferDescriptor {
             label: Some("bvh_cloth_steps"),
-            size: u64::from(MAX_SUBSTEPS) * UNIFORM_STRIDE,
+            size: entries * UNIFORM_STRIDE,
             usage: BufferUsages::UNIFORM | BufferUsages::COPY_DST,
             mapped_at_creation: false,
         });
-        let mut bytes = vec![0u8; (u64::from(MAX_SUBSTEPS) * UNIFORM_STRIDE) as usize];
+        let mut bytes = vec![0u8; (entries * UNIFORM_STRIDE) as usize];
         for k in 0..MAX_SUBSTEPS {
-            let step = GpuBatchStep { substep: k, _pad: [0; 3] };
-            let at = (u64::from(k) * UNIFORM_STRIDE) as usize;
-            bytes[at..at + size_of::<GpuBatchStep>()].copy_from_slice(bytemuck::bytes_of(&step));
+            for stage in 0..3 {
+                let step = GpuBatchStep { substep: k, stage, _pad: [0; 2] };
+                let at = (u64::from(3 * k + stage) * UNIFORM_STRIDE) as usize;
+                bytes[at..at + size_of::<GpuBatchStep>()].copy_from_slice(bytemuck::bytes_of(&step));
+            }
         }
         queue.write_buffer(&steps, 0, &bytes);
         Self {
@@ -656,14 +660,16 @@ impl ClothBatch {
                 });
             }
             for k in 0..self.substeps {
-                let offset = [(u64::from(k) * UNIFORM_STRIDE) as u32];
+                let step = |stage: u32| [(u64::from(3 * k + stage) * UNIFORM_STRIDE) as u32];
                 for (stage, group) in groups.stages.iter().enumerate() {
+                    let offset = step(stage as u32);
                     each(Kernel::NodeUpdate, &|pass| {
-                        pass.set_pipeline(&kernels.node_update[stage]);
+                        pass.set_pipeline(&kernels.node_update);
                         pass.set_bind_group(0, group, &offset);
                         pass.dispatch_workgroups(x, y, 1);
                     });
                 }
+                let offset = step(0);
                 each(Kernel::NodeUpdateFinal, &|pass| {
                     pass.set_pipeline(&kernels.node_update_final);
                     pass.set_bind_group(0, &groups.last, &offset);

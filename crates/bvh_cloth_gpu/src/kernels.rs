@@ -95,12 +95,25 @@ impl fmt::Display for KernelError {
 
 impl std::error::Error for KernelError {}
 
-/// The compiled kernels: three `node_update` pipelines (RK4's first three stages, selected by
-/// the WGSL override constant `STAGE`), `node_update_final` (the last stage with the collision
-/// response), `apply_anchors` and `normal_shader`.
+/// One kernel: its entry point, the WGSL file that holds it, and its bind group layout's
+/// entries (group 0). An engine that compiles shaders itself (Bevy's pipeline cache) builds the
+/// same pipelines from these and hands them over with [`ClothKernels::from_parts`].
+#[derive(Clone, Debug)]
+pub struct KernelDescriptor {
+    /// The entry point.
+    pub entry_point: &'static str,
+    /// The [`SHADER_FILES`] entry that holds it.
+    pub file: &'static str,
+    /// The entries of its bind group layout.
+    pub layout: Vec<BindGroupLayoutEntry>,
+}
+
+/// The compiled kernels: `node_update` (RK4's first three stages, the stage named by the step
+/// uniform), `node_update_final` (the last stage with the collision response),
+/// `apply_anchors` and `normal_shader`, with their bind group layouts.
 #[derive(Debug)]
 pub struct ClothKernels {
-    pub(crate) node_update: [ComputePipeline; 3],
+    pub(crate) node_update: ComputePipeline,
     pub(crate) node_update_final: ComputePipeline,
     pub(crate) anchors: ComputePipeline,
     pub(crate) normal: ComputePipeline,
@@ -124,85 +137,120 @@ fn storage(binding: u32, read_only: bool) -> BindGroupLayoutEntry {
 }
 
 impl ClothKernels {
-    /// Checks the device's limits and compiles the kernels.
+    /// The four kernels, in the order [`Self::from_parts`] takes them: `node_update`,
+    /// `node_update_final`, `apply_anchors`, `normal_shader`.
+    pub fn descriptors() -> [KernelDescriptor; 4] {
+        let frame = entry(0, BufferBindingType::Uniform, false);
+        let step = entry(1, BufferBindingType::Uniform, true);
+        [
+            KernelDescriptor {
+                entry_point: "node_update",
+                file: "node_update.wgsl",
+                layout: vec![
+                    frame,
+                    step,
+                    storage(2, true),
+                    storage(3, true),
+                    storage(4, false),
+                    storage(5, false),
+                    storage(6, true),
+                    storage(7, true),
+                    storage(8, false),
+                ],
+            },
+            KernelDescriptor {
+                entry_point: "node_update_final",
+                file: "node_update_final.wgsl",
+                layout: vec![
+                    frame,
+                    step,
+                    storage(9, false),
+                    storage(10, true),
+                    storage(11, true),
+                    storage(12, true),
+                    storage(19, true),
+                    storage(20, true),
+                    storage(21, true),
+                    storage(22, false),
+                ],
+            },
+            KernelDescriptor {
+                entry_point: "apply_anchors",
+                file: "apply_anchors.wgsl",
+                layout: vec![
+                    frame,
+                    storage(13, false),
+                    entry(14, BufferBindingType::Storage { read_only: true }, true),
+                ],
+            },
+            KernelDescriptor {
+                entry_point: "normal_shader",
+                file: "normal_shader.wgsl",
+                layout: vec![
+                    entry(15, BufferBindingType::Uniform, true),
+                    storage(16, true),
+                    storage(17, true),
+                    storage(18, false),
+                ],
+            },
+        ]
+    }
+
+    /// Checks the device's limits and compiles the kernels from [`shader_source`].
     pub fn new(device: &Device) -> Result<Self, KernelError> {
-        let allowed = device.limits().max_storage_buffers_per_shader_stage;
-        if allowed < STORAGE_BUFFERS_NEEDED {
-            return Err(KernelError::TooFewStorageBuffers { allowed });
-        }
+        Self::check(device)?;
         let module = device.create_shader_module(wgpu::ShaderModuleDescriptor {
             label: Some("bvh_cloth_kernels"),
             source: wgpu::ShaderSource::Wgsl(shader_source().into()),
         });
-        let frame = entry(0, BufferBindingType::Uniform, false);
-        let step = entry(1, BufferBindingType::Uniform, true);
-        let layout = |label: &str, entries: &[BindGroupLayoutEntry]| {
-            device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor { label: Some(label), entries })
-        };
-        let node_update_layout = layout(
-            "bvh_cloth_node_update_layout",
-            &[
-                frame,
-                step,
-                storage(2, true),
-                storage(3, true),
-                storage(4, false),
-                storage(5, false),
-                storage(6, true),
-                storage(7, true),
-                storage(8, false),
-            ],
-        );
-        let final_layout = layout(
-            "bvh_cloth_node_update_final_layout",
-            &[
-                frame,
-                step,
-                storage(9, false),
-                storage(10, true),
-                storage(11, true),
-                storage(12, true),
-                storage(19, true),
-                storage(20, true),
-                storage(21, true),
-                storage(22, false),
-            ],
-        );
-        let anchors_layout = layout(
-            "bvh_cloth_anchors_layout",
-            &[frame, storage(13, false), entry(14, BufferBindingType::Storage { read_only: true }, true)],
-        );
-        let normal_layout = layout(
-            "bvh_cloth_normal_layout",
-            &[entry(15, BufferBindingType::Uniform, true), storage(16, true), storage(17, true), storage(18, false)],
-        );
-        let pipeline = |label: &str, layout: &BindGroupLayout, entry_point: &str, constants: &[(&str, f64)]| {
+        let [a, b, c, d] = Self::descriptors().map(|kernel| {
+            let label = format!("bvh_cloth_{}", kernel.entry_point);
+            let layout = device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
+                label: Some(&label),
+                entries: &kernel.layout,
+            });
             let pipeline_layout = device.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
-                label: Some(label),
-                bind_group_layouts: &[Some(layout)],
+                label: Some(&label),
+                bind_group_layouts: &[Some(&layout)],
                 immediate_size: 0,
             });
-            device.create_compute_pipeline(&wgpu::ComputePipelineDescriptor {
-                label: Some(label),
+            let pipeline = device.create_compute_pipeline(&wgpu::ComputePipelineDescriptor {
+                label: Some(&label),
                 layout: Some(&pipeline_layout),
                 module: &module,
-                entry_point: Some(entry_point),
-                compilation_options: wgpu::PipelineCompilationOptions { constants, ..Default::default() },
+                entry_point: Some(kernel.entry_point),
+                compilation_options: Default::default(),
                 cache: None,
-            })
-        };
-        let node_update = [0.0, 1.0, 2.0]
-            .map(|stage| pipeline("bvh_cloth_node_update", &node_update_layout, "node_update", &[("STAGE", stage)]));
-        Ok(Self {
+            });
+            (pipeline, layout)
+        });
+        Ok(Self::from_parts([a.0, b.0, c.0, d.0], [a.1, b.1, c.1, d.1]))
+    }
+
+    /// Why `device` cannot run the kernels, if it cannot.
+    pub fn check(device: &Device) -> Result<(), KernelError> {
+        let allowed = device.limits().max_storage_buffers_per_shader_stage;
+        if allowed < STORAGE_BUFFERS_NEEDED {
+            return Err(KernelError::TooFewStorageBuffers { allowed });
+        }
+        Ok(())
+    }
+
+    /// Kernels compiled elsewhere (by an engine's pipeline cache, from [`Self::descriptors`]):
+    /// the pipelines and their bind group layouts, in the order of [`Self::descriptors`].
+    pub fn from_parts(pipelines: [ComputePipeline; 4], layouts: [BindGroupLayout; 4]) -> Self {
+        let [node_update, node_update_final, anchors, normal] = pipelines;
+        let [node_update_layout, final_layout, anchors_layout, normal_layout] = layouts;
+        Self {
             node_update,
-            node_update_final: pipeline("bvh_cloth_node_update_final", &final_layout, "node_update_final", &[]),
-            anchors: pipeline("bvh_cloth_apply_anchors", &anchors_layout, "apply_anchors", &[]),
-            normal: pipeline("bvh_cloth_normal_shader", &normal_layout, "normal_shader", &[]),
+            node_update_final,
+            anchors,
+            normal,
             node_update_layout,
             final_layout,
             anchors_layout,
             normal_layout,
-        })
+        }
     }
 
     /// Workgroups (8 x 8 threads each) that give `count` threads, one per particle or vertex,

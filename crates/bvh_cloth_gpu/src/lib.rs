@@ -33,6 +33,8 @@ mod readback;
 
 pub use batch::{ClothBatch, ClothId, Kernel};
 pub use colliders::GpuColliders;
-pub use kernels::{ClothKernels, KernelError, SHADER_FILES, STORAGE_BUFFERS_NEEDED, WORKGROUP_SIZE, shader_source};
+pub use kernels::{
+    ClothKernels, KernelDescriptor, KernelError, SHADER_FILES, STORAGE_BUFFERS_NEEDED, WORKGROUP_SIZE, shader_source,
+};
 pub use readback::{FaultReadback, ParticleReadback};
 pub use wgpu;

@@ -2,7 +2,7 @@
 // anchor holds it during that tick (bvh_cloth_core::ClothSim::move_pins). The host binds that
 // tick's targets at a dynamic offset.
 
-#import bvh_cloth::types
+#import bvh_cloth::types::{GpuParticle, frame, thread_index}
 
 @group(0) @binding(13) var<storage, read_write> anchored: array<GpuParticle>;
 // xyz: the target; w: the particle's index in the batch, as bits (past the particles: none).

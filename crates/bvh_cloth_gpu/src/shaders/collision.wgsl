@@ -2,7 +2,7 @@
 // as a function the final integrator stage calls for each free particle.
 
 #define_import_path bvh_cloth::collision
-#import bvh_cloth::types
+#import bvh_cloth::types::{GpuParticle, GpuCollider, LEAF_BIT, STACK_SIZE, SURFACE_TOLERANCE, CONTACT_BAND, MAX_PASSES, frame}
 
 @group(0) @binding(11) var<storage, read> colliders: array<GpuCollider>;
 // Every collider's tree: the nodes (bvh_cloth_core::BvhNode, two vec4 each: the box's minimum

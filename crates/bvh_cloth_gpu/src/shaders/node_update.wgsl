@@ -1,12 +1,10 @@
 // NodeUpdate: spring forces (paper eq. 1-3) and one integrator stage (eq. 4) for every particle
-// of every cloth of the batch. Stages 0-2 (this file's `node_update`, STAGE 0, 1, 2) are RK4's
-// first three; `node_update_final` is RK4's last (or semi-implicit Euler's landing), fused with
-// the collision response. A cloth with fewer substeps than the batch sits out the rest.
+// of every cloth of the batch. Stages 0-2 (this file's `node_update`, the stage named by the step
+// uniform) are RK4's first three; `node_update_final` is RK4's last (or semi-implicit Euler's
+// landing), fused with the collision response. A cloth with fewer substeps than the batch sits
+// out the rest.
 
-#import bvh_cloth::types
-
-// Which RK4 stage node_update runs: 0, 1 or 2. Semi-implicit Euler cloths integrate in stage 2.
-override STAGE: u32 = 0u;
+#import bvh_cloth::types::{GpuParticle, BatchCloth, NO_CLOTH, INTEGRATOR_EULER, frame, step, thread_index}
 
 @group(0) @binding(2) var<storage, read> base: array<GpuParticle>;      // state at substep start
 @group(0) @binding(3) var<storage, read> source: array<GpuParticle>;    // state the slope is taken at
@@ -72,11 +70,13 @@ fn node_update(@builtin(global_invocation_id) id: vec3<u32>) {
     let b = base[i];
     let free = b.position.w;
     let h = cloths[c].h;
+    // Which RK4 stage this is: 0, 1 or 2. Semi-implicit Euler cloths integrate in stage 2.
+    let stage = step.stage;
     var out: GpuParticle;
     out.position.w = free;
     if (cloths[c].integrator == INTEGRATOR_EULER) {
         // v' = v + h a(x, v), x' = x + h v', landed in node_update_final.
-        if (STAGE != 2u) {
+        if (stage != 2u) {
             return;
         }
         let acc = acceleration(i, c, b, true);
@@ -90,10 +90,10 @@ fn node_update(@builtin(global_invocation_id) id: vec3<u32>) {
     let acc = acceleration(i, c, me, false);
     // Slope of the state: (velocity, acceleration), the velocity masked for held particles.
     let kx = me.velocity.xyz * free;
-    let weight = select(2.0, 1.0, STAGE == 0u);
-    let coef = select(0.5, 1.0, STAGE == 2u) * h;
+    let weight = select(2.0, 1.0, stage == 0u);
+    let coef = select(0.5, 1.0, stage == 2u) * h;
     var sum = slope_sum[i];
-    if (STAGE == 0u) {
+    if (stage == 0u) {
         sum.position = vec4(kx, 0.0);
         sum.velocity = vec4(acc, 0.0);
     } else {

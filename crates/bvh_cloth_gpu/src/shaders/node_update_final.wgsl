@@ -4,8 +4,8 @@
 // against every collider, written over the substep's start state in place (each thread reads
 // and writes only its own particle there).
 
-#import bvh_cloth::types
-#import bvh_cloth::collision
+#import bvh_cloth::types::{GpuParticle, BatchCloth, NO_CLOTH, INTEGRATOR_EULER, frame, step, thread_index, all_finite}
+#import bvh_cloth::collision::collide
 
 @group(0) @binding(19) var<storage, read> last_stage: array<GpuParticle>;
 @group(0) @binding(20) var<storage, read> final_info: array<vec4<u32>>;

@@ -3,7 +3,7 @@
 // thread per render vertex of one cloth; the cloth's BatchWriteback is bound at a dynamic
 // offset.
 
-#import bvh_cloth::types
+#import bvh_cloth::types::{GpuParticle, BatchWriteback, thread_index}
 
 @group(0) @binding(15) var<uniform> writeback: BatchWriteback;
 @group(0) @binding(16) var<storage, read> particles: array<GpuParticle>;

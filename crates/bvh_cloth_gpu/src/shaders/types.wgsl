@@ -27,9 +27,9 @@ struct BatchFrame {
 
 struct BatchStep {
     substep: u32,
+    stage: u32,
     _pad0: u32,
     _pad1: u32,
-    _pad2: u32,
 }
 
 struct BatchCloth {
