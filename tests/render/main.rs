@@ -88,13 +88,27 @@ fn adapter_present() -> bool {
     false
 }
 
-/// A render app on the GPU backend, or `None` (with a note) where there is no adapter.
+/// A render app on the GPU backend whose kernels are compiled, or `None` (with a note) where
+/// there is no adapter. The pipeline cache compiles the kernels in the background, and cloths
+/// wait at rest until they are ready: a probe cloth is read back until it has run a tick (at
+/// most 600 frames), then despawned.
 fn gpu_backend_app() -> Option<App> {
     if !adapter_present() {
         return None;
     }
-    let app = render_app(ClothBackend::Gpu);
+    let mut app = render_app(ClothBackend::Gpu);
     assert_eq!(*app.world().resource::<ActiveClothBackend>(), ActiveClothBackend::Gpu);
+    let probe = app.world_mut().spawn((Cloth::grid(Vec2::ONE, UVec2::splat(4)), ClothReadback::default())).id();
+    let ran = |app: &App| app.world().get::<ClothReadback>(probe).unwrap().ticks_run.is_some_and(|t| t > 0);
+    for _ in 0..600 {
+        if ran(&app) {
+            break;
+        }
+        app.update();
+    }
+    assert!(ran(&app), "the GPU kernels never became ready");
+    app.world_mut().despawn(probe);
+    app.update();
     Some(app)
 }
 
@@ -328,7 +342,7 @@ fn gpu_cloths_spawned_changed_and_despawned_leave_no_gpu_resource() {
 /// frame or two late and without a blocking read; a cloth without it keeps the state it was
 /// built with. A free fall (no pins, no colliders: the springs stay at rest) is compared with
 /// the core's CPU stepper: the state read back must be the core's after exactly the ticks
-/// `ticks_late` says it has run (1e-4 m; a tick of fall at this speed moves the cloth over
+/// `ticks_run` says it has run (1e-4 m; a tick of fall at this speed moves the cloth over
 /// 0.1 m, so a tick's error would show).
 #[test]
 fn the_gpu_backend_reads_a_cloth_back_when_asked() {
@@ -344,10 +358,13 @@ fn the_gpu_backend_reads_a_cloth_back_when_asked() {
     for _ in 0..60 {
         app.update();
     }
-    let late = app.world().get::<ClothReadback>(read).unwrap().ticks_late.expect("a state arrived");
+    let readback = app.world().get::<ClothReadback>(read).unwrap();
+    let late = readback.ticks_late.expect("a state arrived");
     assert!(late <= 3, "the state is {late} ticks late (one tick per frame here)");
+    let ran = readback.ticks_run.expect("a state arrived");
     let got = app.world().get::<ClothSimulation>(read).unwrap().sim().positions();
     let ticks = app.world().resource::<ClothClock>().total_ticks;
+    assert!(ran + late <= ticks && ran > 30, "{ran} ticks run, {late} late, of {ticks}");
     let topology = std::sync::Arc::new(
         bvh_cloth_core::ClothTopology::grid(bvh_cloth_core::ClothGrid::new(Vec2::ONE, UVec2::splat(12))).unwrap(),
     );
@@ -359,12 +376,12 @@ fn the_gpu_backend_reads_a_cloth_back_when_asked() {
         &[],
     )
     .unwrap();
-    for _ in 0..ticks - late {
+    for _ in 0..ran {
         core.tick(1.0 / 60.0, &[]);
     }
     let gap = core.positions().iter().zip(&got).map(|(a, b)| a.distance(*b)).fold(0.0f32, f32::max);
-    eprintln!("read back {late} ticks late (of {ticks}): within {gap:e} m of the core's state");
-    assert!(gap < 1e-4, "the read-back state is not the core's after {} ticks ({gap} m)", ticks - late);
+    eprintln!("read back {late} ticks late, {ran} run (of {ticks}): within {gap:e} m of the core's state");
+    assert!(gap < 1e-4, "the read-back state is not the core's after {ran} ticks ({gap} m)");
     assert!(got.iter().all(|p| p.y < 8.0), "the read-back cloth has fallen");
     let rest = app.world().get::<ClothSimulation>(unread).unwrap().sim().positions();
     assert!(rest.iter().all(|p| p.y == 10.0), "a cloth without ClothReadback keeps its built state");

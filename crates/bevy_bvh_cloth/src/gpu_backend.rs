@@ -32,11 +32,15 @@ use bevy::prelude::*;
 use bevy::render::mesh::RenderMesh;
 use bevy::render::mesh::allocator::MeshAllocator;
 use bevy::render::render_asset::RenderAssets;
+use bevy::render::render_resource::{
+    BindGroupLayoutDescriptor, CachedComputePipelineId, CachedPipelineState, ComputePipelineDescriptor, PipelineCache,
+};
 use bevy::render::renderer::{RenderContext, RenderDevice, RenderGraph, RenderQueue};
 use bevy::render::{Extract, ExtractSchedule, MainWorld, Render, RenderSystems};
+use bevy::shader::Shader;
 use bvh_cloth_core::gpu_layout::GpuMeshWriteback;
 use bvh_cloth_core::{Affine3A, ClothParams, ClothSim, Collider, Lbvh};
-use bvh_cloth_gpu::{ClothBatch, ClothId, ClothKernels, FaultReadback, GpuColliders, ParticleReadback};
+use bvh_cloth_gpu::{ClothBatch, ClothId, ClothKernels, FaultReadback, GpuColliders, ParticleReadback, SHADER_FILES};
 
 use crate::clock::ClothClock;
 use crate::collider::ClothCollider;
@@ -44,9 +48,77 @@ use crate::messages::ClothMessage;
 use crate::readback::{ClothReadback, GpuClothState};
 use crate::simulation::{ClothSimulation, rigid_pose};
 
+/// The kernels' WGSL files as shader assets, one per [`SHADER_FILES`] entry, held for the
+/// app's lifetime: the pipeline cache compiles the kernels from them, resolving their imports.
+#[derive(Resource, Clone)]
+pub(crate) struct ClothShaders(Vec<Handle<Shader>>);
+
+impl ClothShaders {
+    /// Adds the files to `shaders`.
+    pub(crate) fn add(shaders: &mut Assets<Shader>) -> Self {
+        Self(
+            SHADER_FILES
+                .iter()
+                .map(|(name, text)| shaders.add(Shader::from_wgsl(*text, format!("bvh_cloth_gpu/{name}"))))
+                .collect(),
+        )
+    }
+
+    fn file(&self, name: &str) -> Option<Handle<Shader>> {
+        SHADER_FILES.iter().position(|(file, _)| *file == name).map(|k| self.0[k].clone())
+    }
+}
+
+/// The kernels' pipelines, queued on Bevy's pipeline cache (compiled off the render thread),
+/// and their bind group layouts.
+struct QueuedKernels {
+    pipelines: [CachedComputePipelineId; 4],
+    layouts: [BindGroupLayoutDescriptor; 4],
+}
+
+impl QueuedKernels {
+    fn queue(cache: &PipelineCache, shaders: &ClothShaders) -> Option<Self> {
+        let descriptors = ClothKernels::descriptors();
+        let layouts = descriptors
+            .clone()
+            .map(|kernel| BindGroupLayoutDescriptor::new(format!("bvh_cloth_{}", kernel.entry_point), &kernel.layout));
+        let mut pipelines = Vec::with_capacity(4);
+        for (kernel, layout) in descriptors.iter().zip(&layouts) {
+            pipelines.push(cache.queue_compute_pipeline(ComputePipelineDescriptor {
+                label: Some(format!("bvh_cloth_{}", kernel.entry_point).into()),
+                layout: vec![layout.clone()],
+                immediate_size: 0,
+                shader: shaders.file(kernel.file)?,
+                shader_defs: Vec::new(),
+                entry_point: Some(kernel.entry_point.into()),
+                zero_initialize_workgroup_memory: false,
+            }));
+        }
+        Some(Self { pipelines: pipelines.try_into().ok()?, layouts })
+    }
+
+    /// The kernels once every pipeline is compiled; `Err` with the reason if one failed.
+    fn ready(&self, cache: &PipelineCache) -> Result<Option<ClothKernels>, String> {
+        for &id in &self.pipelines {
+            if let CachedPipelineState::Err(error) = cache.get_compute_pipeline_state(id) {
+                return Err(error.to_string());
+            }
+        }
+        let mut pipelines = Vec::with_capacity(4);
+        for &id in &self.pipelines {
+            let Some(pipeline) = cache.get_compute_pipeline(id) else { return Ok(None) };
+            pipelines.push((**pipeline).clone());
+        }
+        let Ok(pipelines) = pipelines.try_into() else { return Ok(None) };
+        let layouts = self.layouts.clone().map(|layout| (*cache.get_bind_group_layout(&layout)).clone());
+        Ok(Some(ClothKernels::from_parts(pipelines, layouts)))
+    }
+}
+
 /// Adds the render-world systems. Called by the plugin when the GPU backend is active.
-pub(crate) fn add_render_systems(render_app: &mut SubApp) {
+pub(crate) fn add_render_systems(render_app: &mut SubApp, shaders: ClothShaders) {
     render_app
+        .insert_resource(shaders)
         .init_resource::<GpuClothWorld>()
         .add_systems(ExtractSchedule, (report_faults, extract_cloths).chain())
         .add_systems(
@@ -94,14 +166,19 @@ struct RenderCloth {
     /// normals this frame.
     writeback: Option<AssetId<Mesh>>,
     faults: FaultReadback,
-    /// The state read back for gameplay, and the ticks run by the copy in flight.
-    state: Option<(ParticleReadback, AtomicU64)>,
+    /// Ticks run since the cloth was added or its state uploaded, this frame's included.
+    ticks_run: u64,
+    /// The state read back for gameplay, and the clock's ticks and the cloth's ticks run at the
+    /// copy in flight.
+    state: Option<(ParticleReadback, [AtomicU64; 2])>,
 }
 
 /// The render world's cloth state.
 #[derive(Resource, Default)]
 pub(crate) struct GpuClothWorld {
     kernels: Option<ClothKernels>,
+    /// The kernels while the pipeline cache compiles them.
+    queued: Option<QueuedKernels>,
     /// Every cloth's GPU state.
     batch: Option<ClothBatch>,
     /// The kernels could not be built; said once.
@@ -175,21 +252,35 @@ fn vertex_words(mesh: &RenderMesh) -> Option<(u32, u32, u32)> {
     Some((stride as u32 / 4, word(Mesh::ATTRIBUTE_POSITION.id)?, word(Mesh::ATTRIBUTE_NORMAL.id)?))
 }
 
+#[allow(clippy::too_many_arguments)]
 fn prepare_cloths(
     mut world: ResMut<GpuClothWorld>,
     device: Res<RenderDevice>,
     queue: Res<RenderQueue>,
     mesh_allocator: Res<MeshAllocator>,
     render_meshes: Res<RenderAssets<RenderMesh>>,
+    pipeline_cache: Res<PipelineCache>,
+    shaders: Res<ClothShaders>,
 ) {
     let world = &mut *world;
     let device = device.wgpu_device();
     if world.kernels.is_none() && !world.failed {
-        match ClothKernels::new(device) {
-            Ok(kernels) => world.kernels = Some(kernels),
-            Err(error) => {
-                error!("bevy_bvh_cloth: the GPU kernels cannot run on this device: {error}");
-                world.failed = true;
+        // Queued on the pipeline cache, which compiles them off the render thread; the cloths
+        // wait (at rest) until they are ready, a frame or a few after start-up.
+        let fail = |error: String| {
+            error!("bevy_bvh_cloth: the GPU kernels cannot run on this device: {error}");
+            true
+        };
+        if let Err(error) = ClothKernels::check(device) {
+            world.failed = fail(error.to_string());
+        } else if world.queued.is_none() {
+            world.queued = QueuedKernels::queue(&pipeline_cache, &shaders);
+        }
+        if let Some(queued) = &world.queued {
+            match queued.ready(&pipeline_cache) {
+                Ok(Some(kernels)) => world.kernels = Some(kernels),
+                Ok(None) => {}
+                Err(error) => world.failed = fail(error),
             }
         }
     }
@@ -240,6 +331,7 @@ fn prepare_cloths(
                 Some(RenderCloth {
                     generation: cloth.generation,
                     faults: FaultReadback::new(device),
+                    ticks_run: 0,
                     state: None,
                     ..render
                 })
@@ -254,6 +346,7 @@ fn prepare_cloths(
                         generation: cloth.generation,
                         writeback: None,
                         faults: FaultReadback::new(device),
+                        ticks_run: 0,
                         state: None,
                     }),
                     Err(error) => {
@@ -270,8 +363,9 @@ fn prepare_cloths(
         if !cloth.read_back {
             render.state = None;
         } else if render.state.is_none() {
-            render.state = Some((ParticleReadback::new(device, particles), AtomicU64::new(0)));
+            render.state = Some((ParticleReadback::new(device, particles), [AtomicU64::new(0), AtomicU64::new(0)]));
         }
+        render.ticks_run += u64::from(world.ticks);
         batch.set_params(&queue, render.id, &cloth.params, world.tick_seconds.max(f32::MIN_POSITIVE));
         batch.set_anchor_targets(render.id, &cloth.anchor_targets);
 
@@ -303,10 +397,11 @@ fn simulate_cloths(mut render_context: RenderContext, world: Res<GpuClothWorld>,
     batch.encode_ticks(encoder, kernels, world.ticks);
     for render in world.cloths.values() {
         render.faults.record(encoder, batch, render.id);
-        if let Some((state, ticks)) = &render.state
+        if let Some((state, [ticks, ticks_run])) = &render.state
             && state.record(encoder, batch, render.id)
         {
             ticks.store(world.total_ticks, Ordering::Relaxed);
+            ticks_run.store(render.ticks_run, Ordering::Relaxed);
         }
         let Some(mesh) = render.writeback else { continue };
         let Some(slice) = mesh_allocator.mesh_vertex_slice(&mesh) else { continue };
@@ -332,11 +427,16 @@ fn report_faults(mut main_world: ResMut<MainWorld>, world: Res<GpuClothWorld>) {
         if let Some(particles @ 1..) = render.faults.take() {
             main_world.write_message(GpuClothDiverged { entity, generation: render.generation, particles });
         }
-        if let Some((state, ticks)) = &render.state
+        if let Some((state, [ticks, ticks_run])) = &render.state
             && let Some(particles) = state.take()
         {
-            let ticks = ticks.load(Ordering::Relaxed);
-            main_world.write_message(GpuClothState { entity, generation: render.generation, ticks, particles });
+            main_world.write_message(GpuClothState {
+                entity,
+                generation: render.generation,
+                ticks: ticks.load(Ordering::Relaxed),
+                ticks_run: ticks_run.load(Ordering::Relaxed),
+                particles,
+            });
         }
     }
 }

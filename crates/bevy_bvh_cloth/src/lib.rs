@@ -63,6 +63,8 @@
 //!   particles is read back without waiting for it, and so is its whole state when the cloth
 //!   has [`ClothReadback`] (then [`ClothSimulation`] is one or two frames late; without it,
 //!   [`ClothSimulation`] holds the state as of the last rebuild or reset).
+//!   The kernels are compiled by Bevy's pipeline cache, off the render thread; cloths wait at
+//!   rest until they are ready, a few frames after start-up.
 //! * **CPU** (no compute shaders, no renderer, or asked for): the core's rayon stepper in
 //!   [`ClothSystems::Step`], writing the `Mesh` asset in [`ClothSystems::Writeback`].
 //!
@@ -104,6 +106,7 @@ use bevy::render::RenderApp;
 use bevy::render::mesh::allocator::MeshAllocatorSettings;
 use bevy::render::render_resource::{BufferUsages, DownlevelFlags};
 use bevy::render::renderer::{RenderAdapter, RenderDevice};
+use bevy::shader::Shader;
 use bevy::transform::TransformSystems;
 
 pub use backend::{ActiveClothBackend, ClothBackend};
@@ -229,12 +232,22 @@ impl Plugin for BvhClothPlugin {
         let requested = *app.world().resource::<ClothBackend>();
         let active = backend::choose_backend(requested, gpu_capability(app));
         app.insert_resource(active);
-        if active == ActiveClothBackend::Gpu
-            && let Some(render_app) = app.get_sub_app_mut(RenderApp)
-        {
+        if active != ActiveClothBackend::Gpu {
+            return;
+        }
+        // The kernels' WGSL, as shader assets the render world's pipeline cache compiles.
+        let Some(shaders) = app
+            .world_mut()
+            .get_resource_mut::<Assets<Shader>>()
+            .map(|mut shaders| gpu_backend::ClothShaders::add(&mut shaders))
+        else {
+            return;
+        };
+        app.insert_resource(shaders.clone());
+        if let Some(render_app) = app.get_sub_app_mut(RenderApp) {
             // normal_shader writes into the mesh slabs: they must be storage buffers too.
             render_app.world_mut().resource_mut::<MeshAllocatorSettings>().extra_buffer_usages |= BufferUsages::STORAGE;
-            gpu_backend::add_render_systems(render_app);
+            gpu_backend::add_render_systems(render_app, shaders);
         }
     }
 }

@@ -22,6 +22,10 @@ pub struct ClothReadback {
     /// How many ticks the state in [`ClothSimulation`] is behind the one drawn this frame
     /// (about one frame's worth per frame of delay); `None` until the first read arrives.
     pub ticks_late: Option<u64>,
+    /// How many ticks the state in [`ClothSimulation`] has run since the cloth was built or
+    /// reset. The GPU starts a cloth once its kernels are compiled (a few frames after start-up;
+    /// the cloth waits at rest until then), so this can be less than the clock's ticks.
+    pub ticks_run: Option<u64>,
 }
 
 /// A cloth's particles read back from the GPU, sent from the render world to the main world.
@@ -30,8 +34,10 @@ pub(crate) struct GpuClothState {
     pub(crate) entity: Entity,
     /// The [`ClothSimulation`] generation read: a state read before a rebuild or reset is stale.
     pub(crate) generation: u64,
-    /// [`ClothClock::total_ticks`] of the state: the ticks it has run.
+    /// [`ClothClock::total_ticks`] of the frame that copied the state.
     pub(crate) ticks: u64,
+    /// Ticks the state has run since the cloth was built or reset.
+    pub(crate) ticks_run: u64,
     pub(crate) particles: Vec<GpuParticle>,
 }
 
@@ -54,5 +60,6 @@ pub(crate) fn apply_gpu_readbacks(
         }
         load_gpu_particles(&mut sim.sim, &state.particles);
         readback.ticks_late = Some(clock.total_ticks.saturating_sub(state.ticks));
+        readback.ticks_run = Some(state.ticks_run);
     }
 }

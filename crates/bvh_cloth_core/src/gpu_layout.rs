@@ -170,7 +170,7 @@ pub struct GpuCollider {
     /// How far beyond a node's box a contact can be (see [`ColliderFrame::contact_reach`]).
     pub contact_reach: f32,
     /// Padding.
-    pub _pad: u32,
+    pub pad: u32,
 }
 
 impl GpuCollider {
@@ -191,7 +191,7 @@ impl GpuCollider {
             node_count: collider.lbvh.nodes.len() as u32,
             sphere_count: collider.lbvh.spheres.len() as u32,
             contact_reach: frame.contact_reach,
-            _pad: 0,
+            pad: 0,
         })
     }
 }

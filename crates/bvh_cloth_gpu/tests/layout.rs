@@ -108,7 +108,7 @@ fn wgsl_structs_match_the_rust_layouts() {
             node_count,
             sphere_count,
             contact_reach,
-            _pad
+            pad
         ]
     );
     assert_layout!(&module, "BvhNode", BvhNode, [aabb_min, left, aabb_max, right]);

@@ -13,6 +13,9 @@
 
 #define_import_path bvh_cloth::types
 
+// Identifiers here and in collision.wgsl avoid leading underscores and trailing digits: naga_oil
+// (Bevy's shader composer) refuses them in modules that others import.
+
 struct GpuParticle {
     position: vec4<f32>, // w: 1 free, 0 held
     velocity: vec4<f32>,
@@ -28,8 +31,8 @@ struct BatchFrame {
 struct BatchStep {
     substep: u32,
     stage: u32,
-    _pad0: u32,
-    _pad1: u32,
+    pad_a: u32,
+    pad_b: u32,
 }
 
 struct BatchCloth {
@@ -56,7 +59,7 @@ struct GpuCollider {
     node_count: u32,
     sphere_count: u32,
     contact_reach: f32,
-    _pad: u32,
+    pad: u32,
 }
 
 struct GpuMeshWriteback {
@@ -75,9 +78,9 @@ struct BatchWriteback {
     vertex_count: u32,
     particle_count: u32,
     dispatch_width: u32,
-    _pad0: u32,
-    _pad1: u32,
-    _pad2: u32,
+    pad_a: u32,
+    pad_b: u32,
+    pad_c: u32,
 }
 
 const NO_CLOTH: u32 = 0xffffffffu;         // bvh_cloth_core::gpu_layout::NO_CLOTH
