@@ -14,8 +14,8 @@
 //!    one 60-byte write), the pins' targets, the collider frames, and where each mesh's
 //!    vertices lie in their slab.
 //! 3. [`simulate_cloths`] (`RenderGraph`, before the camera driver) records the ticks of the
-//!    whole batch, each cloth's writeback, a copy of its fault count and, for cloths with
-//!    [`ClothReadback`], a copy of its particles; [`request_fault_reads`] (`Cleanup`, after the
+//!    whole batch, a copy of each cloth's fault count and, for cloths with [`ClothReadback`], a
+//!    copy of its particles, then the writeback of all cloths (one dispatch per mesh slab); [`request_fault_reads`] (`Cleanup`, after the
 //!    submit) asks for those copies to be mapped.
 //! 4. A later frame's [`report_faults`] (`ExtractSchedule`) sends the counts and states that
 //!    have arrived to the main world, as [`GpuClothDiverged`] and [`GpuClothState`];
@@ -162,9 +162,6 @@ struct ExtractedCloth {
 struct RenderCloth {
     id: ClothId,
     generation: u64,
-    /// The mesh `normal_shader` writes, when it is allocated and has float positions and
-    /// normals this frame.
-    writeback: Option<AssetId<Mesh>>,
     faults: FaultReadback,
     /// Ticks run since the cloth was added or its state uploaded, this frame's included.
     ticks_run: u64,
@@ -319,7 +316,6 @@ fn prepare_cloths(
     });
     world.refused.retain(|entity, _| present.contains(entity));
 
-    let mut slabs = Vec::new();
     for cloth in world.extracted.drain(..) {
         let existing = world.cloths.remove(&cloth.entity);
         let render = match (existing, &cloth.fresh) {
@@ -344,7 +340,6 @@ fn prepare_cloths(
                     Ok(id) => Some(RenderCloth {
                         id,
                         generation: cloth.generation,
-                        writeback: None,
                         faults: FaultReadback::new(device),
                         ticks_run: 0,
                         state: None,
@@ -372,27 +367,21 @@ fn prepare_cloths(
         // Where the mesh's vertices are this frame (slabs can move).
         let layout = render_meshes.get(cloth.mesh).and_then(vertex_words);
         let slice = mesh_allocator.mesh_vertex_slice(&cloth.mesh);
-        render.writeback = match (layout, slice) {
+        match (layout, slice) {
             (Some((stride, position, normal)), Some(slice)) => {
                 let writeback =
                     GpuMeshWriteback::new(cloth.mesh_to_world, slice.range.start * stride, stride, position, normal);
-                batch.set_writeback(device, &queue, kernels, render.id, writeback, slice.buffer);
-                slabs.push(slice.buffer.clone());
-                Some(cloth.mesh)
+                batch.set_writeback(render.id, writeback, slice.buffer);
             }
-            _ => None,
-        };
+            _ => batch.clear_writeback(render.id),
+        }
         world.cloths.insert(cloth.entity, render);
     }
-    // Bind groups of slabs no cloth is written to any more go.
-    batch.forget_vertex_buffers(|buffer| slabs.iter().any(|slab| **slab == *buffer));
     batch.prepare(device, &queue, kernels, colliders);
 }
 
-fn simulate_cloths(mut render_context: RenderContext, world: Res<GpuClothWorld>, mesh_allocator: Res<MeshAllocator>) {
+fn simulate_cloths(mut render_context: RenderContext, world: Res<GpuClothWorld>) {
     let (Some(kernels), Some(batch)) = (&world.kernels, &world.batch) else { return };
-    let device = render_context.render_device().clone();
-    let device = device.wgpu_device();
     let encoder = render_context.command_encoder();
     batch.encode_ticks(encoder, kernels, world.ticks);
     for render in world.cloths.values() {
@@ -403,10 +392,8 @@ fn simulate_cloths(mut render_context: RenderContext, world: Res<GpuClothWorld>,
             ticks.store(world.total_ticks, Ordering::Relaxed);
             ticks_run.store(render.ticks_run, Ordering::Relaxed);
         }
-        let Some(mesh) = render.writeback else { continue };
-        let Some(slice) = mesh_allocator.mesh_vertex_slice(&mesh) else { continue };
-        batch.encode_writeback(device, encoder, kernels, render.id, slice.buffer);
     }
+    batch.encode_writebacks(encoder, kernels);
 }
 
 /// Asks for this frame's fault-count and state copies to be mapped, now that they are

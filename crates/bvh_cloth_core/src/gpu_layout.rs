@@ -196,8 +196,8 @@ impl GpuCollider {
     }
 }
 
-/// A batched cloth's [`GpuMeshWriteback`] with where its data lies (a uniform bound at a
-/// dynamic offset, one per cloth). 176 bytes.
+/// A batched cloth's [`GpuMeshWriteback`] with where its data lies (an array of these is one
+/// storage buffer, indexed by cloth). 176 bytes.
 #[repr(C)]
 #[derive(Clone, Copy, Debug, Default, PartialEq, Pod, Zeroable)]
 pub struct GpuBatchWriteback {
@@ -211,10 +211,25 @@ pub struct GpuBatchWriteback {
     pub vertex_count: u32,
     /// Number of particles.
     pub particle_count: u32,
+    /// The thread of its group's dispatch that writes its first vertex.
+    pub group_first: u32,
+    /// Padding.
+    pub _pad: [u32; 3],
+}
+
+/// One `normal_shader` dispatch: every cloth written into one vertex buffer (a uniform bound at
+/// a dynamic offset, one per group). 16 bytes.
+#[repr(C)]
+#[derive(Clone, Copy, Debug, Default, PartialEq, Pod, Zeroable)]
+pub struct GpuWritebackGroup {
+    /// Where the group's threads start in the owner table.
+    pub first_owner: u32,
+    /// Render vertices of all its cloths: one thread each.
+    pub vertex_count: u32,
     /// Threads along `x` of the dispatch.
     pub dispatch_width: u32,
     /// Padding.
-    pub _pad: [u32; 3],
+    pub pad: u32,
 }
 
 /// Where `normal_shader` writes a cloth's positions and normals: an interleaved vertex buffer
@@ -291,6 +306,7 @@ mod tests {
         assert_eq!(size_of::<GpuBatchFrame>(), 16);
         assert_eq!(size_of::<GpuBatchStep>(), 16);
         assert_eq!(size_of::<GpuBatchWriteback>(), 176);
+        assert_eq!(size_of::<GpuWritebackGroup>(), 16);
         assert_eq!(size_of::<GpuCollider>(), 176);
         assert_eq!(size_of::<GpuMeshWriteback>(), 144);
     }

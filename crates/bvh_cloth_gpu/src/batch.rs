@@ -22,10 +22,11 @@
 use std::sync::Arc;
 
 use bvh_cloth_core::gpu_layout::{
-    GpuBatchCloth, GpuBatchFrame, GpuBatchStep, GpuBatchWriteback, GpuMeshWriteback, GpuParticle, NO_CLOTH,
-    gpu_particle_info, gpu_particles, gpu_surface_words,
+    GpuBatchCloth, GpuBatchFrame, GpuBatchStep, GpuBatchWriteback, GpuMeshWriteback, GpuParticle, GpuWritebackGroup,
+    NO_CLOTH, gpu_particle_info, gpu_particles, gpu_surface_words,
 };
 use bvh_cloth_core::{ClothParams, ClothSim, ClothTopology, Vec3};
+use wgpu::util::DeviceExt;
 use wgpu::{BindGroup, Buffer, BufferUsages, CommandEncoder, Device, Queue};
 
 use crate::colliders::GpuColliders;
@@ -67,6 +68,8 @@ struct Slot {
     targets: Vec<Vec<(u32, Vec3)>>,
     /// The cloth's state, waiting for the next rebuild or first upload.
     pending_state: Option<Vec<GpuParticle>>,
+    /// Where `normal_shader` writes the cloth this frame: the layout, and the vertex buffer.
+    writeback: Option<(GpuMeshWriteback, Buffer)>,
 }
 
 impl Slot {
@@ -125,12 +128,7 @@ impl Buffers {
             spring_ends: storage("bvh_cloth_spring_ends", u64::from(ends) * 16),
             surface_words: storage("bvh_cloth_surface", u64::from(surface) * 4),
             cloth_constants: storage("bvh_cloth_cloths", u64::from(cloths) * size_of::<GpuBatchCloth>() as u64),
-            writebacks: device.create_buffer(&wgpu::BufferDescriptor {
-                label: Some("bvh_cloth_mesh_writebacks"),
-                size: u64::from(cloths.max(1)) * UNIFORM_STRIDE,
-                usage: BufferUsages::UNIFORM | BufferUsages::COPY_DST,
-                mapped_at_creation: false,
-            }),
+            writebacks: storage("bvh_cloth_mesh_writebacks", u64::from(cloths) * size_of::<GpuBatchWriteback>() as u64),
         }
     }
 }
@@ -143,6 +141,23 @@ struct AnchorTargets {
     /// Ticks the buffer has room for, and targets per tick.
     ticks: u32,
     per_tick: u32,
+}
+
+/// One `normal_shader` dispatch: the cloths written into one vertex buffer.
+#[derive(Debug)]
+struct WritebackGroup {
+    vertices: Buffer,
+    /// The cloths, in the order their vertices follow one another among the threads.
+    cloths: Vec<u32>,
+    bind_group: BindGroup,
+    workgroups: (u32, u32),
+}
+
+/// The writeback dispatches. Their bind groups hold what they share: the owner of each thread
+/// (its cloth) and each group's constants.
+#[derive(Debug)]
+struct Writebacks {
+    groups: Vec<WritebackGroup>,
 }
 
 /// Bind groups that stay valid until the buffers (or the colliders') are replaced.
@@ -168,8 +183,8 @@ pub struct ClothBatch {
     steps: Buffer,
     anchors: Option<AnchorTargets>,
     groups: Option<Groups>,
-    /// Vertex buffers `normal_shader` wrote, with the bind group for each.
-    writeback_groups: Vec<(Buffer, BindGroup)>,
+    /// The writeback dispatches, kept while the cloths write into the same vertex buffers.
+    writebacks: Option<Writebacks>,
     /// Workgroups of the integrator dispatches, and the batch's substeps per tick.
     workgroups: (u32, u32),
     substeps: u32,
@@ -211,7 +226,7 @@ impl ClothBatch {
             steps,
             anchors: None,
             groups: None,
-            writeback_groups: Vec::new(),
+            writebacks: None,
             workgroups: (1, 1),
             substeps: 0,
             anchor_count: 0,
@@ -235,6 +250,7 @@ impl ClothBatch {
             pins: sim.pins().len() as u32,
             targets: Vec::new(),
             pending_state: Some(gpu_particles(sim)),
+            writeback: None,
         };
         let index = match self.slots.iter().position(Option::is_none) {
             Some(free) => free,
@@ -350,7 +366,7 @@ impl ClothBatch {
         queue.submit([encoder.finish()]);
         self.used = used;
         self.groups = None;
-        self.writeback_groups.clear();
+        self.writebacks = None;
         Ok(())
     }
 
@@ -469,6 +485,7 @@ impl ClothBatch {
             dispatch_width: width,
         };
         queue.write_buffer(&self.frame, 0, bytemuck::bytes_of(&frame));
+        self.prepare_writebacks(device, queue, kernels);
         let key = (colliders.frames.clone(), colliders.tree.clone());
         let anchors = self.anchors.as_ref().map(|a| a.buffer.clone());
         if self.groups.as_ref().is_none_or(|g| g.colliders != key || g.anchors != anchors) {
@@ -679,80 +696,147 @@ impl ClothBatch {
         }
     }
 
-    /// Sets where [`Self::encode_writeback`] writes `id`: into `vertices` (a storage buffer of
-    /// `f32` words, such as a mesh's vertex slab), laid out by `mesh`. Bind groups are kept per
-    /// vertex buffer, shared by the cloths written there.
-    pub fn set_writeback(
-        &mut self,
-        device: &Device,
-        queue: &Queue,
-        kernels: &ClothKernels,
-        id: ClothId,
-        mesh: GpuMeshWriteback,
-        vertices: &Buffer,
-    ) {
-        let Some(slot) = self.slot(id) else { return };
-        let count = slot.topology.vertex_particle().len() as u32;
-        let Ok((x, _)) = ClothKernels::workgroups(device, count) else { return };
-        let writeback = GpuBatchWriteback {
-            mesh,
-            particle_start: slot.particle_start,
-            surface_start: slot.surface_start,
-            vertex_count: count,
-            particle_count: slot.topology.len() as u32,
-            dispatch_width: x * WORKGROUP_SIZE,
-            _pad: [0; 3],
-        };
-        queue.write_buffer(&self.buffers.writebacks, u64::from(id.0) * UNIFORM_STRIDE, bytemuck::bytes_of(&writeback));
-        if self.writeback_groups.iter().any(|(buffer, _)| buffer == vertices) {
-            return;
+    /// Sets where [`Self::encode_writebacks`] writes `id` (until it is set again or cleared):
+    /// into `vertices` (a storage buffer of `f32` words, such as a mesh's vertex slab), laid out
+    /// by `mesh`. All cloths written into one vertex buffer share one dispatch.
+    pub fn set_writeback(&mut self, id: ClothId, mesh: GpuMeshWriteback, vertices: &Buffer) {
+        if let Some(slot) = self.slots.get_mut(id.0 as usize).and_then(Option::as_mut) {
+            slot.writeback = Some((mesh, vertices.clone()));
         }
-        let b = &self.buffers;
-        let group = device.create_bind_group(&wgpu::BindGroupDescriptor {
-            label: Some("bvh_cloth_normal_shader"),
-            layout: &kernels.normal_layout,
-            entries: &[
-                wgpu::BindGroupEntry {
-                    binding: 15,
-                    resource: wgpu::BindingResource::Buffer(wgpu::BufferBinding {
-                        buffer: &b.writebacks,
-                        offset: 0,
-                        size: wgpu::BufferSize::new(size_of::<GpuBatchWriteback>() as u64),
-                    }),
-                },
-                wgpu::BindGroupEntry { binding: 16, resource: b.base.as_entire_binding() },
-                wgpu::BindGroupEntry { binding: 17, resource: b.surface_words.as_entire_binding() },
-                wgpu::BindGroupEntry { binding: 18, resource: vertices.as_entire_binding() },
-            ],
-        });
-        self.writeback_groups.push((vertices.clone(), group));
     }
 
-    /// Records `normal_shader` for `id`, into the vertex buffer its last
-    /// [`Self::set_writeback`] named: its positions and normals, once per frame.
-    pub fn encode_writeback(
-        &self,
-        device: &Device,
-        encoder: &mut CommandEncoder,
-        kernels: &ClothKernels,
-        id: ClothId,
-        vertices: &Buffer,
-    ) {
-        let Some(slot) = self.slot(id) else { return };
-        let Ok((x, y)) = ClothKernels::workgroups(device, slot.topology.vertex_particle().len() as u32) else { return };
-        let Some((_, group)) = self.writeback_groups.iter().find(|(buffer, _)| buffer == vertices) else { return };
+    /// Stops writing `id` into a vertex buffer (its mesh is not allocated this frame, say).
+    pub fn clear_writeback(&mut self, id: ClothId) {
+        if let Some(slot) = self.slots.get_mut(id.0 as usize).and_then(Option::as_mut) {
+            slot.writeback = None;
+        }
+    }
+
+    /// Uploads every cloth's writeback and, when the cloths or their vertex buffers changed,
+    /// the owner table, the group constants and the bind groups.
+    fn prepare_writebacks(&mut self, device: &Device, queue: &Queue, kernels: &ClothKernels) {
+        let mut groups: Vec<(Buffer, Vec<u32>)> = Vec::new();
+        for (index, slot) in self.slots.iter().enumerate() {
+            let Some((_, vertices)) = slot.as_ref().and_then(|slot| slot.writeback.as_ref()) else { continue };
+            match groups.iter_mut().find(|(buffer, _)| buffer == vertices) {
+                Some((_, cloths)) => cloths.push(index as u32),
+                None => groups.push((vertices.clone(), vec![index as u32])),
+            }
+        }
+        let vertex_count =
+            |index: u32| self.slots[index as usize].as_ref().map_or(0, |s| s.topology.vertex_particle().len() as u32);
+        // Every cloth's writeback, each cloth's first thread counted within its group.
+        let mut constants = vec![GpuBatchWriteback::default(); self.slots.len()];
+        for (_, cloths) in &groups {
+            let mut first = 0;
+            for &index in cloths {
+                let Some(slot) = self.slots[index as usize].as_ref() else { continue };
+                let Some((mesh, _)) = slot.writeback else { continue };
+                constants[index as usize] = GpuBatchWriteback {
+                    mesh,
+                    particle_start: slot.particle_start,
+                    surface_start: slot.surface_start,
+                    vertex_count: vertex_count(index),
+                    particle_count: slot.topology.len() as u32,
+                    group_first: first,
+                    _pad: [0; 3],
+                };
+                first += vertex_count(index);
+            }
+        }
+        if !constants.is_empty() {
+            queue.write_buffer(&self.buffers.writebacks, 0, bytemuck::cast_slice(&constants));
+        }
+        let same = self.writebacks.as_ref().is_some_and(|w| {
+            w.groups.len() == groups.len()
+                && w.groups
+                    .iter()
+                    .zip(&groups)
+                    .all(|(g, (vertices, cloths))| g.vertices == *vertices && g.cloths == *cloths)
+        });
+        if same {
+            return;
+        }
+        if groups.is_empty() {
+            self.writebacks = None;
+            return;
+        }
+        let mut owners = Vec::new();
+        let mut infos = vec![0u8; groups.len() * UNIFORM_STRIDE as usize];
+        let mut sizes = Vec::with_capacity(groups.len());
+        for (k, (_, cloths)) in groups.iter().enumerate() {
+            let first_owner = owners.len() as u32;
+            for &index in cloths {
+                owners.extend(std::iter::repeat_n(index, vertex_count(index) as usize));
+            }
+            let count = owners.len() as u32 - first_owner;
+            let workgroups = ClothKernels::workgroups(device, count).unwrap_or((0, 0));
+            let info = GpuWritebackGroup {
+                first_owner,
+                vertex_count: count,
+                dispatch_width: workgroups.0 * WORKGROUP_SIZE,
+                pad: 0,
+            };
+            let at = k * UNIFORM_STRIDE as usize;
+            infos[at..at + size_of::<GpuWritebackGroup>()].copy_from_slice(bytemuck::bytes_of(&info));
+            sizes.push(workgroups);
+        }
+        let owners = device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
+            label: Some("bvh_cloth_writeback_owners"),
+            contents: bytemuck::cast_slice(&owners),
+            usage: BufferUsages::STORAGE,
+        });
+        let group_constants = device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
+            label: Some("bvh_cloth_writeback_groups"),
+            contents: &infos,
+            usage: BufferUsages::UNIFORM,
+        });
+        let b = &self.buffers;
+        let groups = groups
+            .into_iter()
+            .zip(sizes)
+            .map(|((vertices, cloths), workgroups)| {
+                let bind_group = device.create_bind_group(&wgpu::BindGroupDescriptor {
+                    label: Some("bvh_cloth_normal_shader"),
+                    layout: &kernels.normal_layout,
+                    entries: &[
+                        wgpu::BindGroupEntry { binding: 15, resource: b.writebacks.as_entire_binding() },
+                        wgpu::BindGroupEntry { binding: 16, resource: b.base.as_entire_binding() },
+                        wgpu::BindGroupEntry { binding: 17, resource: b.surface_words.as_entire_binding() },
+                        wgpu::BindGroupEntry { binding: 18, resource: vertices.as_entire_binding() },
+                        wgpu::BindGroupEntry { binding: 23, resource: owners.as_entire_binding() },
+                        wgpu::BindGroupEntry {
+                            binding: 24,
+                            resource: wgpu::BindingResource::Buffer(wgpu::BufferBinding {
+                                buffer: &group_constants,
+                                offset: 0,
+                                size: wgpu::BufferSize::new(size_of::<GpuWritebackGroup>() as u64),
+                            }),
+                        },
+                    ],
+                });
+                WritebackGroup { vertices, cloths, bind_group, workgroups }
+            })
+            .collect();
+        self.writebacks = Some(Writebacks { groups });
+    }
+
+    /// Records `normal_shader` for every cloth with a writeback: positions and normals into
+    /// their vertex buffers, one dispatch per vertex buffer. Needs [`Self::prepare`] this frame.
+    pub fn encode_writebacks(&self, encoder: &mut CommandEncoder, kernels: &ClothKernels) {
+        let Some(writebacks) = &self.writebacks else { return };
         let mut pass = encoder.begin_compute_pass(&wgpu::ComputePassDescriptor {
             label: Some("bvh_cloth_writeback"),
             timestamp_writes: None,
         });
         pass.set_pipeline(&kernels.normal);
-        pass.set_bind_group(0, group, &[(u64::from(id.0) * UNIFORM_STRIDE) as u32]);
-        pass.dispatch_workgroups(x, y, 1);
-    }
-
-    /// Forgets the bind group of a vertex buffer that is gone (a mesh slab that was freed).
-    pub fn forget_vertex_buffers(&mut self, keep: impl Fn(&Buffer) -> bool) {
-        self.writeback_groups.retain(|(buffer, _)| keep(buffer));
+        for (k, group) in writebacks.groups.iter().enumerate() {
+            if group.workgroups.0 == 0 {
+                continue;
+            }
+            pass.set_bind_group(0, &group.bind_group, &[(k as u64 * UNIFORM_STRIDE) as u32]);
+            pass.dispatch_workgroups(group.workgroups.0, group.workgroups.1, 1);
+        }
     }
 
     /// The particle buffer (`GpuParticle`s, `COPY_SRC`) and where `id`'s particles lie in it,

@@ -187,10 +187,12 @@ impl ClothKernels {
                 entry_point: "normal_shader",
                 file: "normal_shader.wgsl",
                 layout: vec![
-                    entry(15, BufferBindingType::Uniform, true),
+                    storage(15, true),
                     storage(16, true),
                     storage(17, true),
                     storage(18, false),
+                    storage(23, true),
+                    entry(24, BufferBindingType::Uniform, true),
                 ],
             },
         ]

@@ -6,6 +6,7 @@ use core::mem::{offset_of, size_of};
 
 use bvh_cloth_core::gpu_layout::{
     GpuBatchCloth, GpuBatchFrame, GpuBatchStep, GpuBatchWriteback, GpuCollider, GpuMeshWriteback, GpuParticle,
+    GpuWritebackGroup,
 };
 use bvh_cloth_core::{BvhNode, Sphere};
 use bvh_cloth_gpu::{SHADER_FILES, shader_source};
@@ -90,9 +91,10 @@ fn wgsl_structs_match_the_rust_layouts() {
         offset_of!(GpuBatchWriteback, surface_start),
         offset_of!(GpuBatchWriteback, vertex_count),
         offset_of!(GpuBatchWriteback, particle_count),
-        offset_of!(GpuBatchWriteback, dispatch_width),
+        offset_of!(GpuBatchWriteback, group_first),
     ];
     assert_eq!(members[..6].iter().map(|m| m.1 as usize).collect::<Vec<_>>(), rust, "members of BatchWriteback");
+    assert_layout!(&module, "WritebackGroup", GpuWritebackGroup, [first_owner, vertex_count, dispatch_width, pad]);
     assert_layout!(
         &module,
         "GpuCollider",

@@ -77,9 +77,10 @@ impl Rig {
             contents: bytemuck::cast_slice(&words),
             usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_SRC,
         });
-        cloth.batch.set_writeback(&self.device, &self.queue, &self.kernels, cloth.id, writeback, &vertices);
+        cloth.batch.set_writeback(cloth.id, writeback, &vertices);
+        cloth.batch.prepare(&self.device, &self.queue, &self.kernels, &GpuColliders::new(&self.device, &[]));
         let mut encoder = self.device.create_command_encoder(&Default::default());
-        cloth.batch.encode_writeback(&self.device, &mut encoder, &self.kernels, cloth.id, &vertices);
+        cloth.batch.encode_writebacks(&mut encoder, &self.kernels);
         self.queue.submit([encoder.finish()]);
         headless::read(&self.device, &self.queue, &vertices)
     }
@@ -740,4 +741,53 @@ fn timed_ticks_step_as_untimed_ones_and_name_each_dispatch() {
     let substep = [Kernel::NodeUpdate, Kernel::NodeUpdate, Kernel::NodeUpdate, Kernel::NodeUpdateFinal];
     assert_eq!(kernels, substep.repeat(6), "2 ticks of 3 substeps");
     assert_eq!(rig.particles(&timed), rig.particles(&plain));
+}
+
+/// `normal_shader` writes every cloth of a vertex buffer in one dispatch: two cloths of
+/// different sizes share one buffer (the second after a vertex of padding), a third has a
+/// buffer of its own; each vertex shows its own cloth's particle, and the padding is untouched.
+#[test]
+fn one_writeback_dispatch_per_vertex_buffer_writes_every_cloth_in_it() {
+    let Some(rig) = rig() else { return };
+    const STRIDE: u32 = 8;
+    let sentinel = -7.0f32;
+    let sims = [
+        grid_cloth(square(1.0, 3), ClothParams::default(), Affine3A::from_translation(Vec3::Y), &[]),
+        grid_cloth(square(0.5, 5), ClothParams::default(), Affine3A::from_translation(Vec3::X), &[]),
+        grid_cloth(square(2.0, 4), ClothParams::default(), Affine3A::from_translation(Vec3::Z), &[]),
+    ];
+    let mut batch = ClothBatch::new(&rig.device, &rig.queue);
+    let ids: Vec<ClothId> = sims.iter().map(|sim| batch.insert(&rig.device, &rig.queue, sim).unwrap()).collect();
+    let buffer = |words: usize| {
+        rig.device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
+            label: None,
+            contents: bytemuck::cast_slice(&vec![sentinel; words]),
+            usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_SRC,
+        })
+    };
+    let (n0, n1, n2) = (sims[0].len() as u32, sims[1].len() as u32, sims[2].len() as u32);
+    let shared = buffer(((n0 + 1 + n1) * STRIDE) as usize);
+    let own = buffer((n2 * STRIDE) as usize);
+    let at = |first_vertex: u32| GpuMeshWriteback::new(Affine3A::IDENTITY, first_vertex * STRIDE, STRIDE, 0, 4);
+    batch.set_writeback(ids[0], at(0), &shared);
+    batch.set_writeback(ids[1], at(n0 + 1), &shared);
+    batch.set_writeback(ids[2], at(0), &own);
+    batch.prepare(&rig.device, &rig.queue, &rig.kernels, &GpuColliders::new(&rig.device, &[]));
+    let mut encoder = rig.device.create_command_encoder(&Default::default());
+    batch.encode_writebacks(&mut encoder, &rig.kernels);
+    rig.queue.submit([encoder.finish()]);
+    let shared: Vec<f32> = headless::read(&rig.device, &rig.queue, &shared);
+    let own: Vec<f32> = headless::read(&rig.device, &rig.queue, &own);
+    let shows = |words: &[f32], first: u32, sim: &ClothSim, name: &str| {
+        for i in 0..sim.len() {
+            let w = ((first + i as u32) * STRIDE) as usize;
+            assert_eq!(Vec3::from_slice(&words[w..w + 3]), sim.position(i), "{name}: vertex {i}");
+            assert!((Vec3::from_slice(&words[w + 4..w + 7]).length() - 1.0).abs() < 1e-5, "{name}: normal {i}");
+        }
+    };
+    shows(&shared, 0, &sims[0], "first cloth of the shared buffer");
+    shows(&shared, n0 + 1, &sims[1], "second cloth of the shared buffer");
+    shows(&own, 0, &sims[2], "the cloth with a buffer of its own");
+    let padding = &shared[(n0 * STRIDE) as usize..((n0 + 1) * STRIDE) as usize];
+    assert!(padding.iter().all(|&w| w == sentinel), "the padding vertex was written");
 }

@@ -1,11 +1,12 @@
 // NormalShader (Algorithm 3): per-vertex normals from the triangles around each particle,
-// written with the positions into an interleaved vertex buffer (a mesh's vertex slab), one
-// thread per render vertex of one cloth; the cloth's BatchWriteback is bound at a dynamic
-// offset.
+// written with the positions into an interleaved vertex buffer (a mesh's vertex slab). One
+// dispatch covers every cloth written into one vertex buffer, one thread per render vertex:
+// the thread's owner names its cloth's BatchWriteback, which says where that cloth's vertices
+// start among the group's threads.
 
-#import bvh_cloth::types::{GpuParticle, BatchWriteback, thread_index}
+#import bvh_cloth::types::{GpuParticle, BatchWriteback, WritebackGroup, thread_index}
 
-@group(0) @binding(15) var<uniform> writeback: BatchWriteback;
+@group(0) @binding(15) var<storage, read> writebacks: array<BatchWriteback>;
 @group(0) @binding(16) var<storage, read> particles: array<GpuParticle>;
 // Every cloth's surface (bvh_cloth_core::gpu_layout::gpu_surface_words) from its
 // surface_start: the particle of each of the V vertices, N + 1 triangle offsets, the
@@ -13,17 +14,22 @@
 // cloth's first.
 @group(0) @binding(17) var<storage, read> surface: array<u32>;
 @group(0) @binding(18) var<storage, read_write> vertices: array<f32>;
+// Per thread of every group: the index of the cloth (its BatchWriteback) the vertex belongs to.
+@group(0) @binding(23) var<storage, read> owners: array<u32>;
+@group(0) @binding(24) var<uniform> writeback_group: WritebackGroup;
 
-fn corner(triangles: u32, t: u32, k: u32) -> vec3<f32> {
-    return particles[writeback.particle_start + surface[triangles + 3u * t + k]].position.xyz;
+fn corner(particle_start: u32, triangles: u32, t: u32, k: u32) -> vec3<f32> {
+    return particles[particle_start + surface[triangles + 3u * t + k]].position.xyz;
 }
 
 @compute @workgroup_size(8, 8, 1)
 fn normal_shader(@builtin(global_invocation_id) id: vec3<u32>) {
-    let v = thread_index(id, writeback.dispatch_width);
-    if (v >= writeback.vertex_count) {
+    let thread = thread_index(id, writeback_group.dispatch_width);
+    if (thread >= writeback_group.vertex_count) {
         return;
     }
+    let writeback = writebacks[owners[writeback_group.first_owner + thread]];
+    let v = thread - writeback.group_first;
     let start = writeback.surface_start;
     let offsets = start + writeback.vertex_count;
     let lists = offsets + writeback.particle_count + 1u;
@@ -33,8 +39,8 @@ fn normal_shader(@builtin(global_invocation_id) id: vec3<u32>) {
     var n = vec3<f32>(0.0);
     for (var k = surface[offsets + i]; k < surface[offsets + i + 1u]; k++) {
         let t = surface[lists + k];
-        let a = corner(triangles, t, 0u);
-        n += cross(corner(triangles, t, 1u) - a, corner(triangles, t, 2u) - a);
+        let a = corner(writeback.particle_start, triangles, t, 0u);
+        n += cross(corner(writeback.particle_start, triangles, t, 1u) - a, corner(writeback.particle_start, triangles, t, 2u) - a);
     }
     var world_normal = vec3<f32>(0.0, 1.0, 0.0);
     let len2 = dot(n, n);

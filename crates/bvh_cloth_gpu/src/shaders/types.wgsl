@@ -9,7 +9,7 @@
 //
 // Bindings (group 0), unique across the kernels so that the files form one module:
 // 0 frame, 1 step: shared; 2-8: node_update; 9-12 and 19-22: node_update_final (11-12 in
-// collision.wgsl); 13-14: apply_anchors; 15-18: normal_shader.
+// collision.wgsl); 13-14: apply_anchors; 15-18 and 23-24: normal_shader.
 
 #define_import_path bvh_cloth::types
 
@@ -77,10 +77,17 @@ struct BatchWriteback {
     surface_start: u32,
     vertex_count: u32,
     particle_count: u32,
-    dispatch_width: u32,
+    group_first: u32,
     pad_a: u32,
     pad_b: u32,
     pad_c: u32,
+}
+
+struct WritebackGroup {
+    first_owner: u32,
+    vertex_count: u32,
+    dispatch_width: u32,
+    pad: u32,
 }
 
 const NO_CLOTH: u32 = 0xffffffffu;         // bvh_cloth_core::gpu_layout::NO_CLOTH
