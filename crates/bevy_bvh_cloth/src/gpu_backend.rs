@@ -11,8 +11,11 @@
 //!    reset.
 //! 2. [`prepare_cloths`] (`Render`, `PrepareResources`) adds new or reshaped cloths to the
 //!    batch and takes out despawned ones, uploads each cloth's constants (a SpringK change is
-//!    one 60-byte write), the pins' targets, the collider frames, and where each mesh's
-//!    vertices lie in their slab.
+//!    one 60-byte write) and the collider frames, and notes the pins' targets and where each
+//!    mesh's vertices lie in their slab; [`prepare_cloth_bind_groups`] (`PrepareBindGroups`)
+//!    uploads those and makes the bind groups that changed. The simulation itself runs once per
+//!    frame, whatever the number of cameras, before the camera driver (where `bevy_hanabi`
+//!    runs its particle simulation too).
 //! 3. [`simulate_cloths`] (`RenderGraph`, before the camera driver) records the ticks of the
 //!    whole batch, a copy of each cloth's fault count and, for cloths with [`ClothReadback`], a
 //!    copy of its particles, then the writeback of all cloths (one dispatch per mesh slab); [`request_fault_reads`] (`Cleanup`, after the
@@ -125,6 +128,7 @@ pub(crate) fn add_render_systems(render_app: &mut SubApp, shaders: ClothShaders)
             Render,
             (
                 prepare_cloths.in_set(RenderSystems::PrepareResources),
+                prepare_cloth_bind_groups.in_set(RenderSystems::PrepareBindGroups),
                 request_fault_reads.in_set(RenderSystems::Cleanup),
             ),
         )
@@ -281,7 +285,9 @@ fn prepare_cloths(
             }
         }
     }
-    let Some(kernels) = &world.kernels else { return };
+    if world.kernels.is_none() {
+        return;
+    }
 
     // Colliders: new buffers when the set of trees changed, otherwise only the frames.
     let trees: Vec<Arc<Lbvh>> = world.extracted_colliders.iter().map(|c| c.lbvh.clone()).collect();
@@ -301,8 +307,6 @@ fn prepare_cloths(
             *slot = Some((trees, gpu));
         }
     }
-    let Some((_, colliders)) = &world.colliders else { return };
-
     let batch = world.batch.get_or_insert_with(|| ClothBatch::new(device, &queue));
 
     // Cloths that are gone leave the batch.
@@ -377,7 +381,17 @@ fn prepare_cloths(
         }
         world.cloths.insert(cloth.entity, render);
     }
-    batch.prepare(device, &queue, kernels, colliders);
+}
+
+/// Uploads the frame's constants and anchor targets and makes the bind groups that changed,
+/// once every buffer is (re)allocated for the frame.
+fn prepare_cloth_bind_groups(mut world: ResMut<GpuClothWorld>, device: Res<RenderDevice>, queue: Res<RenderQueue>) {
+    let world = &mut *world;
+    let (Some(kernels), Some((_, colliders)), Some(batch)) = (&world.kernels, &world.colliders, &mut world.batch)
+    else {
+        return;
+    };
+    batch.prepare(device.wgpu_device(), &queue, kernels, colliders);
 }
 
 fn simulate_cloths(mut render_context: RenderContext, world: Res<GpuClothWorld>) {
