@@ -11,7 +11,7 @@
 //! Cloths that need different substep counts share the tick: the batch runs the largest count,
 //! and a cloth sits out the substeps past its own (each cloth keeps its own substep length, so
 //! its trajectory is the one it would have alone, and the CPU stepper's). A semi-implicit Euler
-//! cloth integrates in the third stage and lands in the last; its other stages skip it.
+//! cloth integrates in the first stage and lands in the last; the other two skip it.
 //!
 //! Adding a cloth writes its ranges at the end of the used space. When that is full, the
 //! buffers are rebuilt, larger where needed and with the live cloths packed together: their
@@ -37,7 +37,7 @@ use crate::kernels::{ClothKernels, KernelError, WORKGROUP_SIZE, storage_binding_
 pub enum Kernel {
     /// `apply_anchors`: the pins moved at the start of a tick.
     ApplyAnchors,
-    /// `node_update`: one of RK4's first three stages (semi-implicit Euler in the third).
+    /// `node_update`: one of RK4's first three stages (semi-implicit Euler in the first).
     NodeUpdate,
     /// `node_update_final`: the last stage, with the collision response.
     NodeUpdateFinal,
@@ -574,14 +574,14 @@ impl ClothBatch {
             entries: &[
                 frame.clone(),
                 step.clone(),
+                wgpu::BindGroupEntry { binding: 3, resource: b.stage_a.as_entire_binding() },
+                wgpu::BindGroupEntry { binding: 6, resource: b.info.as_entire_binding() },
+                wgpu::BindGroupEntry { binding: 7, resource: b.spring_ends.as_entire_binding() },
+                wgpu::BindGroupEntry { binding: 8, resource: b.cloth_constants.as_entire_binding() },
                 wgpu::BindGroupEntry { binding: 9, resource: b.base.as_entire_binding() },
                 wgpu::BindGroupEntry { binding: 10, resource: b.slope_sum.as_entire_binding() },
                 wgpu::BindGroupEntry { binding: 11, resource: colliders.0.as_entire_binding() },
                 wgpu::BindGroupEntry { binding: 12, resource: colliders.1.as_entire_binding() },
-                wgpu::BindGroupEntry { binding: 19, resource: b.stage_a.as_entire_binding() },
-                wgpu::BindGroupEntry { binding: 20, resource: b.info.as_entire_binding() },
-                wgpu::BindGroupEntry { binding: 21, resource: b.spring_ends.as_entire_binding() },
-                wgpu::BindGroupEntry { binding: 22, resource: b.cloth_constants.as_entire_binding() },
             ],
         });
         let apply_anchors = self.anchors.as_ref().map(|anchors| {

@@ -8,10 +8,11 @@ use wgpu::{
 };
 
 /// The kernels' WGSL files, in the order [`shader_source`] joins them: the shared types, the
-/// collision response, then one file per kernel. Each starts with naga_oil directives
+/// spring forces, the collision response, then one file per kernel. Each starts with naga_oil directives
 /// (`#define_import_path`, `#import`) for engines that compose shaders that way.
-pub const SHADER_FILES: [(&str, &str); 6] = [
+pub const SHADER_FILES: [(&str, &str); 7] = [
     ("types.wgsl", include_str!("shaders/types.wgsl")),
+    ("springs.wgsl", include_str!("shaders/springs.wgsl")),
     ("collision.wgsl", include_str!("shaders/collision.wgsl")),
     ("node_update.wgsl", include_str!("shaders/node_update.wgsl")),
     ("node_update_final.wgsl", include_str!("shaders/node_update_final.wgsl")),
@@ -164,14 +165,14 @@ impl ClothKernels {
                 layout: vec![
                     frame,
                     step,
+                    storage(3, true),
+                    storage(6, true),
+                    storage(7, true),
+                    storage(8, false),
                     storage(9, false),
                     storage(10, true),
                     storage(11, true),
                     storage(12, true),
-                    storage(19, true),
-                    storage(20, true),
-                    storage(21, true),
-                    storage(22, false),
                 ],
             },
             KernelDescriptor {

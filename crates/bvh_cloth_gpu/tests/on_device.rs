@@ -459,6 +459,17 @@ fn bunny_drop_agrees_with_the_cpu() {
     assert_eq!(inside, 0, "{inside} GPU particles inside the bunny's spheres");
 }
 
+/// A ball of radius 0.3 m at `centre`, one sphere, with a 1 cm margin and friction 1.
+fn rough_ball(centre: Vec3) -> Collider {
+    Collider {
+        lbvh: Lbvh::build(&[Sphere::new(Vec3::ZERO, 0.3)]).into(),
+        resolution: 1,
+        margin: 0.01,
+        friction: 1.0,
+        pose: ColliderPose { translation: centre, ..Default::default() },
+    }
+}
+
 /// Two colliders in one scene, one of them posed (scaled, turned), and the other sliding
 /// 0.2 m under the cloth over one second, its new pose uploaded every tick without a rebuild:
 /// the concatenated trees and their offsets, and `GpuColliders::update_frames`, against the
@@ -466,13 +477,7 @@ fn bunny_drop_agrees_with_the_cpu() {
 #[test]
 fn two_colliders_one_moving_agree_with_the_cpu() {
     let Some(rig) = rig() else { return };
-    let ball = Collider {
-        lbvh: Lbvh::build(&[Sphere::new(Vec3::ZERO, 0.3)]).into(),
-        resolution: 1,
-        margin: 0.01,
-        friction: 1.0,
-        pose: ColliderPose { translation: Vec3::new(-0.5, 0.3, 0.0), ..Default::default() },
-    };
+    let ball = rough_ball(Vec3::new(-0.5, 0.3, 0.0));
     let small_bunny = bunny(3).with_pose(ColliderPose {
         translation: Vec3::new(0.5, 0.0, 0.0),
         rotation: Quat::from_rotation_y(1.0),
@@ -630,13 +635,7 @@ fn authored_mesh_with_moving_anchors_agrees_with_the_cpu() {
 #[test]
 fn a_batch_of_cloths_agrees_with_each_alone_on_the_cpu_as_cloths_come_and_go() {
     let Some(rig) = rig() else { return };
-    let ball = Collider {
-        lbvh: Lbvh::build(&[Sphere::new(Vec3::ZERO, 0.3)]).into(),
-        resolution: 1,
-        margin: 0.01,
-        friction: 1.0,
-        pose: ColliderPose { translation: Vec3::new(3.0, 0.6, 0.0), ..Default::default() },
-    };
+    let ball = rough_ball(Vec3::new(3.0, 0.6, 0.0));
     let colliders = [ball];
     let gpu_colliders = GpuColliders::new(&rig.device, &colliders);
     let hanging = ClothParams { damping: 1.0, ..Default::default() };

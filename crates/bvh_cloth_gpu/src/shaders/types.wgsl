@@ -8,8 +8,9 @@
 // 8x8x1; a thread's index is id.y * dispatch_width + id.x.
 //
 // Bindings (group 0), unique across the kernels so that the files form one module:
-// 0 frame, 1 step: shared; 2-8: node_update; 9-12 and 19-22: node_update_final (11-12 in
-// collision.wgsl); 13-14: apply_anchors; 15-18 and 23-24: normal_shader.
+// 0 frame, 1 step: shared; 3 and 6-8 (springs.wgsl): both integrator kernels; 2, 4-5:
+// node_update; 9-12: node_update_final (11-12 in collision.wgsl); 13-14: apply_anchors; 15-18
+// and 23-24: normal_shader.
 
 #define_import_path bvh_cloth::types
 
