@@ -11,7 +11,9 @@
 //! Cloths that need different substep counts share the tick: the batch runs the largest count,
 //! and a cloth sits out the substeps past its own (each cloth keeps its own substep length, so
 //! its trajectory is the one it would have alone, and the CPU stepper's). A semi-implicit Euler
-//! cloth integrates in the first stage and lands in the last; the other two skip it.
+//! cloth integrates in the first stage and lands in the last; the other two skip it. Every
+//! cloth collides with every collider the batch is prepared with ([`ClothBatch::prepare`]), as
+//! every cloth of a scene does on the CPU.
 //!
 //! Adding a cloth writes its ranges at the end of the used space. When that is full, the
 //! buffers are rebuilt, larger where needed and with the live cloths packed together: their
