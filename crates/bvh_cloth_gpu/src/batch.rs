@@ -140,9 +140,8 @@ impl Buffers {
 struct AnchorTargets {
     buffer: Buffer,
     stride: u64,
-    /// Ticks the buffer has room for, and targets per tick.
+    /// Ticks the buffer has room for.
     ticks: u32,
-    per_tick: u32,
 }
 
 /// One `normal_shader` dispatch: the cloths written into one vertex buffer.
@@ -513,10 +512,9 @@ impl ClothBatch {
                 usage: BufferUsages::STORAGE | BufferUsages::COPY_DST,
                 mapped_at_creation: false,
             });
-            self.anchors = Some(AnchorTargets { buffer, stride, ticks: capacity, per_tick });
+            self.anchors = Some(AnchorTargets { buffer, stride, ticks: capacity });
         }
-        let Some(anchors) = self.anchors.as_mut() else { return };
-        anchors.per_tick = per_tick;
+        let Some(anchors) = self.anchors.as_ref() else { return };
         // A pin without a target this tick keeps its slot, naming no particle.
         let unused = [0.0, 0.0, 0.0, f32::from_bits(u32::MAX)];
         let mut words: Vec<[f32; 4]> = vec![unused; (anchors.stride / 16 * u64::from(ticks)) as usize];
