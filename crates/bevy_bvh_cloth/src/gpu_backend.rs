@@ -43,7 +43,9 @@ use bevy::render::{Extract, ExtractSchedule, MainWorld, Render, RenderSystems};
 use bevy::shader::Shader;
 use bvh_cloth_core::gpu_layout::GpuMeshWriteback;
 use bvh_cloth_core::{Affine3A, ClothParams, ClothSim, Collider, Lbvh};
-use bvh_cloth_gpu::{ClothBatch, ClothId, ClothKernels, FaultReadback, GpuColliders, ParticleReadback, SHADER_FILES};
+use bvh_cloth_gpu::{
+    ClothBatch, ClothId, ClothKernels, FaultReadback, GpuColliders, KERNEL_COUNT, ParticleReadback, SHADER_FILES,
+};
 
 use crate::clock::ClothClock;
 use crate::collider::ClothCollider;
@@ -75,8 +77,8 @@ impl ClothShaders {
 /// The kernels' pipelines, queued on Bevy's pipeline cache (compiled off the render thread),
 /// and their bind group layouts.
 struct QueuedKernels {
-    pipelines: [CachedComputePipelineId; 4],
-    layouts: [BindGroupLayoutDescriptor; 4],
+    pipelines: [CachedComputePipelineId; KERNEL_COUNT],
+    layouts: [BindGroupLayoutDescriptor; KERNEL_COUNT],
 }
 
 impl QueuedKernels {
@@ -85,7 +87,7 @@ impl QueuedKernels {
         let layouts = descriptors
             .clone()
             .map(|kernel| BindGroupLayoutDescriptor::new(format!("bvh_cloth_{}", kernel.entry_point), &kernel.layout));
-        let mut pipelines = Vec::with_capacity(4);
+        let mut pipelines = Vec::with_capacity(KERNEL_COUNT);
         for (kernel, layout) in descriptors.iter().zip(&layouts) {
             pipelines.push(cache.queue_compute_pipeline(ComputePipelineDescriptor {
                 label: Some(format!("bvh_cloth_{}", kernel.entry_point).into()),
@@ -107,7 +109,7 @@ impl QueuedKernels {
                 return Err(error.to_string());
             }
         }
-        let mut pipelines = Vec::with_capacity(4);
+        let mut pipelines = Vec::with_capacity(KERNEL_COUNT);
         for &id in &self.pipelines {
             let Some(pipeline) = cache.get_compute_pipeline(id) else { return Ok(None) };
             pipelines.push((**pipeline).clone());

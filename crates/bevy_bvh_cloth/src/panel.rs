@@ -5,6 +5,7 @@ use core::ops::DerefMut;
 
 use bevy::prelude::*;
 use bevy_egui::{EguiContexts, EguiPlugin, EguiPrimaryContextPass, egui};
+use bvh_cloth_core::params::MAX_ITERATIONS;
 
 use crate::{AutoCollider, Cloth, ClothSettings, ClothShape, ClothStats, ColliderStatus, Integrator, ResetCloth};
 
@@ -87,7 +88,14 @@ fn cloth_panel(
                 ui.horizontal(|ui| {
                     ui.radio_value(&mut c.params.integrator, Integrator::Rk4, "RK4");
                     ui.radio_value(&mut c.params.integrator, Integrator::SemiImplicitEuler, "Semi-implicit Euler");
+                    let descent = matches!(c.params.integrator, Integrator::BlockDescent { .. });
+                    if ui.radio(descent, "Block descent").clicked() && !descent {
+                        c.params.integrator = Integrator::BLOCK_DESCENT;
+                    }
                 });
+                if let Integrator::BlockDescent { iterations } = &mut c.params.integrator {
+                    ui.add(egui::Slider::new(iterations, 1..=MAX_ITERATIONS).text("Iterations per substep"));
+                }
             });
         }
 

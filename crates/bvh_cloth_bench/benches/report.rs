@@ -272,8 +272,8 @@ fn gpu_profile(meshes: &[ObjMesh], gpu: Option<&Gpu>) {
                 let span = stamps[2 * k + 1].saturating_sub(stamps[2 * k]) as f64 * period_ns * 1e-6;
                 ms[match kernel {
                     Kernel::ApplyAnchors => 0,
-                    Kernel::NodeUpdate => 1,
-                    Kernel::NodeUpdateFinal => 2,
+                    Kernel::NodeUpdate | Kernel::VbdPredict | Kernel::VbdSolve => 1,
+                    Kernel::NodeUpdateFinal | Kernel::VbdFinish => 2,
                 }] += span;
             }
             samples.push(ms);

@@ -92,6 +92,25 @@ pub enum ClothError {
         /// The threshold given.
         value: f32,
     },
+    /// The cloth mesh cannot be coloured for the block-descent solver within the limit: some
+    /// particle's spring neighbours already use every colour.
+    TooManyColours {
+        /// The first particle that found no free colour.
+        particle: u32,
+        /// Most colours allowed ([`crate::colouring::MAX_COLOURS`]).
+        limit: u32,
+    },
+    /// A count parameter lies outside the range the solver accepts.
+    CountOutOfRange {
+        /// Name of the offending field.
+        field: &'static str,
+        /// The value that was given.
+        value: u32,
+        /// Smallest value accepted.
+        min: u32,
+        /// Largest value accepted.
+        max: u32,
+    },
     /// The cloth has more particles than the core accepts.
     TooManyParticles {
         /// Particles after welding.
@@ -149,6 +168,14 @@ impl fmt::Display for ClothError {
             Self::PinsNeedPositions => write!(f, "cloth pins by region need a position for every vertex of the mesh"),
             Self::PinThreshold { value } => {
                 write!(f, "cloth pin weight threshold must be in (0, 1], got {value}")
+            }
+            Self::TooManyColours { particle, limit } => write!(
+                f,
+                "cloth mesh needs more than {limit} colours for the block-descent solver (particle {particle} has \
+                 springs to every colour); use another integrator or a mesh with fewer springs per vertex"
+            ),
+            Self::CountOutOfRange { field, value, min, max } => {
+                write!(f, "cloth parameter `{field}` must be in {min}..={max}, got {value}")
             }
             Self::TooManyParticles { particles, max } => {
                 write!(f, "cloth has {particles} particles; at most {max} are supported")

@@ -29,11 +29,13 @@ pub const NO_CLOTH: u32 = u32::MAX;
 pub const INTEGRATOR_RK4: u32 = 0;
 /// [`GpuBatchCloth::integrator`] of semi-implicit Euler.
 pub const INTEGRATOR_EULER: u32 = 1;
+/// [`GpuBatchCloth::integrator`] of block descent.
+pub const INTEGRATOR_BLOCK_DESCENT: u32 = 2;
 
 /// One cloth of a batch: where its data lies in the shared buffers, and its constants for the
-/// coming ticks. An array of these is one storage buffer. 64 bytes; the last word is the
+/// coming ticks. An array of these is one storage buffer. 80 bytes; the last word is the
 /// cloth's count of quarantined particles, which the kernels add to and the host reads and
-/// clears (so the host writes only the first 60 bytes).
+/// clears (so the host writes only the first 76 bytes).
 #[repr(C)]
 #[derive(Clone, Copy, Debug, Default, PartialEq, Pod, Zeroable)]
 pub struct GpuBatchCloth {
@@ -53,15 +55,23 @@ pub struct GpuBatchCloth {
     pub h: f32,
     /// Damping rate in 1/s.
     pub damping: f32,
-    /// [`INTEGRATOR_RK4`] or [`INTEGRATOR_EULER`].
+    /// [`INTEGRATOR_RK4`], [`INTEGRATOR_EULER`] or [`INTEGRATOR_BLOCK_DESCENT`].
     pub integrator: u32,
+    /// Block-descent sweeps per substep (0 for the explicit integrators).
+    pub iterations: u32,
+    /// Padding.
+    pub pad_a: u32,
+    /// Padding.
+    pub pad_b: u32,
+    /// Padding.
+    pub pad_c: u32,
     /// Particles quarantined since the host last cleared this word.
     pub faults: u32,
 }
 
 impl GpuBatchCloth {
     /// Bytes of a [`GpuBatchCloth`] the host writes: everything but the fault count.
-    pub const HOST_BYTES: u64 = 60;
+    pub const HOST_BYTES: u64 = 76;
 
     /// The constants of a cloth with `params` on `topology`, whose particles and spring ends
     /// start at the given indices, for `substeps` substeps of `h` seconds per tick.
@@ -87,7 +97,15 @@ impl GpuBatchCloth {
             integrator: match params.integrator {
                 Integrator::Rk4 => INTEGRATOR_RK4,
                 Integrator::SemiImplicitEuler => INTEGRATOR_EULER,
+                Integrator::BlockDescent { .. } => INTEGRATOR_BLOCK_DESCENT,
             },
+            iterations: match params.integrator {
+                Integrator::BlockDescent { iterations } => iterations,
+                _ => 0,
+            },
+            pad_a: 0,
+            pad_b: 0,
+            pad_c: 0,
             faults: 0,
         }
     }
@@ -119,6 +137,21 @@ pub struct GpuBatchStep {
     pub stage: u32,
     /// Padding.
     pub _pad: [u32; 2],
+}
+
+/// One block-descent sweep over one colour of every block-descent cloth of a batch (a uniform
+/// bound at a dynamic offset, one per iteration and colour). 16 bytes.
+#[repr(C)]
+#[derive(Clone, Copy, Debug, Default, PartialEq, Pod, Zeroable)]
+pub struct GpuColourPass {
+    /// Where the colour's particles start in the batch's colour list.
+    pub start: u32,
+    /// How many particles it has: one thread each.
+    pub count: u32,
+    /// The iteration, from 0: a cloth with fewer iterations sits this pass out.
+    pub iteration: u32,
+    /// Threads along `x` of the dispatch.
+    pub dispatch_width: u32,
 }
 
 /// Per particle of a batch, indexed like the particle buffers: its springs (a range of the
@@ -301,7 +334,8 @@ mod tests {
     #[test]
     fn sizes_are_multiples_of_sixteen() {
         assert_eq!(size_of::<GpuParticle>(), 32);
-        assert_eq!(size_of::<GpuBatchCloth>(), 64);
+        assert_eq!(size_of::<GpuBatchCloth>(), 80);
+        assert_eq!(size_of::<GpuColourPass>(), 16);
         assert_eq!(std::mem::offset_of!(GpuBatchCloth, faults) as u64, GpuBatchCloth::HOST_BYTES);
         assert_eq!(size_of::<GpuBatchFrame>(), 16);
         assert_eq!(size_of::<GpuBatchStep>(), 16);

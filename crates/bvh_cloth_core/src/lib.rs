@@ -45,8 +45,10 @@
 
 #![deny(missing_docs)]
 
+pub mod block_descent;
 pub mod collider;
 pub mod collision;
+pub mod colouring;
 pub mod error;
 pub mod forces;
 pub mod gpu_layout;

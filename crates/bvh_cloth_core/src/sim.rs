@@ -1,5 +1,6 @@
 //! The CPU stepper: a whole cloth of any [`ClothTopology`] advanced by RK4 or semi-implicit
-//! Euler, with collision response fused into the last stage of every substep (paper Fig. 1).
+//! Euler, with collision response fused into the last stage of every substep (paper Fig. 1),
+//! or by block descent ([`crate::block_descent`]).
 //!
 //! This is the reference the GPU kernels are checked against and a real backend for machines
 //! without compute shaders. Rows are processed in parallel with rayon; every particle's result
@@ -11,6 +12,7 @@ use std::sync::Arc;
 use glam::{Affine3A, Vec3};
 use rayon::prelude::*;
 
+use crate::block_descent::BlockDescent;
 use crate::collider::Collider;
 use crate::collision::ColliderFrame;
 use crate::error::ClothError;
@@ -42,6 +44,8 @@ pub struct ClothSim {
     /// 1 for a free particle, 0 for a pinned or massless one and for padding.
     free: Vec<f32>,
     pins: Vec<u32>,
+    /// Working state of block descent, which keeps positions by particle during a tick.
+    descent: BlockDescent,
 }
 
 /// What one stage of the integrator does with the slope `k = f(src)` of each particle.
@@ -65,7 +69,7 @@ impl ClothSim {
         pose: Affine3A,
         pins: &[u32],
     ) -> Result<Self, ClothError> {
-        params.validate()?;
+        params.validate_for(&topology)?;
         if !pose.is_finite() {
             return Err(ClothError::NotFinite { field: "pose" });
         }
@@ -98,6 +102,7 @@ impl ClothSim {
             slope_sum: vec![0.0; slots * LANES],
             free,
             pins,
+            descent: BlockDescent::default(),
         };
         sim.reset(pose);
         Ok(sim)
@@ -144,7 +149,7 @@ impl ClothSim {
     /// Replaces the parameters, keeping the state. Returns an error, and keeps the old
     /// parameters, when the new ones are invalid.
     pub fn set_params(&mut self, params: ClothParams) -> Result<(), ClothError> {
-        params.validate()?;
+        params.validate_for(&self.topology)?;
         self.params = params;
         Ok(())
     }
@@ -274,14 +279,43 @@ impl ClothSim {
         }
         let substeps = self.substeps(dt);
         let h = dt / substeps as f32;
+        if let Integrator::BlockDescent { iterations } = self.params.integrator {
+            self.descend(h, substeps, iterations, colliders);
+            return substeps;
+        }
         for _ in 0..substeps {
             self.substep(h, colliders);
         }
         substeps
     }
 
+    /// Runs `substeps` block-descent substeps of `h` seconds on positions kept by particle.
+    fn descend(&mut self, h: f32, substeps: u32, iterations: u32, colliders: &[Collider]) {
+        let frames: Vec<ColliderFrame<'_>> = colliders.iter().filter_map(ColliderFrame::new).collect();
+        let model = ForceModel::new(&self.params);
+        let n = self.len();
+        let mut descent = core::mem::take(&mut self.descent);
+        descent.resize(n);
+        for i in 0..n {
+            descent.x[i] = self.position(i);
+            descent.v[i] = self.velocity(i);
+        }
+        for _ in 0..substeps {
+            descent.substep(&self.topology, &model, &self.free[..n], h, iterations, &frames);
+        }
+        for i in 0..n {
+            self.set_position(i, descent.x[i]);
+            self.set_velocity(i, descent.v[i]);
+        }
+        self.descent = descent;
+    }
+
     /// Advances one substep of `h` seconds (integration, then collision).
     pub fn substep(&mut self, h: f32, colliders: &[Collider]) {
+        if let Integrator::BlockDescent { iterations } = self.params.integrator {
+            self.descend(h, 1, iterations, colliders);
+            return;
+        }
         let frames: Vec<ColliderFrame<'_>> = colliders.iter().filter_map(ColliderFrame::new).collect();
         let model = ForceModel::new(&self.params);
         match self.params.integrator {
@@ -302,6 +336,7 @@ impl ClothSim {
                 self.run_stage(&model, h, &frames, Stage::Euler, Src::State, Dst::A);
                 core::mem::swap(&mut self.state, &mut self.stage_a);
             }
+            Integrator::BlockDescent { .. } => unreachable!("block descent returned above"),
         }
     }
 

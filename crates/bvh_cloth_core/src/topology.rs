@@ -29,6 +29,7 @@ use std::collections::HashMap;
 use bytemuck::{Pod, Zeroable};
 use glam::{DMat3, DVec3, Vec3};
 
+use crate::colouring::ParticleColouring;
 use crate::error::ClothError;
 use crate::grid::{ClothGrid, MAX_PARTICLES, STENCIL, SpringKind};
 use crate::voxel_spheres::MeshRef;
@@ -63,6 +64,7 @@ pub struct ClothTopology {
     vertex_particle: Vec<u32>,
     stencil: Option<ClothGrid>,
     stiffness_bound: [f32; 3],
+    colouring: Result<ParticleColouring, ClothError>,
 }
 
 impl ClothTopology {
@@ -102,7 +104,7 @@ impl ClothTopology {
             }
         }
         let triangles: Vec<[u32; 3]> = grid.triangle_indices().chunks_exact(3).map(|t| [t[0], t[1], t[2]]).collect();
-        Ok(Self::finish(
+        let mut topology = Self::finish(
             rest,
             vec![1.0 / n as f32; n],
             spring_offsets,
@@ -110,7 +112,9 @@ impl ClothTopology {
             triangles,
             (0..n as u32).collect(),
             None,
-        ))
+        );
+        topology.colouring = Ok(ParticleColouring::grid(&grid));
+        Ok(topology)
     }
 
     /// An authored triangle mesh (positions in the cloth's local frame, and an index list or
@@ -259,6 +263,7 @@ impl ClothTopology {
                 *bound = bound.max((largest_eigenvalue(s) * f64::from(inv_mass_share[i])) as f32);
             }
         }
+        let colouring = ParticleColouring::greedy(n, &spring_offsets, &spring_ends);
         Self {
             rest,
             mass_share,
@@ -271,6 +276,7 @@ impl ClothTopology {
             vertex_particle,
             stencil,
             stiffness_bound,
+            colouring,
         }
     }
 
@@ -357,6 +363,12 @@ impl ClothTopology {
     /// [`crate::ClothParams::max_stable_substep`].
     pub fn stiffness_bound(&self) -> [f32; 3] {
         self.stiffness_bound
+    }
+
+    /// The particles grouped so that no spring joins two of one colour (see
+    /// [`crate::colouring`]), or why the mesh has none within the limit.
+    pub fn colouring(&self) -> Result<&ParticleColouring, ClothError> {
+        self.colouring.as_ref().map_err(Clone::clone)
     }
 }
 

@@ -8,6 +8,12 @@
 //! then for each substep RK4's three `node_update` stages and `node_update_final` (the last
 //! stage fused with the collision response), each one dispatch over every particle slot.
 //!
+//! A block-descent cloth takes, per substep, `vbd_predict` over every slot, one `vbd_solve`
+//! dispatch per iteration and colour, and `vbd_finish` (with the collision response). Its
+//! particles are listed colour by colour in the colour list: colour `k` of every block-descent
+//! cloth, then colour `k + 1`, so one dispatch updates one colour of all of them. The list is
+//! written again when the set of block-descent cloths, or where they lie, changes.
+//!
 //! Cloths that need different substep counts share the tick: the batch runs the largest count,
 //! and a cloth sits out the substeps past its own (each cloth keeps its own substep length, so
 //! its trajectory is the one it would have alone, and the CPU stepper's). A semi-implicit Euler
@@ -23,10 +29,12 @@
 
 use std::sync::Arc;
 
+use bvh_cloth_core::colouring::MAX_COLOURS;
 use bvh_cloth_core::gpu_layout::{
-    GpuBatchCloth, GpuBatchFrame, GpuBatchStep, GpuBatchWriteback, GpuMeshWriteback, GpuParticle, GpuWritebackGroup,
-    NO_CLOTH, gpu_particle_info, gpu_particles, gpu_surface_words,
+    GpuBatchCloth, GpuBatchFrame, GpuBatchStep, GpuBatchWriteback, GpuColourPass, GpuMeshWriteback, GpuParticle,
+    GpuWritebackGroup, INTEGRATOR_BLOCK_DESCENT, NO_CLOTH, gpu_particle_info, gpu_particles, gpu_surface_words,
 };
+use bvh_cloth_core::params::MAX_ITERATIONS;
 use bvh_cloth_core::{ClothParams, ClothSim, ClothTopology, Vec3};
 use wgpu::util::DeviceExt;
 use wgpu::{BindGroup, Buffer, BufferUsages, CommandEncoder, Device, Queue};
@@ -43,6 +51,12 @@ pub enum Kernel {
     NodeUpdate,
     /// `node_update_final`: the last stage, with the collision response.
     NodeUpdateFinal,
+    /// `vbd_predict`: block descent's inertial target, the first iterate.
+    VbdPredict,
+    /// `vbd_solve`: one block-descent sweep over one colour.
+    VbdSolve,
+    /// `vbd_finish`: block descent's velocity update, with the collision response.
+    VbdFinish,
 }
 
 /// A cloth in a [`ClothBatch`], valid until it is removed.
@@ -100,6 +114,7 @@ struct Buffers {
     stage_b: Buffer,
     slope_sum: Buffer,
     info: Buffer,
+    colour_list: Buffer,
     spring_ends: Buffer,
     surface_words: Buffer,
     cloth_constants: Buffer,
@@ -127,6 +142,7 @@ impl Buffers {
             stage_b: storage("bvh_cloth_stage_b", particle_bytes),
             slope_sum: storage("bvh_cloth_slope_sum", particle_bytes),
             info: storage("bvh_cloth_particle_info", u64::from(particles) * 16),
+            colour_list: storage("bvh_cloth_colour_list", u64::from(particles) * 4),
             spring_ends: storage("bvh_cloth_spring_ends", u64::from(ends) * 16),
             surface_words: storage("bvh_cloth_surface", u64::from(surface) * 4),
             cloth_constants: storage("bvh_cloth_cloths", u64::from(cloths) * size_of::<GpuBatchCloth>() as u64),
@@ -170,7 +186,30 @@ struct Groups {
     anchors: Option<Buffer>,
     stages: [BindGroup; 3],
     last: BindGroup,
+    predict: BindGroup,
+    solve: BindGroup,
+    finish: BindGroup,
     apply_anchors: Option<BindGroup>,
+}
+
+/// One colour of the colour list: where it starts, how many particles it has, and the
+/// workgroups of its dispatch.
+#[derive(Debug, PartialEq)]
+struct ColourRange {
+    start: u32,
+    count: u32,
+    workgroups: (u32, u32),
+}
+
+/// The block-descent dispatches of the batch, and what they were written for.
+#[derive(Debug, Default)]
+struct DescentPlan {
+    /// The block-descent cloths: slot, first particle and the address of its shape.
+    cloths: Vec<(u32, u32, usize)>,
+    colours: Vec<ColourRange>,
+    /// Most iterations and substeps of any block-descent cloth.
+    iterations: u32,
+    substeps: u32,
 }
 
 /// Every cloth of a scene on the GPU; see the [module docs](self).
@@ -186,7 +225,13 @@ pub struct ClothBatch {
     groups: Option<Groups>,
     /// The writeback dispatches, kept while the cloths write into the same vertex buffers.
     writebacks: Option<Writebacks>,
-    /// Workgroups of the integrator dispatches, and the batch's substeps per tick.
+    /// One uniform entry per block-descent iteration and colour: entry
+    /// `iteration * MAX_COLOURS + colour`.
+    colour_passes: Buffer,
+    /// The block-descent dispatches, `None` until written for the current buffers.
+    descent: Option<DescentPlan>,
+    /// Workgroups of the integrator dispatches, and the batch's substeps per tick for the
+    /// explicit integrators.
     workgroups: (u32, u32),
     substeps: u32,
     /// Anchor targets per tick this frame.
@@ -219,6 +264,12 @@ impl ClothBatch {
             }
         }
         queue.write_buffer(&steps, 0, &bytes);
+        let colour_passes = device.create_buffer(&wgpu::BufferDescriptor {
+            label: Some("bvh_cloth_colour_passes"),
+            size: u64::from(MAX_ITERATIONS * MAX_COLOURS) * UNIFORM_STRIDE,
+            usage: BufferUsages::UNIFORM | BufferUsages::COPY_DST,
+            mapped_at_creation: false,
+        });
         Self {
             slots: Vec::new(),
             used: (0, 0, 0),
@@ -228,6 +279,8 @@ impl ClothBatch {
             anchors: None,
             groups: None,
             writebacks: None,
+            colour_passes,
+            descent: None,
             workgroups: (1, 1),
             substeps: 0,
             anchor_count: 0,
@@ -368,6 +421,7 @@ impl ClothBatch {
         self.used = used;
         self.groups = None;
         self.writebacks = None;
+        self.descent = None;
         Ok(())
     }
 
@@ -428,9 +482,13 @@ impl ClothBatch {
     }
 
     /// Gives `id` its constants for ticks of `tick_seconds`: the substep count and length the
-    /// CPU stepper would use (stability guard included).
+    /// CPU stepper would use (stability guard included). Parameters that fail
+    /// [`ClothParams::validate_for`] on the cloth's shape are ignored: it keeps its last ones.
     pub fn set_params(&mut self, queue: &Queue, id: ClothId, params: &ClothParams, tick_seconds: f32) {
         let Some(slot) = self.slots.get_mut(id.0 as usize).and_then(Option::as_mut) else { return };
+        if params.validate_for(&slot.topology).is_err() {
+            return;
+        }
         let substeps = params.substeps(tick_seconds, &slot.topology).min(MAX_SUBSTEPS);
         let h = tick_seconds / substeps as f32;
         slot.constants = GpuBatchCloth::new(params, &slot.topology, slot.particle_start, slot.ends_start, substeps, h);
@@ -476,7 +534,10 @@ impl ClothBatch {
     /// cloths' [`Self::set_params`] and [`Self::set_anchor_targets`] and before
     /// [`Self::encode_ticks`].
     pub fn prepare(&mut self, device: &Device, queue: &Queue, kernels: &ClothKernels, colliders: &GpuColliders) {
-        self.substeps = self.slots.iter().flatten().map(|slot| slot.constants.substeps).max().unwrap_or(0);
+        let explicit = |slot: &&Slot| slot.constants.integrator != INTEGRATOR_BLOCK_DESCENT;
+        self.substeps =
+            self.slots.iter().flatten().filter(explicit).map(|slot| slot.constants.substeps).max().unwrap_or(0);
+        self.prepare_descent(device, queue);
         self.write_anchor_targets(device, queue);
         let width = self.workgroups.0 * WORKGROUP_SIZE;
         let frame = GpuBatchFrame {
@@ -492,6 +553,66 @@ impl ClothBatch {
         if self.groups.as_ref().is_none_or(|g| g.colliders != key || g.anchors != anchors) {
             self.groups = Some(self.bind_groups(device, kernels, key, anchors));
         }
+    }
+
+    /// Writes the colour list and the colour passes when the block-descent cloths, or where
+    /// they lie, changed; updates the plan's iteration and substep counts every frame.
+    fn prepare_descent(&mut self, device: &Device, queue: &Queue) {
+        let descent: Vec<(u32, &Slot)> = self
+            .slots
+            .iter()
+            .enumerate()
+            .filter_map(|(index, slot)| Some((index as u32, slot.as_ref()?)))
+            .filter(|(_, slot)| slot.constants.integrator == INTEGRATOR_BLOCK_DESCENT)
+            .filter(|(_, slot)| slot.topology.colouring().is_ok())
+            .collect();
+        let cloths: Vec<(u32, u32, usize)> = descent
+            .iter()
+            .map(|(index, slot)| (*index, slot.particle_start, Arc::as_ptr(&slot.topology) as usize))
+            .collect();
+        let iterations =
+            descent.iter().map(|(_, slot)| slot.constants.iterations).max().unwrap_or(0).min(MAX_ITERATIONS);
+        let substeps = descent.iter().map(|(_, slot)| slot.constants.substeps).max().unwrap_or(0);
+        if let Some(plan) = self.descent.as_mut()
+            && plan.cloths == cloths
+        {
+            plan.iterations = iterations;
+            plan.substeps = substeps;
+            return;
+        }
+        let colours =
+            descent.iter().filter_map(|(_, slot)| Some(slot.topology.colouring().ok()?.len())).max().unwrap_or(0);
+        let mut list = Vec::with_capacity(descent.iter().map(|(_, slot)| slot.topology.len()).sum());
+        let mut ranges = Vec::with_capacity(colours);
+        for k in 0..colours {
+            let start = list.len() as u32;
+            for (_, slot) in &descent {
+                let Ok(colouring) = slot.topology.colouring() else { continue };
+                if k < colouring.len() {
+                    list.extend(colouring.colour(k).iter().map(|&i| slot.particle_start + i));
+                }
+            }
+            let count = list.len() as u32 - start;
+            // The batch's particles already fit one dispatch, so each colour does too.
+            let workgroups = ClothKernels::workgroups(device, count).unwrap_or((1, 1));
+            ranges.push(ColourRange { start, count, workgroups });
+        }
+        queue.write_buffer(&self.buffers.colour_list, 0, bytemuck::cast_slice(&list));
+        let mut bytes = vec![0u8; (u64::from(MAX_ITERATIONS) * u64::from(MAX_COLOURS) * UNIFORM_STRIDE) as usize];
+        for iteration in 0..MAX_ITERATIONS {
+            for (k, range) in ranges.iter().enumerate() {
+                let entry = GpuColourPass {
+                    start: range.start,
+                    count: range.count,
+                    iteration,
+                    dispatch_width: range.workgroups.0 * WORKGROUP_SIZE,
+                };
+                let at = ((u64::from(iteration * MAX_COLOURS) + k as u64) * UNIFORM_STRIDE) as usize;
+                bytes[at..at + size_of::<GpuColourPass>()].copy_from_slice(bytemuck::bytes_of(&entry));
+            }
+        }
+        queue.write_buffer(&self.colour_passes, 0, &bytes);
+        self.descent = Some(DescentPlan { cloths, colours: ranges, iterations, substeps });
     }
 
     fn write_anchor_targets(&mut self, device: &Device, queue: &Queue) {
@@ -602,7 +723,60 @@ impl ClothBatch {
                 ],
             })
         });
-        Groups { colliders, anchors, stages, last, apply_anchors }
+        let colour_pass = wgpu::BindGroupEntry {
+            binding: 25,
+            resource: wgpu::BindingResource::Buffer(wgpu::BufferBinding {
+                buffer: &self.colour_passes,
+                offset: 0,
+                size: wgpu::BufferSize::new(size_of::<GpuColourPass>() as u64),
+            }),
+        };
+        fn buffer(binding: u32, buffer: &Buffer) -> wgpu::BindGroupEntry<'_> {
+            wgpu::BindGroupEntry { binding, resource: buffer.as_entire_binding() }
+        }
+        let predict = device.create_bind_group(&wgpu::BindGroupDescriptor {
+            label: Some("bvh_cloth_vbd_predict"),
+            layout: &kernels.vbd_predict_layout,
+            entries: &[
+                frame.clone(),
+                step.clone(),
+                buffer(6, &b.info),
+                buffer(8, &b.cloth_constants),
+                buffer(19, &b.base),
+                buffer(20, &b.stage_a),
+                buffer(21, &b.stage_b),
+            ],
+        });
+        let solve = device.create_bind_group(&wgpu::BindGroupDescriptor {
+            label: Some("bvh_cloth_vbd_solve"),
+            layout: &kernels.vbd_solve_layout,
+            entries: &[
+                step.clone(),
+                buffer(6, &b.info),
+                buffer(7, &b.spring_ends),
+                buffer(8, &b.cloth_constants),
+                buffer(19, &b.base),
+                buffer(20, &b.stage_a),
+                buffer(21, &b.stage_b),
+                buffer(22, &b.colour_list),
+                colour_pass,
+            ],
+        });
+        let finish = device.create_bind_group(&wgpu::BindGroupDescriptor {
+            label: Some("bvh_cloth_vbd_finish"),
+            layout: &kernels.vbd_finish_layout,
+            entries: &[
+                frame.clone(),
+                step.clone(),
+                buffer(6, &b.info),
+                buffer(8, &b.cloth_constants),
+                buffer(11, &colliders.0),
+                buffer(12, &colliders.1),
+                buffer(19, &b.base),
+                buffer(20, &b.stage_a),
+            ],
+        });
+        Groups { colliders, anchors, stages, last, predict, solve, finish, apply_anchors }
     }
 
     /// Records `ticks` ticks of every cloth: per tick the anchors, then per substep the
@@ -657,7 +831,8 @@ impl ClothBatch {
         mut each: impl FnMut(Kernel, &dyn Fn(&mut wgpu::ComputePass<'_>)),
     ) {
         let Some(groups) = &self.groups else { return };
-        if ticks == 0 || self.used.0 == 0 || self.substeps == 0 {
+        let descent = self.descent.as_ref().filter(|plan| plan.substeps > 0 && plan.iterations > 0);
+        if ticks == 0 || self.used.0 == 0 || (self.substeps == 0 && descent.is_none()) {
             return;
         }
         let (x, y) = self.workgroups;
@@ -690,6 +865,31 @@ impl ClothBatch {
                 each(Kernel::NodeUpdateFinal, &|pass| {
                     pass.set_pipeline(&kernels.node_update_final);
                     pass.set_bind_group(0, &groups.last, &offset);
+                    pass.dispatch_workgroups(x, y, 1);
+                });
+            }
+            let Some(plan) = descent else { continue };
+            for k in 0..plan.substeps {
+                let offset = [(u64::from(3 * k) * UNIFORM_STRIDE) as u32];
+                each(Kernel::VbdPredict, &|pass| {
+                    pass.set_pipeline(&kernels.vbd_predict);
+                    pass.set_bind_group(0, &groups.predict, &offset);
+                    pass.dispatch_workgroups(x, y, 1);
+                });
+                for iteration in 0..plan.iterations {
+                    for (colour, range) in plan.colours.iter().enumerate() {
+                        let entry = u64::from(iteration * MAX_COLOURS) + colour as u64;
+                        let offsets = [offset[0], (entry * UNIFORM_STRIDE) as u32];
+                        each(Kernel::VbdSolve, &|pass| {
+                            pass.set_pipeline(&kernels.vbd_solve);
+                            pass.set_bind_group(0, &groups.solve, &offsets);
+                            pass.dispatch_workgroups(range.workgroups.0, range.workgroups.1, 1);
+                        });
+                    }
+                }
+                each(Kernel::VbdFinish, &|pass| {
+                    pass.set_pipeline(&kernels.vbd_finish);
+                    pass.set_bind_group(0, &groups.finish, &offset);
                     pass.dispatch_workgroups(x, y, 1);
                 });
             }

@@ -10,12 +10,13 @@ use wgpu::{
 /// The kernels' WGSL files, in the order [`shader_source`] joins them: the shared types, the
 /// spring forces, the collision response, then one file per kernel. Each starts with naga_oil directives
 /// (`#define_import_path`, `#import`) for engines that compose shaders that way.
-pub const SHADER_FILES: [(&str, &str); 7] = [
+pub const SHADER_FILES: [(&str, &str); 8] = [
     ("types.wgsl", include_str!("shaders/types.wgsl")),
     ("springs.wgsl", include_str!("shaders/springs.wgsl")),
     ("collision.wgsl", include_str!("shaders/collision.wgsl")),
     ("node_update.wgsl", include_str!("shaders/node_update.wgsl")),
     ("node_update_final.wgsl", include_str!("shaders/node_update_final.wgsl")),
+    ("block_descent.wgsl", include_str!("shaders/block_descent.wgsl")),
     ("apply_anchors.wgsl", include_str!("shaders/apply_anchors.wgsl")),
     ("normal_shader.wgsl", include_str!("shaders/normal_shader.wgsl")),
 ];
@@ -109,17 +110,27 @@ pub struct KernelDescriptor {
     pub layout: Vec<BindGroupLayoutEntry>,
 }
 
+/// Number of kernels (entry points): the length of [`ClothKernels::descriptors`].
+pub const KERNEL_COUNT: usize = 7;
+
 /// The compiled kernels: `node_update` (RK4's first three stages, the stage named by the step
-/// uniform), `node_update_final` (the last stage with the collision response),
-/// `apply_anchors` and `normal_shader`, with their bind group layouts.
+/// uniform), `node_update_final` (the last stage with the collision response), block descent's
+/// `vbd_predict`, `vbd_solve` and `vbd_finish`, `apply_anchors` and `normal_shader`, with their
+/// bind group layouts.
 #[derive(Debug)]
 pub struct ClothKernels {
     pub(crate) node_update: ComputePipeline,
     pub(crate) node_update_final: ComputePipeline,
+    pub(crate) vbd_predict: ComputePipeline,
+    pub(crate) vbd_solve: ComputePipeline,
+    pub(crate) vbd_finish: ComputePipeline,
     pub(crate) anchors: ComputePipeline,
     pub(crate) normal: ComputePipeline,
     pub(crate) node_update_layout: BindGroupLayout,
     pub(crate) final_layout: BindGroupLayout,
+    pub(crate) vbd_predict_layout: BindGroupLayout,
+    pub(crate) vbd_solve_layout: BindGroupLayout,
+    pub(crate) vbd_finish_layout: BindGroupLayout,
     pub(crate) anchors_layout: BindGroupLayout,
     pub(crate) normal_layout: BindGroupLayout,
 }
@@ -138,9 +149,10 @@ fn storage(binding: u32, read_only: bool) -> BindGroupLayoutEntry {
 }
 
 impl ClothKernels {
-    /// The four kernels, in the order [`Self::from_parts`] takes them: `node_update`,
-    /// `node_update_final`, `apply_anchors`, `normal_shader`.
-    pub fn descriptors() -> [KernelDescriptor; 4] {
+    /// The kernels, in the order [`Self::from_parts`] takes them: `node_update`,
+    /// `node_update_final`, `vbd_predict`, `vbd_solve`, `vbd_finish`, `apply_anchors`,
+    /// `normal_shader`.
+    pub fn descriptors() -> [KernelDescriptor; KERNEL_COUNT] {
         let frame = entry(0, BufferBindingType::Uniform, false);
         let step = entry(1, BufferBindingType::Uniform, true);
         [
@@ -176,6 +188,48 @@ impl ClothKernels {
                 ],
             },
             KernelDescriptor {
+                entry_point: "vbd_predict",
+                file: "block_descent.wgsl",
+                layout: vec![
+                    frame,
+                    step,
+                    storage(6, true),
+                    storage(8, false),
+                    storage(19, false),
+                    storage(20, false),
+                    storage(21, false),
+                ],
+            },
+            KernelDescriptor {
+                entry_point: "vbd_solve",
+                file: "block_descent.wgsl",
+                layout: vec![
+                    step,
+                    storage(6, true),
+                    storage(7, true),
+                    storage(8, false),
+                    storage(19, false),
+                    storage(20, false),
+                    storage(21, false),
+                    storage(22, true),
+                    entry(25, BufferBindingType::Uniform, true),
+                ],
+            },
+            KernelDescriptor {
+                entry_point: "vbd_finish",
+                file: "block_descent.wgsl",
+                layout: vec![
+                    frame,
+                    step,
+                    storage(6, true),
+                    storage(8, false),
+                    storage(11, true),
+                    storage(12, true),
+                    storage(19, false),
+                    storage(20, false),
+                ],
+            },
+            KernelDescriptor {
                 entry_point: "apply_anchors",
                 file: "apply_anchors.wgsl",
                 layout: vec![
@@ -206,7 +260,7 @@ impl ClothKernels {
             label: Some("bvh_cloth_kernels"),
             source: wgpu::ShaderSource::Wgsl(shader_source().into()),
         });
-        let [a, b, c, d] = Self::descriptors().map(|kernel| {
+        let built = Self::descriptors().map(|kernel| {
             let label = format!("bvh_cloth_{}", kernel.entry_point);
             let layout = device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
                 label: Some(&label),
@@ -227,7 +281,8 @@ impl ClothKernels {
             });
             (pipeline, layout)
         });
-        Ok(Self::from_parts([a.0, b.0, c.0, d.0], [a.1, b.1, c.1, d.1]))
+        let layouts = built.each_ref().map(|(_, layout)| layout.clone());
+        Ok(Self::from_parts(built.map(|(pipeline, _)| pipeline), layouts))
     }
 
     /// Why `device` cannot run the kernels, if it cannot.
@@ -241,16 +296,30 @@ impl ClothKernels {
 
     /// Kernels compiled elsewhere (by an engine's pipeline cache, from [`Self::descriptors`]):
     /// the pipelines and their bind group layouts, in the order of [`Self::descriptors`].
-    pub fn from_parts(pipelines: [ComputePipeline; 4], layouts: [BindGroupLayout; 4]) -> Self {
-        let [node_update, node_update_final, anchors, normal] = pipelines;
-        let [node_update_layout, final_layout, anchors_layout, normal_layout] = layouts;
+    pub fn from_parts(pipelines: [ComputePipeline; KERNEL_COUNT], layouts: [BindGroupLayout; KERNEL_COUNT]) -> Self {
+        let [node_update, node_update_final, vbd_predict, vbd_solve, vbd_finish, anchors, normal] = pipelines;
+        let [
+            node_update_layout,
+            final_layout,
+            vbd_predict_layout,
+            vbd_solve_layout,
+            vbd_finish_layout,
+            anchors_layout,
+            normal_layout,
+        ] = layouts;
         Self {
             node_update,
             node_update_final,
+            vbd_predict,
+            vbd_solve,
+            vbd_finish,
             anchors,
             normal,
             node_update_layout,
             final_layout,
+            vbd_predict_layout,
+            vbd_solve_layout,
+            vbd_finish_layout,
             anchors_layout,
             normal_layout,
         }

@@ -34,7 +34,8 @@ mod readback;
 pub use batch::{ClothBatch, ClothId, Kernel};
 pub use colliders::GpuColliders;
 pub use kernels::{
-    ClothKernels, KernelDescriptor, KernelError, SHADER_FILES, STORAGE_BUFFERS_NEEDED, WORKGROUP_SIZE, shader_source,
+    ClothKernels, KERNEL_COUNT, KernelDescriptor, KernelError, SHADER_FILES, STORAGE_BUFFERS_NEEDED, WORKGROUP_SIZE,
+    shader_source,
 };
 pub use readback::{FaultReadback, ParticleReadback};
 pub use wgpu;

@@ -5,8 +5,8 @@
 use core::mem::{offset_of, size_of};
 
 use bvh_cloth_core::gpu_layout::{
-    GpuBatchCloth, GpuBatchFrame, GpuBatchStep, GpuBatchWriteback, GpuCollider, GpuMeshWriteback, GpuParticle,
-    GpuWritebackGroup,
+    GpuBatchCloth, GpuBatchFrame, GpuBatchStep, GpuBatchWriteback, GpuCollider, GpuColourPass, GpuMeshWriteback,
+    GpuParticle, GpuWritebackGroup,
 };
 use bvh_cloth_core::{BvhNode, Sphere};
 use bvh_cloth_gpu::{SHADER_FILES, shader_source};
@@ -44,7 +44,18 @@ fn wgsl_is_valid() {
         .validate(&module)
         .unwrap_or_else(|e| panic!("{}", e.emit_to_string(&shader_source())));
     let entry_points: Vec<&str> = module.entry_points.iter().map(|e| e.name.as_str()).collect();
-    assert_eq!(entry_points, ["node_update", "node_update_final", "apply_anchors", "normal_shader"]);
+    assert_eq!(
+        entry_points,
+        [
+            "node_update",
+            "node_update_final",
+            "vbd_predict",
+            "vbd_solve",
+            "vbd_finish",
+            "apply_anchors",
+            "normal_shader"
+        ]
+    );
     for entry in &module.entry_points {
         assert_eq!(entry.workgroup_size, [8, 8, 1], "{} runs 8x8x1 workgroups", entry.name);
     }
@@ -68,6 +79,10 @@ fn wgsl_structs_match_the_rust_layouts() {
             h,
             damping,
             integrator,
+            iterations,
+            pad_a,
+            pad_b,
+            pad_c,
             faults
         ]
     );
@@ -94,6 +109,7 @@ fn wgsl_structs_match_the_rust_layouts() {
         offset_of!(GpuBatchWriteback, group_first),
     ];
     assert_eq!(members[..6].iter().map(|m| m.1 as usize).collect::<Vec<_>>(), rust, "members of BatchWriteback");
+    assert_layout!(&module, "ColourPass", GpuColourPass, [start, count, iteration, dispatch_width]);
     assert_layout!(&module, "WritebackGroup", GpuWritebackGroup, [first_owner, vertex_count, dispatch_width, pad]);
     assert_layout!(
         &module,
@@ -141,6 +157,10 @@ fn shared_constants_match_the_core() {
     assert_eq!(constant("CONTACT_BAND").parse::<f32>().unwrap(), bvh_cloth_core::collision::CONTACT_BAND);
     assert_eq!(constant("NO_CLOTH"), format!("{:#x}u", bvh_cloth_core::gpu_layout::NO_CLOTH));
     assert_eq!(constant("INTEGRATOR_EULER"), format!("{}u", bvh_cloth_core::gpu_layout::INTEGRATOR_EULER));
+    assert_eq!(
+        constant("INTEGRATOR_BLOCK_DESCENT"),
+        format!("{}u", bvh_cloth_core::gpu_layout::INTEGRATOR_BLOCK_DESCENT)
+    );
 }
 
 /// Each kernel file names its import path or imports as naga_oil reads them, so that an engine

@@ -4,20 +4,20 @@
 // the Euler step), fused with the collision response. A cloth with fewer substeps than the batch
 // sits out the rest.
 
-#import bvh_cloth::types::{GpuParticle, NO_CLOTH, INTEGRATOR_EULER, frame, step, thread_index}
+#import bvh_cloth::types::{GpuParticle, NO_CLOTH, INTEGRATOR_EULER, INTEGRATOR_BLOCK_DESCENT, frame, step, thread_index}
 #import bvh_cloth::springs::{source, particle_info, cloths, acceleration}
 
 @group(0) @binding(2) var<storage, read> base: array<GpuParticle>;      // state at substep start
 @group(0) @binding(4) var<storage, read_write> slope_sum: array<GpuParticle>;
 @group(0) @binding(5) var<storage, read_write> stage_out: array<GpuParticle>;
 
-// The cloth particle i belongs to, if it is active in this substep.
+// The explicitly integrated cloth particle i belongs to, if it is active in this substep.
 fn active_cloth(i: u32) -> u32 {
     if (i >= frame.particle_slots) {
         return NO_CLOTH;
     }
     let c = particle_info[i].w;
-    if (c == NO_CLOTH || step.substep >= cloths[c].substeps) {
+    if (c == NO_CLOTH || step.substep >= cloths[c].substeps || cloths[c].integrator == INTEGRATOR_BLOCK_DESCENT) {
         return NO_CLOTH;
     }
     return c;

@@ -4,7 +4,7 @@
 // against every collider, written over the substep's start state in place (each thread reads
 // and writes only its own particle there).
 
-#import bvh_cloth::types::{GpuParticle, NO_CLOTH, INTEGRATOR_EULER, frame, step, thread_index, all_finite}
+#import bvh_cloth::types::{GpuParticle, NO_CLOTH, INTEGRATOR_EULER, INTEGRATOR_BLOCK_DESCENT, frame, step, thread_index, all_finite}
 #import bvh_cloth::springs::{source, particle_info, cloths, acceleration}
 #import bvh_cloth::collision::collide
 
@@ -18,7 +18,7 @@ fn node_update_final(@builtin(global_invocation_id) id: vec3<u32>) {
         return;
     }
     let c = particle_info[i].w;
-    if (c == NO_CLOTH || step.substep >= cloths[c].substeps) {
+    if (c == NO_CLOTH || step.substep >= cloths[c].substeps || cloths[c].integrator == INTEGRATOR_BLOCK_DESCENT) {
         return;
     }
     let b = state[i];

@@ -8,9 +8,9 @@
 // 8x8x1; a thread's index is id.y * dispatch_width + id.x.
 //
 // Bindings (group 0), unique across the kernels so that the files form one module:
-// 0 frame, 1 step: shared; 3 and 6-8 (springs.wgsl): both integrator kernels; 2, 4-5:
-// node_update; 9-12: node_update_final (11-12 in collision.wgsl); 13-14: apply_anchors; 15-18
-// and 23-24: normal_shader.
+// 0 frame, 1 step: shared; 3 and 6-8 (springs.wgsl): the integrator kernels; 2, 4-5:
+// node_update; 9-12: node_update_final (11-12 in collision.wgsl, which vbd_finish shares);
+// 19-22 and 25: block_descent.wgsl; 13-14: apply_anchors; 15-18 and 23-24: normal_shader.
 
 #define_import_path bvh_cloth::types
 
@@ -46,7 +46,18 @@ struct BatchCloth {
     h: f32,
     damping: f32,
     integrator: u32,
+    iterations: u32,
+    pad_a: u32,
+    pad_b: u32,
+    pad_c: u32,
     faults: atomic<u32>,
+}
+
+struct ColourPass {
+    start: u32,
+    count: u32,
+    iteration: u32,
+    dispatch_width: u32,
 }
 
 struct GpuCollider {
@@ -93,6 +104,7 @@ struct WritebackGroup {
 
 const NO_CLOTH: u32 = 0xffffffffu;         // bvh_cloth_core::gpu_layout::NO_CLOTH
 const INTEGRATOR_EULER: u32 = 1u;          // bvh_cloth_core::gpu_layout::INTEGRATOR_EULER
+const INTEGRATOR_BLOCK_DESCENT: u32 = 2u;  // bvh_cloth_core::gpu_layout::INTEGRATOR_BLOCK_DESCENT
 const LEAF_BIT: u32 = 0x80000000u;
 const STACK_SIZE: u32 = 64u;               // bvh_cloth_core::traversal::STACK_SIZE
 const SURFACE_TOLERANCE: f32 = 1.0e-3;     // bvh_cloth_core::traversal::SURFACE_TOLERANCE
