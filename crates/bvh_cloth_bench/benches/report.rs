@@ -10,11 +10,14 @@
 //! 5. The GPU profile: GPU ms per tick by kernel (timestamp queries), and many cloths: one
 //!    GPU batch against a batch per cloth, 1 to 512 cloths.
 //! 6. Precision far from the origin: how far from it a stiff cloth still steps finitely.
+//! 7. The solvers: block descent against RK4 for the same sag, across stiffness, and big cloth
+//!    on the GPU.
 //!
 //! `WGPU_BACKEND=vulkan cargo bench -p bvh_cloth_bench --bench report`
 //! (without a GPU adapter the GPU columns say so and the rest still runs). Append `-- NAME` to
 //! run only the sections whose name contains NAME: `table_vii`, `queries`, `fidelity`,
-//! `step_scaling`, `topology`, `gpu_profile`, `many_cloths`, `build_scaling`, `far_from_origin`.
+//! `step_scaling`, `topology`, `gpu_profile`, `many_cloths`, `build_scaling`, `far_from_origin`,
+//! `solver`.
 
 use std::fmt::Write as _;
 use std::sync::Arc;
@@ -98,6 +101,9 @@ fn main() {
     }
     if run("far_from_origin") {
         far_from_origin();
+    }
+    if run("solver") {
+        solver(&meshes, gpu.as_ref(), &single, threads);
     }
     println!("\nCSV written to docs/benchmarks/ (plot: python3 scripts/plot_benchmarks.py)");
 }
@@ -625,4 +631,111 @@ fn cpu_name() -> String {
                 .map(|s| s.trim().to_owned())
         })
         .unwrap_or_else(|| "unknown".into())
+}
+
+/// A `side x side` cloth 1 m wide hanging from its two first-row corners, 2 m up.
+fn hanging(side: u32, params: ClothParams) -> ClothSim {
+    let topology = Arc::new(ClothTopology::grid(ClothGrid::new(Vec2::ONE, UVec2::splat(side))).expect("a valid grid"));
+    let pose = Affine3A::from_translation(Vec3::new(0.0, 2.0, 0.0));
+    ClothSim::new(params, topology, pose, &[0, side - 1]).expect("valid cloth")
+}
+
+/// How far the middle of the last row hangs below the pins.
+fn sag_of(sim: &ClothSim) -> f32 {
+    let grid = *sim.topology().stencil().expect("a grid");
+    2.0 - sim.position(grid.index(grid.rows - 1, grid.cols / 2)).y
+}
+
+/// The solvers head to head: block descent against RK4 for the same sag on the CPU, the cost of
+/// stiffness for each, and big cloth on the GPU.
+fn solver(meshes: &[ObjMesh], gpu: Option<&Gpu>, single: &rayon::ThreadPool, threads: usize) {
+    println!("\n## Solvers: a 64x64 cloth hanging from two corners, settled for 8 s (SpringK 200, damping 2)\n");
+    println!(
+        "| integrator | Looper | substeps/tick | sag m | sag vs RK4 | CPU 1 thread ms/tick | CPU {threads} threads ms/tick | speed-up (1 thread) |"
+    );
+    println!("|---|---|---|---|---|---|---|---|");
+    let base = ClothParams { damping: 2.0, ..Default::default() };
+    let settle = |params: ClothParams| {
+        let mut sim = hanging(64, params);
+        for _ in 0..(8.0 / TICK) as u32 {
+            sim.tick(TICK, &[]);
+        }
+        sim
+    };
+    let tick_ms = |sim: &ClothSim| {
+        // Best of 5 runs of 10 ticks, in ms per tick.
+        let run = |sim: &mut ClothSim| {
+            best_of(5, || {
+                for _ in 0..10 {
+                    sim.tick(TICK, &[]);
+                }
+            }) * 1e2
+        };
+        (single.install(|| run(&mut sim.clone())), run(&mut sim.clone()))
+    };
+    let cases = [
+        (Integrator::Rk4, 16),
+        (Integrator::BLOCK_DESCENT, 16),
+        (Integrator::BLOCK_DESCENT, 8),
+        (Integrator::BLOCK_DESCENT, 4),
+        (Integrator::BLOCK_DESCENT, 2),
+        (Integrator::BlockDescent { iterations: 2 }, 4),
+    ];
+    let mut reference = None;
+    for (integrator, looper) in cases {
+        let sim = settle(ClothParams { integrator, looper, ..base.clone() });
+        let sag = sag_of(&sim);
+        let (one, all) = tick_ms(&sim);
+        let (ref_sag, ref_ms) = *reference.get_or_insert((sag, one));
+        println!(
+            "| {integrator:?} | {looper} | {} | {sag:.4} | {:+.2} % | {one:.3} | {all:.3} | {:.1}x |",
+            sim.substeps(TICK),
+            100.0 * (sag - ref_sag) / ref_sag,
+            ref_ms / one
+        );
+    }
+
+    println!("\n### Stiffness: the same cloth at Looper 16, ms per tick (1 thread) after 1 s of hanging\n");
+    println!(
+        "| SpringK N/m | RK4 substeps/tick | RK4 ms/tick | block descent substeps/tick | block descent ms/tick | block descent finite after 1 s |"
+    );
+    println!("|---|---|---|---|---|---|");
+    for spring_k in [20.0f32, 200.0, 2_000.0, 20_000.0, 200_000.0] {
+        let run = |integrator: Integrator| {
+            let mut sim = hanging(64, ClothParams { spring_k, integrator, ..base.clone() });
+            for _ in 0..60 {
+                sim.tick(TICK, &[]);
+            }
+            let ms = single.install(|| best_of(3, || _ = sim.clone().tick(TICK, &[])) * 1e3);
+            (sim.substeps(TICK), ms, sim.is_finite())
+        };
+        let (rk_steps, rk_ms, _) = run(Integrator::Rk4);
+        let (bd_steps, bd_ms, finite) = run(Integrator::BLOCK_DESCENT);
+        println!("| {spring_k} | {rk_steps} | {rk_ms:.3} | {bd_steps} | {bd_ms:.3} | {finite} |");
+    }
+
+    println!("\n### Big cloth on the GPU: ms per 60 Hz tick on the dragon at n = 16, Looper 16\n");
+    let Some(gpu) = gpu else {
+        println!("No GPU adapter: skipped.");
+        return;
+    };
+    let dragon = [collider(&meshes[1], 16)];
+    let sizes: &[u32] = if gpu.software { &[64, 128] } else { &[64, 256, 1024] };
+    println!("| cloth | RK4 substeps | RK4 ms (wall) | block descent substeps | block descent ms (wall) | speed-up |");
+    println!("|---|---|---|---|---|---|");
+    for &size in sizes {
+        let rk4 = cloth_above(&dragon[0], size, Integrator::Rk4);
+        let descent = cloth_above(&dragon[0], size, Integrator::BLOCK_DESCENT);
+        let rk_ms = gpu_sim_frame_ms(gpu, &dragon, &rk4, 1);
+        let bd_ms = gpu_sim_frame_ms(gpu, &dragon, &descent, 1);
+        println!(
+            "| {size}x{size} | {} | {rk_ms:.3} | {} | {bd_ms:.3} | {:.1}x |",
+            rk4.substeps(TICK),
+            descent.substeps(TICK),
+            rk_ms / bd_ms
+        );
+    }
+    if gpu.software {
+        println!("\nThe GPU here is a software adapter on the same CPU cores: its times are not GPU figures.");
+    }
 }

@@ -42,7 +42,7 @@
 //! sweeps have not converged); at rest it reaches the same equilibrium. Implicit Euler also
 //! damps fast motion a little more than RK4. Both shrink as `looper` grows.
 
-use glam::Vec3;
+use glam::{Vec3, Vec3A, Vec3Swizzles};
 use rayon::prelude::*;
 
 use crate::collision::ColliderFrame;
@@ -52,8 +52,9 @@ use crate::topology::{ClothTopology, SpringEnd};
 /// Most block-descent iterations per substep. More buys less than more substeps do.
 pub const MAX_ITERATIONS: u32 = 16;
 
-/// Particles one rayon task updates at least: below that, the colour is not split.
-const MIN_TASK: usize = 512;
+/// Particles one rayon task updates at least: below that, a pass is not split, since a fork
+/// and join costs more than the updates it would share (a 64x64 cloth's colours are not split).
+const MIN_TASK: usize = 4096;
 
 /// The new position of one particle: one Newton step on its block of the incremental potential
 /// (see the [module docs](self)). `x` is its current position, `start` its position at the
@@ -67,40 +68,44 @@ pub fn descend(
     h: f32,
     inv_share: f32,
     springs: &[SpringEnd],
-    x: Vec3,
-    start: Vec3,
-    target: Vec3,
-    position: impl Fn(u32) -> Vec3,
-) -> Vec3 {
+    x: Vec3A,
+    start: Vec3A,
+    target: Vec3A,
+    position: impl Fn(u32) -> Vec3A,
+) -> Vec3A {
     let h2 = h * h;
     let ch = model.damping * h;
-    // h² f / m and h² H / m, H symmetric: diagonal (a, d, f), off-diagonal (b, c, e).
+    // h² f / m, and h² H / m: H is symmetric, kept as its diagonal (xx, yy, zz) and its
+    // off-diagonal (xy, xz, yz).
     let mut g = (x - target) + ch * (x - start);
-    let inertia = 1.0 + ch;
-    let (mut a, mut d, mut f) = (inertia, inertia, inertia);
-    let (mut b, mut c, mut e) = (0.0f32, 0.0f32, 0.0f32);
+    let mut diag = Vec3A::splat(1.0 + ch);
+    let mut off = Vec3A::ZERO;
     for end in springs {
         let k = model.k_over_mass[end.kind as usize] * end.weight * inv_share * h2;
         if k == 0.0 {
             continue;
         }
         let delta = position(end.other) - x;
-        let len = (delta.x * delta.x + delta.y * delta.y + delta.z * delta.z).sqrt();
-        let l = len.max(1.0e-6 * end.rest);
-        let stretch = 1.0 - end.rest / l;
+        let len = delta.dot(delta).sqrt();
+        let inv_l = 1.0 / len.max(1.0e-6 * end.rest);
+        let stretch = 1.0 - end.rest * inv_l;
         g -= k * stretch * delta;
         // k (s⁺ I + (1 - s⁺) u uᵀ): the spring's Hessian with its compressive part clamped.
         let s = stretch.max(0.0);
-        let u = delta / l;
+        let u = delta * inv_l;
         let t = k * (1.0 - s);
-        a += k * s + t * u.x * u.x;
-        d += k * s + t * u.y * u.y;
-        f += k * s + t * u.z * u.z;
-        b += t * u.x * u.y;
-        c += t * u.x * u.z;
-        e += t * u.y * u.z;
+        diag += k * s + t * (u * u);
+        off += t * (u.xxy() * u.yzz());
     }
-    // The cofactors of the symmetric matrix; its determinant is positive (H >= (1 + ch) I).
+    newton_step(x, g, diag, off)
+}
+
+/// `x - H⁻¹ g` for the symmetric 3x3 `H` of diagonal `diag` (xx, yy, zz) and off-diagonal `off`
+/// (xy, xz, yz), by cofactors; its determinant is positive (`H >= (1 + ch) I`).
+#[inline]
+fn newton_step(x: Vec3A, g: Vec3A, diag: Vec3A, off: Vec3A) -> Vec3A {
+    let (a, d, f) = (diag.x, diag.y, diag.z);
+    let (b, c, e) = (off.x, off.y, off.z);
     let ca = d * f - e * e;
     let cb = c * e - b * f;
     let cc = b * e - c * d;
@@ -109,26 +114,94 @@ pub fn descend(
     let cf = a * d - b * b;
     let det = a * ca + b * cb + c * cc;
     let step =
-        Vec3::new(ca * g.x + cb * g.y + cc * g.z, cb * g.x + cd * g.y + ce * g.z, cc * g.x + ce * g.y + cf * g.z) / det;
+        Vec3A::new(ca * g.x + cb * g.y + cc * g.z, cb * g.x + cd * g.y + ce * g.z, cc * g.x + ce * g.y + cf * g.z)
+            / det;
     x - step
+}
+
+/// Particles [`descend_four`] updates at once.
+const WIDTH: usize = 4;
+
+/// [`descend`] for four particles at once: lane by lane the same arithmetic in the same order,
+/// so the results are bit-identical, but laid out as arrays over the lanes so that the
+/// compiler runs the four particles' square roots, divisions and products in SIMD lanes. A lane
+/// whose particle has run out of springs adds a spring of zero stiffness, which adds exactly
+/// zero.
+#[allow(clippy::too_many_arguments)]
+#[inline]
+fn descend_four(
+    model: &ForceModel,
+    h: f32,
+    inv_share: [f32; WIDTH],
+    springs: [&[SpringEnd]; WIDTH],
+    x: [Vec3A; WIDTH],
+    start: [Vec3A; WIDTH],
+    target: [Vec3A; WIDTH],
+    positions: &[Vec3A],
+) -> [Vec3A; WIDTH] {
+    let h2 = h * h;
+    let ch = model.damping * h;
+    let mut g = [[0.0f32; WIDTH]; 3];
+    let mut diag = [[1.0 + ch; WIDTH]; 3];
+    let mut off = [[0.0f32; WIDTH]; 3];
+    for l in 0..WIDTH {
+        let gl = (x[l] - target[l]) + ch * (x[l] - start[l]);
+        for axis in 0..3 {
+            g[axis][l] = gl[axis];
+        }
+    }
+    let count = springs.iter().map(|s| s.len()).max().unwrap_or(0);
+    for s in 0..count {
+        let mut delta = [[1.0f32; WIDTH], [0.0; WIDTH], [0.0; WIDTH]];
+        let mut k = [0.0f32; WIDTH];
+        let mut rest = [1.0f32; WIDTH];
+        for l in 0..WIDTH {
+            if let Some(end) = springs[l].get(s) {
+                let d = positions[end.other as usize] - x[l];
+                (delta[0][l], delta[1][l], delta[2][l]) = (d.x, d.y, d.z);
+                k[l] = model.k_over_mass[end.kind as usize] * end.weight * inv_share[l] * h2;
+                rest[l] = end.rest;
+            }
+        }
+        let [dx, dy, dz] = delta;
+        for l in 0..WIDTH {
+            let len = (dx[l] * dx[l] + dy[l] * dy[l] + dz[l] * dz[l]).sqrt();
+            let inv_l = 1.0 / len.max(1.0e-6 * rest[l]);
+            let stretch = 1.0 - rest[l] * inv_l;
+            let pull = k[l] * stretch;
+            let sp = stretch.max(0.0);
+            let t = k[l] * (1.0 - sp);
+            let along = k[l] * sp;
+            let u = [dx[l] * inv_l, dy[l] * inv_l, dz[l] * inv_l];
+            for axis in 0..3 {
+                g[axis][l] -= pull * delta[axis][l];
+                diag[axis][l] += along + t * (u[axis] * u[axis]);
+            }
+            off[0][l] += t * (u[0] * u[1]);
+            off[1][l] += t * (u[0] * u[2]);
+            off[2][l] += t * (u[1] * u[2]);
+        }
+    }
+    let lane = |v: &[[f32; WIDTH]; 3], l: usize| Vec3A::new(v[0][l], v[1][l], v[2][l]);
+    core::array::from_fn(|l| newton_step(x[l], lane(&g, l), lane(&diag, l), lane(&off, l)))
 }
 
 /// The block-descent stepper's working state for one cloth: positions and velocities by
 /// particle, and the substep's start and inertial target.
 #[derive(Clone, Debug, Default)]
 pub(crate) struct BlockDescent {
-    pub(crate) x: Vec<Vec3>,
-    pub(crate) v: Vec<Vec3>,
-    start: Vec<Vec3>,
-    target: Vec<Vec3>,
-    moved: Vec<Vec3>,
+    pub(crate) x: Vec<Vec3A>,
+    pub(crate) v: Vec<Vec3A>,
+    start: Vec<Vec3A>,
+    target: Vec<Vec3A>,
+    moved: Vec<Vec3A>,
 }
 
 impl BlockDescent {
     /// Sizes the buffers for `n` particles.
     pub(crate) fn resize(&mut self, n: usize) {
         for buffer in [&mut self.x, &mut self.v, &mut self.start, &mut self.target] {
-            buffer.resize(n, Vec3::ZERO);
+            buffer.resize(n, Vec3A::ZERO);
         }
     }
 
@@ -146,7 +219,7 @@ impl BlockDescent {
     ) {
         let Ok(colouring) = topology.colouring() else { return };
         let Self { x, v, start, target, moved } = self;
-        let accel = model.uniform_accel;
+        let accel = Vec3A::from(model.uniform_accel);
         start.copy_from_slice(x);
         // The first iterate moves with the velocity only: a cloth at rest starts where it was,
         // so that with any number of sweeps its equilibrium is the springs' own.
@@ -167,18 +240,27 @@ impl BlockDescent {
         for _ in 0..iterations {
             for k in 0..colouring.len() {
                 let colour = colouring.colour(k);
-                moved.resize(colour.len(), Vec3::ZERO);
-                let current: &[Vec3] = x;
-                colour.par_iter().zip(moved.par_iter_mut()).with_min_len(MIN_TASK).for_each(|(&i, out)| {
-                    let i = i as usize;
-                    *out = if free[i] != 0.0 {
-                        descend(model, h, inv_share[i], topology.springs_of(i), current[i], start[i], target[i], |j| {
-                            current[j as usize]
-                        })
-                    } else {
-                        current[i]
-                    };
-                });
+                moved.resize(colour.len(), Vec3A::ZERO);
+                let current: &[Vec3A] = x;
+                colour.par_chunks(WIDTH).zip(moved.par_chunks_mut(WIDTH)).with_min_len(MIN_TASK / WIDTH).for_each(
+                    |(ids, out)| {
+                        // A short last chunk repeats its last particle in the spare lanes.
+                        let ids: [usize; WIDTH] = core::array::from_fn(|l| ids[l.min(ids.len() - 1)] as usize);
+                        let new = descend_four(
+                            model,
+                            h,
+                            ids.map(|i| inv_share[i]),
+                            ids.map(|i| topology.springs_of(i)),
+                            ids.map(|i| current[i]),
+                            ids.map(|i| start[i]),
+                            ids.map(|i| target[i]),
+                            current,
+                        );
+                        for (l, out) in out.iter_mut().enumerate() {
+                            *out = if free[ids[l]] != 0.0 { new[l] } else { current[ids[l]] };
+                        }
+                    },
+                );
                 for (&i, &p) in colour.iter().zip(moved.iter()) {
                     x[i as usize] = p;
                 }
@@ -195,8 +277,12 @@ impl BlockDescent {
                     return;
                 }
                 *v = (*x - start) * inv_h;
-                for frame in frames {
-                    frame.resolve(start, x, v);
+                if !frames.is_empty() {
+                    let (mut p, mut velocity) = (Vec3::from(*x), Vec3::from(*v));
+                    for frame in frames {
+                        frame.resolve(start.into(), &mut p, &mut velocity);
+                    }
+                    (*x, *v) = (p.into(), velocity.into());
                 }
             });
     }
@@ -213,9 +299,9 @@ mod tests {
         h: f32,
         springs: &[SpringEnd],
         others: &[Vec3],
-        x: Vec3,
-        start: Vec3,
-        target: Vec3,
+        x: Vec3A,
+        start: Vec3A,
+        target: Vec3A,
     ) -> f64 {
         let (x, start, target) = (x.as_dvec3(), start.as_dvec3(), target.as_dvec3());
         let h = f64::from(h);
@@ -229,18 +315,48 @@ mod tests {
         g
     }
 
+    /// The four-lane update is the scalar one, bit for bit, lane by lane, whatever each lane's
+    /// spring count.
+    #[test]
+    fn four_lanes_match_the_scalar_update_bit_for_bit() {
+        let jiggle = |i: u32, axis: u32| ((i * 7 + axis * 13) % 17) as f32 / 17.0 - 0.5;
+        let positions: Vec<Vec3A> =
+            (0..40).map(|i| Vec3A::new(i as f32 * 0.1 + jiggle(i, 0), jiggle(i, 1), jiggle(i, 2))).collect();
+        let ends: Vec<SpringEnd> = (0..12)
+            .map(|j| SpringEnd {
+                other: 10 + j * 2,
+                kind: j % 3,
+                rest: 0.1 + 0.05 * j as f32,
+                weight: 1.0 + j as f32 * 0.1,
+            })
+            .collect();
+        let springs = [&ends[..12], &ends[..3], &ends[5..12], &ends[..0]];
+        let model = ForceModel::new(&ClothParams { spring_k: 300.0, damping: 1.5, ..Default::default() });
+        let ids = [0usize, 1, 2, 3];
+        let (inv_share, h) = ([40.0, 20.0, 0.0, 33.0], 1.0 / 240.0);
+        let x = ids.map(|i| positions[i]);
+        let start = ids.map(|i| positions[i] + Vec3A::splat(0.01));
+        let target = ids.map(|i| positions[i] - Vec3A::new(0.0, 0.002, 0.0));
+        let four = descend_four(&model, h, inv_share, springs, x, start, target, &positions);
+        for l in 0..WIDTH {
+            let one =
+                descend(&model, h, inv_share[l], springs[l], x[l], start[l], target[l], |j| positions[j as usize]);
+            assert_eq!(four[l].to_array().map(f32::to_bits), one.to_array().map(f32::to_bits), "lane {l}");
+        }
+    }
+
     #[test]
     fn each_update_lowers_its_block_potential_at_any_stiffness() {
         let others = [Vec3::new(1.2, 0.1, 0.0), Vec3::new(-0.3, 0.9, 0.2), Vec3::new(0.1, -0.2, -1.4)];
         let springs: Vec<SpringEnd> = (0..3).map(|j| SpringEnd { other: j, kind: j, rest: 1.0, weight: 1.0 }).collect();
-        let (start, target) = (Vec3::new(0.05, 0.0, 0.02), Vec3::new(0.1, -0.05, 0.0));
+        let (start, target) = (Vec3A::new(0.05, 0.0, 0.02), Vec3A::new(0.1, -0.05, 0.0));
         for spring_k in [0.0, 10.0, 400.0, 1.0e4, 1.0e7] {
             let model = ForceModel::new(&ClothParams { spring_k, damping: 2.0, ..Default::default() });
             for h in [1.0 / 960.0, 1.0 / 60.0] {
                 let mut x = target;
                 let mut before = block_potential(&model, h, &springs, &others, x, start, target);
                 for _ in 0..4 {
-                    x = descend(&model, h, 1.0, &springs, x, start, target, |j| others[j as usize]);
+                    x = descend(&model, h, 1.0, &springs, x, start, target, |j| others[j as usize].into());
                     assert!(x.is_finite(), "k {spring_k}, h {h}");
                     let after = block_potential(&model, h, &springs, &others, x, start, target);
                     assert!(after <= before * (1.0 + 1e-5) + 1e-12, "k {spring_k}, h {h}: {before} -> {after}");

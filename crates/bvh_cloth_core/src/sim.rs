@@ -9,7 +9,7 @@
 
 use std::sync::Arc;
 
-use glam::{Affine3A, Vec3};
+use glam::{Affine3A, Vec3, Vec3A};
 use rayon::prelude::*;
 
 use crate::block_descent::BlockDescent;
@@ -296,16 +296,23 @@ impl ClothSim {
         let n = self.len();
         let mut descent = core::mem::take(&mut self.descent);
         descent.resize(n);
-        for i in 0..n {
-            descent.x[i] = self.position(i);
-            descent.v[i] = self.velocity(i);
+        let w = self.width;
+        for (r, row) in self.state.chunks_exact(LANES * w).enumerate() {
+            for c in 0..w.min(n.saturating_sub(r * w)) {
+                descent.x[r * w + c] = Vec3A::new(row[c], row[w + c], row[2 * w + c]);
+                descent.v[r * w + c] = Vec3A::new(row[3 * w + c], row[4 * w + c], row[5 * w + c]);
+            }
         }
         for _ in 0..substeps {
             descent.substep(&self.topology, &model, &self.free[..n], h, iterations, &frames);
         }
-        for i in 0..n {
-            self.set_position(i, descent.x[i]);
-            self.set_velocity(i, descent.v[i]);
+        for (r, row) in self.state.chunks_exact_mut(LANES * w).enumerate() {
+            for c in 0..w.min(n.saturating_sub(r * w)) {
+                let (p, v) = (descent.x[r * w + c], descent.v[r * w + c]);
+                for (lane, value) in [p.x, p.y, p.z, v.x, v.y, v.z].into_iter().enumerate() {
+                    row[lane * w + c] = value;
+                }
+            }
         }
         self.descent = descent;
     }

@@ -5,41 +5,51 @@ mod common;
 
 use std::sync::Arc;
 
-use bvh_cloth_core::{Affine3A, ClothParams, ClothSim, ClothTopology, Collider, MeshRef, Vec3};
+use bvh_cloth_core::{Affine3A, ClothParams, ClothSim, ClothTopology, Collider, Integrator, MeshRef, Vec3};
 use common::{grid_topology, square_grid, uv_sphere};
 
 fn hanging(rows: u32, cols: u32) -> ClothSim {
-    let params = ClothParams { damping: 2.0, looper: 16, ..Default::default() };
+    hanging_with(rows, cols, Integrator::Rk4)
+}
+
+fn hanging_with(rows: u32, cols: u32, integrator: Integrator) -> ClothSim {
+    let params = ClothParams { damping: 2.0, looper: 16, integrator, ..Default::default() };
     let pins = [0, cols - 1];
     ClothSim::new(params, grid_topology(1.0, cols, rows), Affine3A::from_translation(Vec3::new(0.0, 2.0, 0.0)), &pins)
         .unwrap()
 }
 
+/// Both integrators settle still and left–right symmetric. RK4 treats every particle alike, so
+/// the sag is symmetric to rounding (1e-4 m); block descent's Gauss–Seidel visits the colours in
+/// an order that is not mirror-symmetric, so its small remaining difference from the
+/// equilibrium is not either (measured 1.2e-4 m after 20 s; 1e-3 m allowed).
 #[test]
 fn two_ends_fixed_settles_to_a_still_symmetric_sag() {
-    let mut sim = hanging(16, 16);
-    let pinned: Vec<Vec3> = sim.pins().iter().map(|&i| sim.position(i as usize)).collect();
-    for _ in 0..60 * 20 {
-        sim.tick(1.0 / 60.0, &[]);
-        for (k, &i) in sim.pins().iter().enumerate() {
-            assert_eq!(sim.position(i as usize), pinned[k], "a pinned particle moved");
+    for (integrator, symmetry) in [(Integrator::Rk4, 1.0e-4), (Integrator::BLOCK_DESCENT, 1.0e-3)] {
+        let mut sim = hanging_with(16, 16, integrator);
+        let pinned: Vec<Vec3> = sim.pins().iter().map(|&i| sim.position(i as usize)).collect();
+        for _ in 0..60 * 20 {
+            sim.tick(1.0 / 60.0, &[]);
+            for (k, &i) in sim.pins().iter().enumerate() {
+                assert_eq!(sim.position(i as usize), pinned[k], "{integrator:?}: a pinned particle moved");
+            }
         }
-    }
-    assert!(sim.is_finite());
-    let max_speed = sim.velocities().iter().map(|v| v.length()).fold(0.0f32, f32::max);
-    assert!(max_speed < 1.0e-3, "still moving at {max_speed} m/s after 20 s");
-    // It sagged: the free middle of the first row hangs below the pins.
-    let grid = *sim.topology().stencil().unwrap();
-    let mid = sim.position(grid.index(0, grid.cols / 2));
-    assert!(mid.y < pinned[0].y - 0.05, "no sag: {mid}");
-    // Left–right symmetric about the plane halfway between the pins.
-    let centre_x = 0.5 * (pinned[0].x + pinned[1].x);
-    for r in 0..grid.rows {
-        for c in 0..grid.cols {
-            let a = sim.position(grid.index(r, c));
-            let b = sim.position(grid.index(r, grid.cols - 1 - c));
-            let mirrored = Vec3::new(2.0 * centre_x - b.x, b.y, b.z);
-            assert!(a.distance(mirrored) < 1.0e-4, "asymmetric at ({r},{c}): {a} vs {mirrored}");
+        assert!(sim.is_finite());
+        let max_speed = sim.velocities().iter().map(|v| v.length()).fold(0.0f32, f32::max);
+        assert!(max_speed < 1.0e-3, "{integrator:?}: still moving at {max_speed} m/s after 20 s");
+        // It sagged: the free middle of the first row hangs below the pins.
+        let grid = *sim.topology().stencil().unwrap();
+        let mid = sim.position(grid.index(0, grid.cols / 2));
+        assert!(mid.y < pinned[0].y - 0.05, "{integrator:?}: no sag: {mid}");
+        // Left–right symmetric about the plane halfway between the pins.
+        let centre_x = 0.5 * (pinned[0].x + pinned[1].x);
+        for r in 0..grid.rows {
+            for c in 0..grid.cols {
+                let a = sim.position(grid.index(r, c));
+                let b = sim.position(grid.index(r, grid.cols - 1 - c));
+                let mirrored = Vec3::new(2.0 * centre_x - b.x, b.y, b.z);
+                assert!(a.distance(mirrored) < symmetry, "{integrator:?}: asymmetric at ({r},{c}): {a} vs {mirrored}");
+            }
         }
     }
 }
@@ -139,7 +149,7 @@ fn set_params_keeps_the_state_and_refuses_what_is_invalid() {
 fn stiff_springs_stay_stable_under_the_guard() {
     // 100x the default stiffness with a quarter of the substeps: far past the explicit limit
     // of `looper` alone (h w is about 20 here), so the guard must add substeps.
-    let params = ClothParams { spring_k: 20_000.0, looper: 4, ..Default::default() };
+    let params = ClothParams { spring_k: 20_000.0, looper: 4, integrator: Integrator::Rk4, ..Default::default() };
     let pins = [0, 23];
     let mut sim =
         ClothSim::new(params, grid_topology(1.0, 24, 24), Affine3A::from_translation(Vec3::Y), &pins).unwrap();

@@ -382,7 +382,7 @@ fn gpu_positions(rig: &Rig, cloth: &OneCloth) -> Vec<Vec3> {
 #[test]
 fn hanging_cloth_agrees_with_the_cpu() {
     let Some(rig) = rig() else { return };
-    let params = ClothParams { damping: 1.0, ..Default::default() };
+    let params = ClothParams { damping: 1.0, integrator: Integrator::Rk4, ..Default::default() };
     let grid = square(1.0, 32);
     let mut cpu = grid_cloth(grid, params, Affine3A::from_translation(Vec3::Y), &[0, grid.cols as u32 - 1]);
     let none = GpuColliders::new(&rig.device, &[]);
@@ -423,7 +423,7 @@ fn bunny(n: u32) -> Collider {
 fn bunny_drop_agrees_with_the_cpu() {
     let Some(rig) = rig() else { return };
     let colliders = [bunny(5)];
-    let params = ClothParams { damping: 1.0, ..Default::default() };
+    let params = ClothParams { damping: 1.0, integrator: Integrator::Rk4, ..Default::default() };
     let mut cpu = grid_cloth(square(1.2, 64), params, Affine3A::from_translation(Vec3::new(-0.2, 1.2, 0.0)), &[]);
     let gpu_colliders = GpuColliders::new(&rig.device, &colliders);
     let mut gpu = rig.cloth(&cpu, 1.0 / 60.0);
@@ -484,7 +484,7 @@ fn two_colliders_one_moving_agree_with_the_cpu() {
         scale: 0.6,
     });
     let mut colliders = [ball, small_bunny];
-    let params = ClothParams { damping: 1.0, ..Default::default() };
+    let params = ClothParams { damping: 1.0, integrator: Integrator::Rk4, ..Default::default() };
     let mut cpu = grid_cloth(square(1.8, 48), params, Affine3A::from_translation(Vec3::new(0.0, 1.0, 0.0)), &[]);
     let mut gpu_colliders = GpuColliders::new(&rig.device, &colliders);
     let mut gpu = rig.cloth(&cpu, 1.0 / 60.0);
@@ -567,7 +567,7 @@ fn authored_mesh_with_moving_anchors_agrees_with_the_cpu() {
     let pole: Vec<u32> =
         (0..topology.len() as u32).filter(|&i| topology.rest_positions()[i as usize].x == 0.0).collect();
     assert_eq!(pole.len(), 9);
-    let params = ClothParams { damping: 0.5, ..Default::default() };
+    let params = ClothParams { damping: 0.5, integrator: Integrator::Rk4, ..Default::default() };
     let start = Affine3A::from_translation(Vec3::new(0.0, 2.0, 0.0));
     let mut cpu = ClothSim::new(params, Arc::new(topology), start, &pole).unwrap();
     let none = GpuColliders::new(&rig.device, &[]);
@@ -638,7 +638,7 @@ fn a_batch_of_cloths_agrees_with_each_alone_on_the_cpu_as_cloths_come_and_go() {
     let ball = rough_ball(Vec3::new(3.0, 0.6, 0.0));
     let colliders = [ball];
     let gpu_colliders = GpuColliders::new(&rig.device, &colliders);
-    let hanging = ClothParams { damping: 1.0, ..Default::default() };
+    let hanging = ClothParams { damping: 1.0, integrator: Integrator::Rk4, ..Default::default() };
     let euler = ClothParams {
         damping: 0.5,
         spring_k: 300.0,
@@ -646,7 +646,7 @@ fn a_batch_of_cloths_agrees_with_each_alone_on_the_cpu_as_cloths_come_and_go() {
         integrator: Integrator::SemiImplicitEuler,
         ..Default::default()
     };
-    let stiff = ClothParams { spring_k: 20_000.0, looper: 4, ..Default::default() };
+    let stiff = ClothParams { spring_k: 20_000.0, looper: 4, integrator: Integrator::Rk4, ..Default::default() };
     let grid = |w: f32, h: f32, cols: u32, rows: u32| ClothGrid::new(Vec2::new(w, h), UVec2::new(cols, rows));
     let at = |x: f32, y: f32| Affine3A::from_translation(Vec3::new(x, y, 0.0));
     let mut cloths: Vec<(&str, ClothSim)> = vec![
@@ -677,7 +677,8 @@ fn a_batch_of_cloths_agrees_with_each_alone_on_the_cpu_as_cloths_come_and_go() {
         if t == 30 {
             let before = batch.particles(ids[0]).unwrap().1;
             // Larger than the room left: the batch is rebuilt, the others' state moved.
-            let sim = grid_cloth(grid(1.4, 1.4, 32, 32), ClothParams::default(), at(0.0, 2.0), &[]);
+            let rk4 = ClothParams { integrator: Integrator::Rk4, ..Default::default() };
+            let sim = grid_cloth(grid(1.4, 1.4, 32, 32), rk4, at(0.0, 2.0), &[]);
             let id = batch.insert(&rig.device, &rig.queue, &sim).unwrap();
             batch.set_params(&rig.queue, id, sim.params(), tick);
             ids.push(id);
@@ -714,7 +715,7 @@ fn a_batch_of_cloths_agrees_with_each_alone_on_the_cpu_as_cloths_come_and_go() {
 #[test]
 fn timed_ticks_step_as_untimed_ones_and_name_each_dispatch() {
     let Some(rig) = rig() else { return };
-    let params = ClothParams { damping: 1.0, looper: 3, ..Default::default() };
+    let params = ClothParams { damping: 1.0, looper: 3, integrator: Integrator::Rk4, ..Default::default() };
     let sim = grid_cloth(square(1.0, 12), params, Affine3A::from_translation(Vec3::Y), &[]);
     let none = GpuColliders::new(&rig.device, &[]);
     let (mut plain, mut timed) = (rig.cloth(&sim, 1.0 / 60.0), rig.cloth(&sim, 1.0 / 60.0));
@@ -824,7 +825,12 @@ fn block_descent_agrees_with_the_cpu_in_a_mixed_batch() {
     let mut cloths: Vec<(&str, ClothSim)> = vec![
         (
             "rk4 16x16",
-            grid_cloth(square(1.0, 16), ClothParams { damping: 1.0, ..Default::default() }, at(-3.0, 1.0), &[0, 15]),
+            grid_cloth(
+                square(1.0, 16),
+                ClothParams { damping: 1.0, integrator: Integrator::Rk4, ..Default::default() },
+                at(-3.0, 1.0),
+                &[0, 15],
+            ),
         ),
         ("descent 32x32", grid_cloth(square(1.0, 32), descent(1, 8), at(0.0, 1.0), &[0, 31])),
         ("descent flag onto the ball", ClothSim::new(descent(3, 6), Arc::new(flag), flat, &[]).unwrap()),
