@@ -1,7 +1,7 @@
 //! # bvh_cloth_core
 //!
-//! The engine-agnostic core of `bevy_bvh_cloth`: a mass-spring cloth integrated with
-//! fourth-order Runge–Kutta, colliding with rigid meshes that are voxelised into spheres and
+//! The engine-agnostic core of `bevy_bvh_cloth`: a mass-spring cloth integrated with vertex
+//! block descent or fourth-order Runge–Kutta, colliding with rigid meshes that are voxelised into spheres and
 //! arranged in a Morton-code LBVH. It follows Mei, Fan, Zhang and Liu, "A Collision Detection and
 //! Cloth Simulation Method Based on Parallel BVH"; the section each module implements is named in
 //! its documentation.
@@ -10,6 +10,7 @@
 //! |---|---|
 //! | [`params`], [`grid`], [`topology`], [`pins`], [`forces`] | 2.1, eq. 1–3, Table V |
 //! | [`sim`] (RK4, semi-implicit Euler) | 2.2, eq. 4 |
+//! | [`block_descent`], [`colouring`] | (vertex block descent, Chen et al. 2024; not in the paper) |
 //! | [`voxel_spheres`] | 2.4.1 |
 //! | [`morton`], [`lbvh`] | 2.4.2 (Karras 2012) |
 //! | [`traversal`] | 2.4.3, Algorithm 2 |
