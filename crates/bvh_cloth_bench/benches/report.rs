@@ -238,69 +238,86 @@ fn gpu_profile(meshes: &[ObjMesh], gpu: Option<&Gpu>) {
     );
     println!("|---|---|---|---|---|---|");
     for (name, c, cloths) in &scenes {
-        let colliders = GpuColliders::new(&gpu.device, std::slice::from_ref(c));
-        let mut batch = ClothBatch::new(&gpu.device, &gpu.queue);
-        for cloth in cloths {
-            let id = batch.insert(&gpu.device, &gpu.queue, cloth).expect("the cloth fits the device");
-            batch.set_params(&gpu.queue, id, cloth.params(), TICK);
-        }
-        batch.prepare(&gpu.device, &gpu.queue, &gpu.kernels, &colliders);
-        let mut encoder = gpu.device.create_command_encoder(&Default::default());
-        batch.encode_ticks(&mut encoder, &gpu.kernels, if gpu.software { 10 } else { 60 });
-        gpu.queue.submit([encoder.finish()]);
-        headless::wait(&gpu.device);
-        let capacity = 2 * (1 + 4 * 256);
-        let queries = gpu.device.create_query_set(&wgpu::QuerySetDescriptor {
-            label: Some("bvh_cloth_profile"),
-            ty: wgpu::QueryType::Timestamp,
-            count: capacity,
-        });
-        let resolved = gpu.device.create_buffer(&wgpu::BufferDescriptor {
-            label: Some("bvh_cloth_profile_resolved"),
-            size: u64::from(capacity) * 8,
-            usage: wgpu::BufferUsages::QUERY_RESOLVE | wgpu::BufferUsages::COPY_SRC,
-            mapped_at_creation: false,
-        });
-        let period_ns = f64::from(gpu.queue.get_timestamp_period());
-        let mut samples: Vec<[f64; 3]> = Vec::new();
-        for _ in 0..9 {
-            let mut encoder = gpu.device.create_command_encoder(&Default::default());
-            let Some(kernels) = batch.encode_ticks_timed(&mut encoder, &gpu.kernels, 1, &queries, capacity) else {
-                println!("| {name} | too many dispatches to time |");
-                break;
-            };
-            let used = 2 * kernels.len() as u32;
-            encoder.resolve_query_set(&queries, 0..used, &resolved, 0);
-            gpu.queue.submit([encoder.finish()]);
-            let stamps: Vec<u64> = headless::read(&gpu.device, &gpu.queue, &resolved);
-            let mut ms = [0.0f64; 3];
-            for (k, kernel) in kernels.iter().enumerate() {
-                let span = stamps[2 * k + 1].saturating_sub(stamps[2 * k]) as f64 * period_ns * 1e-6;
-                ms[match kernel {
-                    Kernel::ApplyAnchors => 0,
-                    Kernel::NodeUpdate | Kernel::VbdPredict | Kernel::VbdSolve => 1,
-                    Kernel::NodeUpdateFinal | Kernel::VbdFinish => 2,
-                }] += span;
-            }
-            samples.push(ms);
-        }
-        if samples.is_empty() {
+        let Some((column, total)) = kernel_ms(gpu, c, cloths) else {
+            println!("| {name} | too many dispatches to time |");
             continue;
-        }
-        let column = |k: usize| median(samples.iter().map(|s| s[k]).collect());
-        let total = median(samples.iter().map(|s| s.iter().sum()).collect());
+        };
         println!(
             "| {name} | {} | {:.3} | {:.3} | {:.3} | {total:.3} |",
             cloths.iter().map(ClothSim::len).sum::<usize>(),
-            column(0),
-            column(1),
-            column(2)
+            column[0],
+            column[1],
+            column[2]
         );
     }
     println!("\nEach dispatch is timed in a compute pass of its own; a tick without profiling is one pass.");
     if gpu.software {
         println!("The GPU here is a software adapter on the same CPU cores: its times are not GPU figures.");
     }
+}
+
+/// The column of [`kernel_ms`] a kernel's time goes to.
+fn kernel_column(kernel: Kernel) -> usize {
+    match kernel {
+        Kernel::ApplyAnchors => 0,
+        Kernel::NodeUpdate => 1,
+        Kernel::NodeUpdateFinal => 2,
+        Kernel::VbdPredict => 3,
+        Kernel::VbdSolve => 4,
+        Kernel::VbdFinish => 5,
+    }
+}
+
+/// GPU ms of one 60 Hz tick of `cloths` (one batch, colliding with `c`) by kernel, in
+/// [`kernel_column`] order, and in all: medians of 9 ticks timed with timestamp queries, each
+/// dispatch in a compute pass of its own, after a second of falling (10 ticks on a software
+/// adapter). `None` without timestamp queries, or when a tick has more dispatches than a query
+/// set holds.
+fn kernel_ms(gpu: &Gpu, c: &Collider, cloths: &[ClothSim]) -> Option<([f64; 6], f64)> {
+    if !gpu.device.features().contains(wgpu::Features::TIMESTAMP_QUERY) {
+        return None;
+    }
+    let colliders = GpuColliders::new(&gpu.device, std::slice::from_ref(c));
+    let mut batch = ClothBatch::new(&gpu.device, &gpu.queue);
+    for cloth in cloths {
+        let id = batch.insert(&gpu.device, &gpu.queue, cloth).expect("the cloth fits the device");
+        batch.set_params(&gpu.queue, id, cloth.params(), TICK);
+    }
+    batch.prepare(&gpu.device, &gpu.queue, &gpu.kernels, &colliders);
+    let mut encoder = gpu.device.create_command_encoder(&Default::default());
+    batch.encode_ticks(&mut encoder, &gpu.kernels, if gpu.software { 10 } else { 60 });
+    gpu.queue.submit([encoder.finish()]);
+    headless::wait(&gpu.device);
+    // The most queries one set may hold (wgpu's limit).
+    let capacity = 4096;
+    let queries = gpu.device.create_query_set(&wgpu::QuerySetDescriptor {
+        label: Some("bvh_cloth_profile"),
+        ty: wgpu::QueryType::Timestamp,
+        count: capacity,
+    });
+    let resolved = gpu.device.create_buffer(&wgpu::BufferDescriptor {
+        label: Some("bvh_cloth_profile_resolved"),
+        size: u64::from(capacity) * 8,
+        usage: wgpu::BufferUsages::QUERY_RESOLVE | wgpu::BufferUsages::COPY_SRC,
+        mapped_at_creation: false,
+    });
+    let period_ns = f64::from(gpu.queue.get_timestamp_period());
+    let mut samples: Vec<[f64; 6]> = Vec::new();
+    for _ in 0..9 {
+        let mut encoder = gpu.device.create_command_encoder(&Default::default());
+        let kernels = batch.encode_ticks_timed(&mut encoder, &gpu.kernels, 1, &queries, capacity)?;
+        let used = 2 * kernels.len() as u32;
+        encoder.resolve_query_set(&queries, 0..used, &resolved, 0);
+        gpu.queue.submit([encoder.finish()]);
+        let stamps: Vec<u64> = headless::read(&gpu.device, &gpu.queue, &resolved);
+        let mut ms = [0.0f64; 6];
+        for (k, &kernel) in kernels.iter().enumerate() {
+            ms[kernel_column(kernel)] += stamps[2 * k + 1].saturating_sub(stamps[2 * k]) as f64 * period_ns * 1e-6;
+        }
+        samples.push(ms);
+    }
+    let total = median(samples.iter().map(|s| s.iter().sum()).collect());
+    Some((core::array::from_fn(|k| median(samples.iter().map(|s| s[k]).collect())), total))
 }
 
 /// Many cloths at once: ms per 60 Hz tick for 1 to 512 cloths of 16 x 16, 32 x 32 and 64 x 64
@@ -719,17 +736,24 @@ fn solver(meshes: &[ObjMesh], gpu: Option<&Gpu>, single: &rayon::ThreadPool, thr
         println!("No GPU adapter: skipped.");
         return;
     };
-    let dragon = [collider(&meshes[1], 16)];
+    let dragon = collider(&meshes[1], 16);
     let sizes: &[u32] = if gpu.software { &[64, 128] } else { &[64, 256, 1024] };
-    println!("| cloth | RK4 substeps | RK4 ms (wall) | block descent substeps | block descent ms (wall) | speed-up |");
-    println!("|---|---|---|---|---|---|");
+    let timed = gpu.device.features().contains(wgpu::Features::TIMESTAMP_QUERY);
+    let clock = if timed { "GPU ms (timestamps)" } else { "ms (wall)" };
+    println!(
+        "| cloth | RK4 substeps | RK4 {clock} | block descent substeps | block descent {clock} | of it vbd_solve | speed-up |"
+    );
+    println!("|---|---|---|---|---|---|---|");
     for &size in sizes {
-        let rk4 = cloth_above(&dragon[0], size, Integrator::Rk4);
-        let descent = cloth_above(&dragon[0], size, Integrator::BLOCK_DESCENT);
-        let rk_ms = gpu_sim_frame_ms(gpu, &dragon, &rk4, 1);
-        let bd_ms = gpu_sim_frame_ms(gpu, &dragon, &descent, 1);
+        let rk4 = cloth_above(&dragon, size, Integrator::Rk4);
+        let descent = cloth_above(&dragon, size, Integrator::BLOCK_DESCENT);
+        let tick = |cloth: &ClothSim| match kernel_ms(gpu, &dragon, std::slice::from_ref(cloth)) {
+            Some((column, total)) => (total, format!("{:.3}", column[4])),
+            None => (gpu_sim_frame_ms(gpu, std::slice::from_ref(&dragon), cloth, 1), "-".into()),
+        };
+        let ((rk_ms, _), (bd_ms, solve)) = (tick(&rk4), tick(&descent));
         println!(
-            "| {size}x{size} | {} | {rk_ms:.3} | {} | {bd_ms:.3} | {:.1}x |",
+            "| {size}x{size} | {} | {rk_ms:.3} | {} | {bd_ms:.3} | {solve} | {:.1}x |",
             rk4.substeps(TICK),
             descent.substeps(TICK),
             rk_ms / bd_ms

@@ -38,7 +38,7 @@
 //! Measured with `cargo bench -p bvh_cloth_bench --bench report -- solver` on the 2-core
 //! development machine (BENCHMARKS.md has the tables): a 64x64 cloth hanging from two corners
 //! settles within 0.04 % of RK4's sag at the same Looper 16, and within 3.2 % at Looper 4, which
-//! costs 1.4 ms per tick against RK4's 4.3 ms on one thread. Raising SpringK from 200 to 20,000
+//! costs 1.4 ms per tick against RK4's 4.2 ms on one thread. Raising SpringK from 200 to 20,000
 //! N/m makes RK4's guard take 157 substeps (42 ms per tick); block descent stays at 16 (6 ms).
 //!
 //! ## Its limits
