@@ -125,17 +125,18 @@ fn newton_step(x: Vec3A, g: Vec3A, diag: Vec3A, off: Vec3A) -> Vec3A {
     x - step
 }
 
-/// Particles [`descend_four`] updates at once.
-const WIDTH: usize = 4;
+/// Particles [`descend_lanes`] updates at once: two SSE vectors, whose square roots and
+/// divisions overlap.
+const WIDTH: usize = 8;
 
-/// [`descend`] for four particles at once: lane by lane the same arithmetic in the same order,
-/// so the results are bit-identical, but laid out as arrays over the lanes so that the
-/// compiler runs the four particles' square roots, divisions and products in SIMD lanes. A lane
+/// [`descend`] for [`WIDTH`] particles at once: lane by lane the same arithmetic in the same
+/// order, so the results are bit-identical, but laid out as arrays over the lanes so that the
+/// compiler runs the particles' square roots, divisions and products in SIMD lanes. A lane
 /// whose particle has run out of springs adds a spring of zero stiffness, which adds exactly
 /// zero.
 #[allow(clippy::too_many_arguments)]
 #[inline]
-fn descend_four(
+fn descend_lanes(
     model: &ForceModel,
     h: f32,
     inv_share: [f32; WIDTH],
@@ -252,7 +253,7 @@ impl BlockDescent {
                     |(ids, out)| {
                         // A short last chunk repeats its last particle in the spare lanes.
                         let ids: [usize; WIDTH] = core::array::from_fn(|l| ids[l.min(ids.len() - 1)] as usize);
-                        let new = descend_four(
+                        let new = descend_lanes(
                             model,
                             h,
                             ids.map(|i| inv_share[i]),
@@ -321,10 +322,10 @@ mod tests {
         g
     }
 
-    /// The four-lane update is the scalar one, bit for bit, lane by lane, whatever each lane's
+    /// The many-lane update is the scalar one, bit for bit, lane by lane, whatever each lane's
     /// spring count.
     #[test]
-    fn four_lanes_match_the_scalar_update_bit_for_bit() {
+    fn lanes_match_the_scalar_update_bit_for_bit() {
         let jiggle = |i: u32, axis: u32| ((i * 7 + axis * 13) % 17) as f32 / 17.0 - 0.5;
         let positions: Vec<Vec3A> =
             (0..40).map(|i| Vec3A::new(i as f32 * 0.1 + jiggle(i, 0), jiggle(i, 1), jiggle(i, 2))).collect();
@@ -336,18 +337,20 @@ mod tests {
                 weight: 1.0 + j as f32 * 0.1,
             })
             .collect();
-        let springs = [&ends[..12], &ends[..3], &ends[5..12], &ends[..0]];
+        let patterns = [&ends[..12], &ends[..3], &ends[5..12], &ends[..0]];
+        let springs: [&[SpringEnd]; WIDTH] = core::array::from_fn(|l| patterns[l % 4]);
         let model = ForceModel::new(&ClothParams { spring_k: 300.0, damping: 1.5, ..Default::default() });
-        let ids = [0usize, 1, 2, 3];
-        let (inv_share, h) = ([40.0, 20.0, 0.0, 33.0], 1.0 / 240.0);
+        let ids: [usize; WIDTH] = core::array::from_fn(|l| l);
+        let inv_share: [f32; WIDTH] = core::array::from_fn(|l| [40.0, 20.0, 0.0, 33.0][l % 4] + l as f32);
+        let h = 1.0 / 240.0;
         let x = ids.map(|i| positions[i]);
         let start = ids.map(|i| positions[i] + Vec3A::splat(0.01));
         let target = ids.map(|i| positions[i] - Vec3A::new(0.0, 0.002, 0.0));
-        let four = descend_four(&model, h, inv_share, springs, x, start, target, &positions);
+        let lanes = descend_lanes(&model, h, inv_share, springs, x, start, target, &positions);
         for l in 0..WIDTH {
             let one =
                 descend(&model, h, inv_share[l], springs[l], x[l], start[l], target[l], |j| positions[j as usize]);
-            assert_eq!(four[l].to_array().map(f32::to_bits), one.to_array().map(f32::to_bits), "lane {l}");
+            assert_eq!(lanes[l].to_array().map(f32::to_bits), one.to_array().map(f32::to_bits), "lane {l}");
         }
     }
 
