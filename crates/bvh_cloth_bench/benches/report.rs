@@ -731,6 +731,34 @@ fn solver(meshes: &[ObjMesh], gpu: Option<&Gpu>, single: &rayon::ThreadPool, thr
         println!("| {spring_k} | {rk_steps} | {rk_ms:.3} | {bd_steps} | {bd_ms:.3} | {finite} |");
     }
 
+    println!(
+        "\n### Resolution: block descent at Looper 16 from 8x8 to 1024x1024, the panel's softest and stiffest SpringK\n"
+    );
+    println!(
+        "| cloth | SpringK N/m | ticks | substeps per tick (all ticks) | finite | fastest particle m/s | lowest point m below the pins |"
+    );
+    println!("|---|---|---|---|---|---|---|");
+    for side in [8u32, 64, 256, 1024] {
+        for spring_k in [10.0f32, 400.0] {
+            let mut sim =
+                hanging(side, ClothParams { spring_k, integrator: Integrator::BLOCK_DESCENT, ..base.clone() });
+            let ticks = if side >= 1024 { 3 } else { 60 };
+            let substeps: Vec<u32> = (0..ticks).map(|_| sim.tick(TICK, &[])).collect();
+            let same = if substeps.iter().all(|&n| n == substeps[0]) {
+                format!("{}", substeps[0])
+            } else {
+                format!("{substeps:?}")
+            };
+            let speed = sim.velocities().iter().map(|v| v.length()).fold(0.0f32, f32::max);
+            let lowest = sim.positions().iter().map(|p| p.y).fold(f32::INFINITY, f32::min);
+            println!(
+                "| {side}x{side} | {spring_k} | {ticks} | {same} | {} | {speed:.2} | {:.3} |",
+                sim.is_finite(),
+                2.0 - lowest
+            );
+        }
+    }
+
     println!("\n### Big cloth on the GPU: ms per 60 Hz tick on the dragon at n = 16, Looper 16\n");
     let Some(gpu) = gpu else {
         println!("No GPU adapter: skipped.");
