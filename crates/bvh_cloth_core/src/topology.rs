@@ -104,17 +104,15 @@ impl ClothTopology {
             }
         }
         let triangles: Vec<[u32; 3]> = grid.triangle_indices().chunks_exact(3).map(|t| [t[0], t[1], t[2]]).collect();
-        let mut topology = Self::finish(
+        Ok(Self::finish(
             rest,
             vec![1.0 / n as f32; n],
             spring_offsets,
             spring_ends,
             triangles,
             (0..n as u32).collect(),
-            None,
-        );
-        topology.colouring = Ok(ParticleColouring::grid(&grid));
-        Ok(topology)
+            Some(ParticleColouring::grid(&grid)),
+        ))
     }
 
     /// An authored triangle mesh (positions in the cloth's local frame, and an index list or
@@ -223,7 +221,7 @@ impl ClothTopology {
     }
 
     /// The per-particle triangle lists, inverse mass shares and the stiffness bound, from the
-    /// rest.
+    /// rest; the colouring given, or a greedy one.
     fn finish(
         rest: Vec<Vec3>,
         mass_share: Vec<f32>,
@@ -231,7 +229,7 @@ impl ClothTopology {
         spring_ends: Vec<SpringEnd>,
         triangles: Vec<[u32; 3]>,
         vertex_particle: Vec<u32>,
-        stencil: Option<ClothGrid>,
+        colouring: Option<ParticleColouring>,
     ) -> Self {
         let n = rest.len();
         let mut triangle_offsets = vec![0u32; n + 1];
@@ -263,7 +261,10 @@ impl ClothTopology {
                 *bound = bound.max((largest_eigenvalue(s) * f64::from(inv_mass_share[i])) as f32);
             }
         }
-        let colouring = ParticleColouring::greedy(n, &spring_offsets, &spring_ends);
+        let colouring = match colouring {
+            Some(known) => Ok(known),
+            None => ParticleColouring::greedy(n, &spring_offsets, &spring_ends),
+        };
         Self {
             rest,
             mass_share,
@@ -274,7 +275,7 @@ impl ClothTopology {
             triangle_offsets,
             triangle_list,
             vertex_particle,
-            stencil,
+            stencil: None,
             stiffness_bound,
             colouring,
         }
