@@ -751,6 +751,7 @@ impl ClothBatch {
             label: Some("bvh_cloth_vbd_solve"),
             layout: &kernels.vbd_solve_layout,
             entries: &[
+                frame.clone(),
                 step.clone(),
                 buffer(6, &b.info),
                 buffer(7, &b.spring_ends),

@@ -204,6 +204,7 @@ impl ClothKernels {
                 entry_point: "vbd_solve",
                 file: "block_descent.wgsl",
                 layout: vec![
+                    frame,
                     step,
                     storage(6, true),
                     storage(7, true),

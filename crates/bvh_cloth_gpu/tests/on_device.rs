@@ -93,6 +93,37 @@ impl Rig {
         all[first..first + (size / size_of::<GpuParticle>() as u64) as usize].to_vec()
     }
 
+    /// One tick of `tick` seconds of every cloth of `batch` on the GPU and of each of `cloths`
+    /// (named, with its id in `ids`) on the CPU, the GPU starting from the CPU's state when
+    /// `resync`; against `colliders` (CPU and GPU). Returns each cloth's largest CPU–GPU gap.
+    fn tick_against_the_cpu(
+        &self,
+        batch: &mut ClothBatch,
+        cloths: &mut [(&str, ClothSim)],
+        ids: &[ClothId],
+        colliders: (&[Collider], &GpuColliders),
+        tick: f32,
+        resync: bool,
+    ) -> Vec<f32> {
+        if resync {
+            for ((_, sim), &id) in cloths.iter().zip(ids) {
+                batch.upload_state(&self.queue, id, sim);
+            }
+        }
+        for (_, sim) in cloths.iter_mut() {
+            sim.tick(tick, colliders.0);
+        }
+        self.run(batch, colliders.1, 1);
+        cloths
+            .iter()
+            .zip(ids)
+            .map(|((_, sim), &id)| {
+                let on_gpu: Vec<Vec3> = self.batch_particles(batch, id).iter().map(position).collect();
+                largest_gap(&sim.positions(), &on_gpu)
+            })
+            .collect()
+    }
+
     fn particles(&self, cloth: &OneCloth) -> Vec<GpuParticle> {
         self.batch_particles(&cloth.batch, cloth.id)
     }
@@ -693,18 +724,9 @@ fn a_batch_of_cloths_agrees_with_each_alone_on_the_cpu_as_cloths_come_and_go() {
             cloths.push(("added 32x32", sim));
             assert_ne!(batch.particles(ids[0]).unwrap().1, before, "the rebuild packed the cloths");
         }
-        for ((_, sim), &id) in cloths.iter().zip(&ids) {
-            if !carry_on {
-                batch.upload_state(&rig.queue, id, sim);
-            }
-        }
-        for (_, sim) in &mut cloths {
-            sim.tick(tick, &colliders);
-        }
-        rig.run(&mut batch, &gpu_colliders, 1);
-        for (k, ((name, sim), &id)) in cloths.iter().zip(&ids).enumerate() {
-            let on_gpu: Vec<Vec3> = rig.batch_particles(&batch, id).iter().map(position).collect();
-            let gap = largest_gap(&sim.positions(), &on_gpu);
+        let gaps =
+            rig.tick_against_the_cpu(&mut batch, &mut cloths, &ids, (&colliders, &gpu_colliders), tick, !carry_on);
+        for (k, (gap, (name, _))) in gaps.into_iter().zip(&cloths).enumerate() {
             worst[k] = worst[k].max(gap);
             assert!(gap < 1e-5, "{name}, tick {t}: GPU and CPU differ by {gap} m");
         }
@@ -870,18 +892,9 @@ fn block_descent_agrees_with_the_cpu_in_a_mixed_batch() {
             worst.push(0.0);
             assert_ne!(batch.particles(ids[0]).unwrap().1, before, "the rebuild packed the cloths");
         }
-        for ((_, sim), &id) in cloths.iter().zip(&ids) {
-            if !carry_on {
-                batch.upload_state(&rig.queue, id, sim);
-            }
-        }
-        for (_, sim) in &mut cloths {
-            sim.tick(tick, &colliders);
-        }
-        rig.run(&mut batch, &gpu_colliders, 1);
-        for (k, ((name, sim), &id)) in cloths.iter().zip(&ids).enumerate() {
-            let on_gpu: Vec<Vec3> = rig.batch_particles(&batch, id).iter().map(position).collect();
-            let gap = largest_gap(&sim.positions(), &on_gpu);
+        let gaps =
+            rig.tick_against_the_cpu(&mut batch, &mut cloths, &ids, (&colliders, &gpu_colliders), tick, !carry_on);
+        for (k, (gap, (name, _))) in gaps.into_iter().zip(&cloths).enumerate() {
             worst[k] = worst[k].max(gap);
             assert!(gap < 1e-5, "{name}, tick {t}: GPU and CPU differ by {gap} m");
         }

@@ -20,8 +20,11 @@
 @group(0) @binding(22) var<storage, read> colour_list: array<u32>;                 // particles, colour by colour
 @group(0) @binding(25) var<uniform> colour_pass: ColourPass;
 
-// The block-descent cloth particle i belongs to, if it is active in this substep.
+// The block-descent cloth particle slot i belongs to, if it is active in this substep.
 fn descent_cloth(i: u32) -> u32 {
+    if (i >= frame.particle_slots) {
+        return NO_CLOTH;
+    }
     let c = particle_info[i].w;
     if (c == NO_CLOTH || step.substep >= cloths[c].substeps || cloths[c].integrator != INTEGRATOR_BLOCK_DESCENT) {
         return NO_CLOTH;
@@ -32,9 +35,6 @@ fn descent_cloth(i: u32) -> u32 {
 @compute @workgroup_size(8, 8, 1)
 fn vbd_predict(@builtin(global_invocation_id) id: vec3<u32>) {
     let i = thread_index(id, frame.dispatch_width);
-    if (i >= frame.particle_slots) {
-        return;
-    }
     let c = descent_cloth(i);
     if (c == NO_CLOTH) {
         return;
@@ -132,9 +132,6 @@ fn vbd_solve(@builtin(global_invocation_id) id: vec3<u32>) {
 @compute @workgroup_size(8, 8, 1)
 fn vbd_finish(@builtin(global_invocation_id) id: vec3<u32>) {
     let i = thread_index(id, frame.dispatch_width);
-    if (i >= frame.particle_slots) {
-        return;
-    }
     let c = descent_cloth(i);
     if (c == NO_CLOTH) {
         return;
