@@ -29,7 +29,7 @@
 
 use std::sync::Arc;
 
-use bvh_cloth_core::colouring::MAX_COLOURS;
+use bvh_cloth_core::colouring::{MAX_COLOURS, ParticleColouring};
 use bvh_cloth_core::gpu_layout::{
     GpuBatchCloth, GpuBatchFrame, GpuBatchStep, GpuBatchWriteback, GpuColourPass, GpuMeshWriteback, GpuParticle,
     GpuWritebackGroup, INTEGRATOR_BLOCK_DESCENT, NO_CLOTH, gpu_particle_info, gpu_particles, gpu_surface_words,
@@ -558,21 +558,21 @@ impl ClothBatch {
     /// Writes the colour list and the colour passes when the block-descent cloths, or where
     /// they lie, changed; updates the plan's iteration and substep counts every frame.
     fn prepare_descent(&mut self, device: &Device, queue: &Queue) {
-        let descent: Vec<(u32, &Slot)> = self
+        let descent: Vec<(u32, &Slot, &ParticleColouring)> = self
             .slots
             .iter()
             .enumerate()
             .filter_map(|(index, slot)| Some((index as u32, slot.as_ref()?)))
             .filter(|(_, slot)| slot.constants.integrator == INTEGRATOR_BLOCK_DESCENT)
-            .filter(|(_, slot)| slot.topology.colouring().is_ok())
+            .filter_map(|(index, slot)| Some((index, slot, slot.topology.colouring().ok()?)))
             .collect();
         let cloths: Vec<(u32, u32, usize)> = descent
             .iter()
-            .map(|(index, slot)| (*index, slot.particle_start, Arc::as_ptr(&slot.topology) as usize))
+            .map(|(index, slot, _)| (*index, slot.particle_start, Arc::as_ptr(&slot.topology) as usize))
             .collect();
         let iterations =
-            descent.iter().map(|(_, slot)| slot.constants.iterations).max().unwrap_or(0).min(MAX_ITERATIONS);
-        let substeps = descent.iter().map(|(_, slot)| slot.constants.substeps).max().unwrap_or(0);
+            descent.iter().map(|(_, slot, _)| slot.constants.iterations).max().unwrap_or(0).min(MAX_ITERATIONS);
+        let substeps = descent.iter().map(|(_, slot, _)| slot.constants.substeps).max().unwrap_or(0);
         if let Some(plan) = self.descent.as_mut()
             && plan.cloths == cloths
         {
@@ -580,14 +580,12 @@ impl ClothBatch {
             plan.substeps = substeps;
             return;
         }
-        let colours =
-            descent.iter().filter_map(|(_, slot)| Some(slot.topology.colouring().ok()?.len())).max().unwrap_or(0);
-        let mut list = Vec::with_capacity(descent.iter().map(|(_, slot)| slot.topology.len()).sum());
+        let colours = descent.iter().map(|(_, _, colouring)| colouring.len()).max().unwrap_or(0);
+        let mut list = Vec::with_capacity(descent.iter().map(|(_, slot, _)| slot.topology.len()).sum());
         let mut ranges = Vec::with_capacity(colours);
         for k in 0..colours {
             let start = list.len() as u32;
-            for (_, slot) in &descent {
-                let Ok(colouring) = slot.topology.colouring() else { continue };
+            for (_, slot, colouring) in &descent {
                 if k < colouring.len() {
                     list.extend(colouring.colour(k).iter().map(|&i| slot.particle_start + i));
                 }
