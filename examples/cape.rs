@@ -1,6 +1,6 @@
 //! A cape on a walking figure. The figure is a hierarchy of joints built in code (hips, chest,
-//! shoulders, head, arms, legs) and animated by a walk cycle; its chest and legs are
-//! `AutoCollider`s that move with it. The cape is a mesh built in code whose top edge carries a
+//! shoulders, head, arms, legs) and animated by a walk cycle; its chest and legs are exact
+//! capsule `PrimitiveCollider`s carried by their joints, and the floor is a ground primitive. The cape is a mesh built in code whose top edge carries a
 //! pin weight of 1 in the alpha channel of its vertex colours, the way an artist marks pinned
 //! vertices (alpha, so that an opaque material draws the cape in its own colour);
 //! `ClothPins::Painted` picks that edge and a
@@ -64,12 +64,13 @@ fn setup(mut commands: Commands, mut meshes: ResMut<Assets<Mesh>>, mut materials
             Swing { amplitude: 0.45, phase },
             Transform::from_xyz(x, HIP_HEIGHT, 0.0),
             Visibility::default(),
-            // The leg hangs from the hip joint; its capsule collides with the hem.
+            // The leg hangs from the hip joint; its capsule, exactly the mesh's, collides with the
+            // hem.
             children![(
                 Mesh3d(limb.clone()),
                 MeshMaterial3d(tunic.clone()),
                 Transform::from_xyz(0.0, -0.42, 0.0),
-                AutoCollider::new(6),
+                PrimitiveCollider::capsule(0.07, 0.62),
             )],
         )
     };
@@ -90,7 +91,7 @@ fn setup(mut commands: Commands, mut meshes: ResMut<Assets<Mesh>>, mut materials
         Mesh3d(meshes.add(Capsule3d::new(0.16, 0.36))),
         MeshMaterial3d(tunic.clone()),
         Transform::from_xyz(0.0, 0.3, 0.0),
-        AutoCollider::new(8),
+        PrimitiveCollider::capsule(0.16, 0.36),
         ChildOf(hips),
     ));
     let shoulders = commands

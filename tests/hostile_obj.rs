@@ -63,7 +63,7 @@ proptest! {
         };
         match collider_from_mesh(&mesh, n) {
             Ok(collider) => {
-                prop_assert_eq!(collider.lbvh.nodes.len() + 1, collider.lbvh.spheres.len());
+                prop_assert_eq!(collider.lbvh().expect("a mesh collider").nodes.len() + 1, collider.lbvh().expect("a mesh collider").spheres.len());
                 // Every vertex a triangle uses lies inside its voxel's sphere.
                 let positions = match mesh.attribute(bevy::mesh::Mesh::ATTRIBUTE_POSITION) {
                     Some(bevy::mesh::VertexAttributeValues::Float32x3(p)) => p.clone(),
@@ -89,7 +89,7 @@ proptest! {
                     ColliderFailure::PositionsNotFloat3 => {
                         prop_assert!(!matches!(positions, Some(VertexAttributeValues::Float32x3(_))));
                     }
-                    ColliderFailure::Mesh(error) => {
+                    ColliderFailure::Rejected(error) => {
                         let Some(VertexAttributeValues::Float32x3(positions)) = positions else {
                             return Err(TestCaseError::fail("a builder error needs Float32x3 positions"));
                         };

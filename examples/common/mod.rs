@@ -62,6 +62,8 @@ fn spawn_stage(
     commands.spawn((
         Mesh3d(meshes.add(Plane3d::default().mesh().size(8.0, 8.0))),
         MeshMaterial3d(materials.add(Color::srgb(0.35, 0.38, 0.35))),
+        // A cloth that slides off a model comes to rest on the floor.
+        PrimitiveCollider::ground(),
     ));
 }
 

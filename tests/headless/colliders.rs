@@ -5,7 +5,7 @@ use bevy::mesh::{Indices, PrimitiveTopology};
 use bevy::prelude::*;
 use bevy_bvh_cloth::bvh_cloth_core::{Collider, MeshRef, obj::parse_obj};
 use bevy_bvh_cloth::prelude::*;
-use bevy_bvh_cloth::{ClothCollider, ColliderFailure};
+use bevy_bvh_cloth::{ClothCollider, ColliderFailure, ColliderPart};
 
 use crate::harness::{add_mesh, app, positions, run, sent, wait_for_collider};
 
@@ -34,7 +34,10 @@ fn cloth_drapes_over_the_low_resolution_bunny() {
     .unwrap();
     let obj = parse_obj(&text).unwrap();
     let reference = Collider::from_mesh(MeshRef { positions: &obj.positions, indices: Some(&obj.indices) }, 5).unwrap();
-    assert_eq!((spheres as usize, inner as usize), (reference.sphere_count(), reference.lbvh.nodes.len()));
+    assert_eq!(
+        (spheres as usize, inner as usize),
+        (reference.sphere_count(), reference.lbvh().expect("a mesh collider").nodes.len())
+    );
 
     // The bunny stands on y = 0 and is 1 m at its largest; its back lies on the -x side of its
     // box (the top spheres are at -0.4 < x < 0). Drop a 1.2 m cloth over it from 1.2 m.
@@ -48,7 +51,7 @@ fn cloth_drapes_over_the_low_resolution_bunny() {
             Transform::from_xyz(-0.2, 1.2, 0.0),
         ))
         .id();
-    let top = reference.lbvh.bounds().unwrap().1.y;
+    let top = reference.lbvh().expect("a mesh collider").bounds().unwrap().1.y;
     for _ in 0..5 {
         run(&mut app, 1.0);
         assert_eq!(inside(&app, cloth, bunny), 0, "particles inside the bunny's spheres");
@@ -113,7 +116,7 @@ fn changing_n_rebuilds_with_the_expected_leaf_count() {
     app.world_mut().get_mut::<AutoCollider>(collider).unwrap().resolution = 3;
     run(&mut app, 0.05);
     assert_eq!(wait_for_collider(&mut app, collider), (26, 25));
-    let tree = &app.world().get::<ClothCollider>(collider).unwrap().collider().lbvh;
+    let tree = &app.world().get::<ClothCollider>(collider).unwrap().collider().lbvh().expect("a mesh collider");
     assert_eq!((tree.spheres.len(), tree.nodes.len()), (26, 25));
 }
 
@@ -137,10 +140,14 @@ fn big_meshes_are_built_off_the_main_thread() {
     let path = format!("{}/../../assets/models/bunny.obj", std::env::var("CARGO_MANIFEST_DIR").unwrap());
     let obj = parse_obj(&std::fs::read_to_string(path).unwrap()).unwrap();
     let expected = Collider::from_mesh(MeshRef { positions: &obj.positions, indices: Some(&obj.indices) }, 5).unwrap();
-    assert_eq!(spheres as usize, expected.lbvh.spheres.len(), "spheres at n = 5");
-    assert_eq!(inner_nodes as usize, expected.lbvh.nodes.len());
-    let built = &app.world().get::<ClothCollider>(bunny).unwrap().collider().lbvh;
-    assert_eq!(built.spheres, expected.lbvh.spheres, "the async build gives the synchronous tree");
+    assert_eq!(spheres as usize, expected.lbvh().expect("a mesh collider").spheres.len(), "spheres at n = 5");
+    assert_eq!(inner_nodes as usize, expected.lbvh().expect("a mesh collider").nodes.len());
+    let built = &app.world().get::<ClothCollider>(bunny).unwrap().collider().lbvh().expect("a mesh collider");
+    assert_eq!(
+        built.spheres,
+        expected.lbvh().expect("a mesh collider").spheres,
+        "the async build gives the synchronous tree"
+    );
 }
 
 #[test]
@@ -159,7 +166,10 @@ fn a_broken_collider_reports_and_a_valid_one_still_works() {
         .into_iter()
         .map(|mesh| app.world_mut().spawn((Mesh3d(mesh), AutoCollider::new(5))).id())
         .collect();
-    let no_mesh = app.world_mut().spawn(AutoCollider::new(5)).id();
+    // No mesh, and children without one: nothing to build from. (With no children at all it
+    // waits, as a scene root does before its scene spawns.)
+    let no_mesh = app.world_mut().spawn(AutoCollider::new(5)).with_child(Transform::default()).id();
+    let childless = app.world_mut().spawn(AutoCollider::new(5)).id();
     let missing_file = app.world().resource::<AssetServer>().load("models/no_such_model.obj");
     let missing = app.world_mut().spawn((Mesh3d(missing_file), AutoCollider::new(5))).id();
     let valid_mesh = ball(&mut app, 0.5);
@@ -177,7 +187,7 @@ fn a_broken_collider_reports_and_a_valid_one_still_works() {
         (broken[0], "vertex 1 has a NaN"),
         (broken[1], "LineList"),
         (broken[2], "no vertex positions"),
-        (no_mesh, "no Mesh3d"),
+        (no_mesh, "nor any of its descendants has a Mesh3d"),
         (missing, "failed to load"),
     ];
     for (entity, reason) in expected {
@@ -196,6 +206,8 @@ fn a_broken_collider_reports_and_a_valid_one_still_works() {
         ClothMessage::ColliderFailed { failure: ColliderFailure::NotTriangles(PrimitiveTopology::LineList), .. }
     )));
 
+    assert_eq!(app.world().get::<ColliderStatus>(childless), Some(&ColliderStatus::Waiting));
+
     // The valid collider still catches a cloth.
     let cloth = app
         .world_mut()
@@ -210,4 +222,66 @@ fn a_broken_collider_reports_and_a_valid_one_still_works() {
     run(&mut app, 1.0);
     assert!(positions(&app, cloth)[8 * 16 + 8].y > 0.45);
     assert_eq!(inside(&app, cloth, valid), 0);
+}
+
+/// An AutoCollider on an entity without a mesh covers every mesh under it, at any depth, with
+/// the root's settings, except the meshes its `ColliderHierarchy` leaves out or overrides by
+/// name (their own or their parent's, as glTF names nodes). The root's status sums its parts;
+/// a part is removed with the root's collider; a mesh the user gave its own collider keeps it.
+#[test]
+fn an_auto_collider_on_a_root_covers_the_meshes_under_it() {
+    let mut app = app();
+    let ball_mesh = ball(&mut app, 0.2);
+    let mesh = |name: &str| (Mesh3d(ball_mesh.clone()), Name::new(name.to_string()), Transform::default());
+    let root = app
+        .world_mut()
+        .spawn((
+            AutoCollider::new(3),
+            ColliderHierarchy::default().exclude("Hair").with("Hand", AutoCollider::new(1)),
+            Transform::default(),
+        ))
+        .id();
+    let body = app.world_mut().spawn(mesh("Body")).insert(ChildOf(root)).id();
+    let hair = app.world_mut().spawn(mesh("Hair")).insert(ChildOf(root)).id();
+    let arm = app.world_mut().spawn((Name::new("Hand"), Transform::default())).insert(ChildOf(body)).id();
+    let hand = app.world_mut().spawn(mesh("Hand.0")).insert(ChildOf(arm)).id();
+    let own = app.world_mut().spawn((mesh("Prop"), AutoCollider::new(2))).insert(ChildOf(root)).id();
+    run(&mut app, 0.1);
+
+    let spheres = |app: &App, entity: Entity| match app.world().get::<ColliderStatus>(entity) {
+        Some(ColliderStatus::Ready { spheres, .. }) => *spheres,
+        other => panic!("{entity} is not ready: {other:?}"),
+    };
+    assert_eq!(app.world().get::<AutoCollider>(body), Some(&AutoCollider::new(3)));
+    assert_eq!(app.world().get::<AutoCollider>(hand), Some(&AutoCollider::new(1)), "overridden by its parent's name");
+    assert!(app.world().get::<AutoCollider>(hair).is_none(), "excluded by name");
+    assert!(app.world().get::<ColliderPart>(own).is_none(), "the user's own collider stays theirs");
+    assert_eq!(app.world().get::<AutoCollider>(own), Some(&AutoCollider::new(2)));
+    assert_eq!(spheres(&app, hand), 1);
+    assert!(spheres(&app, body) > 1);
+    assert_eq!(spheres(&app, root), spheres(&app, body) + spheres(&app, hand), "the root sums its parts");
+
+    // A cloth dropped on the body lands on it.
+    let cloth = app
+        .world_mut()
+        .spawn((
+            Cloth {
+                params: ClothParams { damping: 2.0, ..default() },
+                ..Cloth::grid(Vec2::splat(0.3), UVec2::splat(8))
+            },
+            Transform::from_xyz(0.0, 0.5, 0.0),
+        ))
+        .id();
+    run(&mut app, 1.0);
+    assert_eq!(inside(&app, cloth, body), 0);
+    assert!(positions(&app, cloth).iter().any(|p| p.y > 0.15), "the cloth rests on the body's top");
+
+    // Without the root's collider the parts go; the user's own stays.
+    app.world_mut().entity_mut(root).remove::<AutoCollider>();
+    run(&mut app, 0.05);
+    for part in [body, hand] {
+        assert!(app.world().get::<ClothCollider>(part).is_none(), "{part} still collides");
+        assert!(app.world().get::<AutoCollider>(part).is_none());
+    }
+    assert!(app.world().get::<ClothCollider>(own).is_some());
 }

@@ -10,3 +10,4 @@ mod divergence;
 mod hanging;
 mod lifecycle;
 mod parameters;
+mod primitives;

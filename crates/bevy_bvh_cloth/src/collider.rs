@@ -14,12 +14,16 @@ use bevy::tasks::{AsyncComputeTaskPool, Task, block_on, poll_once};
 use bvh_cloth_core::{Collider, ColliderPose};
 
 use crate::collider_mesh::{ColliderFailure, TriangleList};
+use crate::events::ColliderReady;
 use crate::messages::ClothMessage;
+use crate::primitive_collider::PrimitiveCollider;
 
 /// Meshes with at least this many vertices are voxelised on the async compute pool.
 pub const ASYNC_BUILD_MIN_VERTICES: usize = 20_000;
 
-/// Makes the entity's [`Mesh3d`] a collider for every cloth.
+/// Makes the entity's [`Mesh3d`] a collider for every cloth; on an entity without a `Mesh3d`
+/// (a glTF scene root, a character), every mesh under it, each with its own collider (see
+/// [`ColliderHierarchy`](crate::ColliderHierarchy) for exclusions and overrides by name).
 ///
 /// The mesh is cut into `resolution³` voxels over its bounding box; every voxel the surface
 /// passes through gets a sphere around the part of the surface in it, and the spheres are
@@ -64,7 +68,8 @@ impl AutoCollider {
 #[derive(Component, Clone, Debug, Default, PartialEq, Reflect)]
 #[reflect(Component, Default, Debug)]
 pub enum ColliderStatus {
-    /// The mesh asset is not loaded yet.
+    /// The mesh asset is not loaded yet; or the entity has no [`Mesh3d`] and no children yet
+    /// (a scene root before its scene has spawned; see [`ColliderHierarchy`](crate::ColliderHierarchy)).
     #[default]
     Waiting,
     /// A build is running on the async compute pool.
@@ -77,17 +82,20 @@ pub enum ColliderStatus {
         inner_nodes: u32,
     },
     /// The mesh cannot become a collider; the message says why. Fixing the mesh, the
-    /// [`Mesh3d`] or the resolution retries.
+    /// [`Mesh3d`] or the resolution retries. On an entity without a mesh, the meshes under it
+    /// that failed say so on their own entities; the root is `Ready` with the others.
     Failed(String),
 }
 
 impl ColliderStatus {
-    fn ready(collider: &Collider) -> Self {
-        Self::Ready { spheres: collider.sphere_count() as u32, inner_nodes: collider.lbvh.nodes.len() as u32 }
+    pub(crate) fn ready(collider: &Collider) -> Self {
+        let inner_nodes = collider.lbvh().map_or(0, |lbvh| lbvh.nodes.len());
+        Self::Ready { spheres: collider.sphere_count() as u32, inner_nodes: inner_nodes as u32 }
     }
 }
 
-/// The built collider of an [`AutoCollider`] entity, with its current pose.
+/// The built collider of an [`AutoCollider`] or [`PrimitiveCollider`] entity, with its current
+/// pose.
 #[derive(Component, Clone, Debug)]
 pub struct ClothCollider {
     collider: Collider,
@@ -95,7 +103,12 @@ pub struct ClothCollider {
 }
 
 impl ClothCollider {
-    /// The collider: the sphere tree in the mesh's local frame, its margin and its pose.
+    pub(crate) fn new(collider: Collider) -> Self {
+        Self { collider, warned_non_uniform: false }
+    }
+
+    /// The collider: its shape (a sphere tree in the mesh's local frame, or a primitive), its
+    /// margin and its pose.
     pub fn collider(&self) -> &Collider {
         &self.collider
     }
@@ -144,8 +157,8 @@ pub(crate) fn build_colliders(
             continue;
         };
         let outcome = match mesh3d {
-            None if matches!(*status, ColliderStatus::Failed(_)) => continue,
-            None => Err(ColliderFailure::NoMesh3d),
+            // An AutoCollider without a mesh covers the meshes under it (collider_hierarchy).
+            None => continue,
             Some(mesh3d) => {
                 let key = BuildKey { mesh: mesh3d.id(), resolution: auto.resolution };
                 match advance_build(&mut build, key, &meshes, modified.contains(&key.mesh), load_failure) {
@@ -165,7 +178,8 @@ pub(crate) fn build_colliders(
         match outcome {
             Ok(collider) => {
                 *status = ColliderStatus::ready(&collider);
-                commands.entity(entity).try_insert(ClothCollider { collider, warned_non_uniform: false });
+                commands.trigger(ColliderReady { entity, spheres: collider.sphere_count() as u32 });
+                commands.entity(entity).try_insert(ClothCollider::new(collider));
             }
             Err(failure) => {
                 error!("AutoCollider on {entity}: {failure}; it will not collide");
@@ -242,30 +256,40 @@ fn advance_build(
     }
 }
 
-/// Places every collider where its entity is, and applies margin and friction changes (no
-/// rebuild).
+/// Places every collider (mesh or primitive) where its entity is, and applies margin and friction
+/// changes (no rebuild).
+#[allow(clippy::type_complexity)]
 pub(crate) fn update_collider_poses(
-    mut colliders: Query<(Entity, &AutoCollider, &GlobalTransform, &mut ClothCollider, &mut ColliderStatus)>,
+    mut colliders: Query<(
+        Entity,
+        AnyOf<(&AutoCollider, &PrimitiveCollider)>,
+        &GlobalTransform,
+        &mut ClothCollider,
+        &mut ColliderStatus,
+    )>,
 ) {
-    for (entity, auto, transform, mut built, mut status) in &mut colliders {
+    for (entity, source, transform, mut built, mut status) in &mut colliders {
+        let (margin, friction) = match source {
+            (Some(auto), _) => (auto.margin, auto.friction),
+            (None, Some(primitive)) => (primitive.margin, primitive.friction),
+            (None, None) => continue,
+        };
         let (scale, rotation, translation) = transform.to_scale_rotation_translation();
         let uniform = scale.max_element();
         if !(scale.is_finite() && scale.min_element() > 0.0) {
             if !matches!(*status, ColliderStatus::Failed(_)) {
-                error!("AutoCollider on {entity}: {}; it will not collide", ColliderFailure::BadScale(scale));
+                error!("Collider on {entity}: {}; it will not collide", ColliderFailure::BadScale(scale));
                 *status = ColliderStatus::Failed(ColliderFailure::BadScale(scale).to_string());
             }
         } else if uniform > scale.min_element() * 1.001 && !built.warned_non_uniform {
-            warn!(
-                "AutoCollider on {entity}: non-uniform scale {scale} is not supported; the spheres are scaled by {uniform}"
-            );
+            warn!("Collider on {entity}: non-uniform scale {scale} is not supported; the shape is scaled by {uniform}");
             built.warned_non_uniform = true;
         }
         let pose = ColliderPose { translation, rotation, scale: uniform };
         let collider = &mut built.bypass_change_detection().collider;
         collider.pose = pose;
-        collider.margin = auto.margin;
-        collider.friction = auto.friction;
+        collider.margin = margin;
+        collider.friction = friction;
         if matches!(*status, ColliderStatus::Failed(_)) && pose.is_valid() {
             *status = ColliderStatus::ready(collider);
         }

@@ -7,10 +7,11 @@ use bevy::mesh::{Indices, PrimitiveTopology, VertexAttributeValues};
 use bevy::prelude::*;
 use bvh_cloth_core::{Collider, ColliderError, MeshRef};
 
-/// Why an [`AutoCollider`](crate::AutoCollider) could not be built.
+/// Why an [`AutoCollider`](crate::AutoCollider) or a [`PrimitiveCollider`](crate::PrimitiveCollider)
+/// could not be built.
 #[derive(Clone, Debug, PartialEq)]
 pub enum ColliderFailure {
-    /// The entity has no [`Mesh3d`].
+    /// The entity has no [`Mesh3d`], and none of its descendants has one.
     NoMesh3d,
     /// The mesh asset failed to load.
     LoadFailed(String),
@@ -25,14 +26,16 @@ pub enum ColliderFailure {
     PositionsNotFloat3,
     /// The transform's scale is zero, negative or not finite.
     BadScale(Vec3),
-    /// The mesh data was rejected by the collider builder.
-    Mesh(ColliderError),
+    /// The mesh data or the primitive's sizes were rejected by the collider builder.
+    Rejected(ColliderError),
 }
 
 impl fmt::Display for ColliderFailure {
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
         match self {
-            Self::NoMesh3d => write!(f, "the entity has no Mesh3d to build a collider from"),
+            Self::NoMesh3d => {
+                write!(f, "neither the entity nor any of its descendants has a Mesh3d to build a collider from")
+            }
             Self::LoadFailed(reason) => write!(f, "the mesh failed to load: {reason}"),
             Self::NotInMainWorld => write!(
                 f,
@@ -45,7 +48,7 @@ impl fmt::Display for ColliderFailure {
             Self::NoPositions => write!(f, "the mesh has no vertex positions"),
             Self::PositionsNotFloat3 => write!(f, "the mesh positions are not Float32x3"),
             Self::BadScale(scale) => write!(f, "the collider's scale {scale} is not positive and finite"),
-            Self::Mesh(error) => error.fmt(f),
+            Self::Rejected(error) => error.fmt(f),
         }
     }
 }
@@ -92,7 +95,7 @@ impl TriangleList {
 
     /// Voxelises the triangles at resolution `n` into a collider.
     pub fn build(&self, n: u32) -> Result<Collider, ColliderFailure> {
-        Collider::from_mesh(self.as_mesh_ref(), n).map_err(ColliderFailure::Mesh)
+        Collider::from_mesh(self.as_mesh_ref(), n).map_err(ColliderFailure::Rejected)
     }
 }
 

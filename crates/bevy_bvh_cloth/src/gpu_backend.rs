@@ -188,7 +188,7 @@ pub(crate) struct GpuClothWorld {
     failed: bool,
     /// The colliders, keyed by their (shared) trees. Holding the trees keeps them alive, so an
     /// identical pointer always means the same tree.
-    colliders: Option<(Vec<Arc<Lbvh>>, GpuColliders)>,
+    colliders: Option<(Vec<Option<Arc<Lbvh>>>, GpuColliders)>,
     cloths: EntityHashMap<RenderCloth>,
     /// Cloths the device refused (too big for it), with the generation refused: said once, and
     /// tried again only when the cloth changes.
@@ -291,10 +291,15 @@ fn prepare_cloths(
         return;
     }
 
-    // Colliders: new buffers when the set of trees changed, otherwise only the frames.
-    let trees: Vec<Arc<Lbvh>> = world.extracted_colliders.iter().map(|c| c.lbvh.clone()).collect();
+    // Colliders: new buffers when the set of trees changed, otherwise only the frames (which
+    // hold the primitives' shapes).
+    let trees: Vec<Option<Arc<Lbvh>>> = world.extracted_colliders.iter().map(|c| c.lbvh().cloned()).collect();
+    let same_tree = |a: &Option<Arc<Lbvh>>, b: &Option<Arc<Lbvh>>| match (a, b) {
+        (Some(a), Some(b)) => Arc::ptr_eq(a, b),
+        (a, b) => a.is_none() && b.is_none(),
+    };
     let same_trees = matches!(&world.colliders, Some((old, _))
-        if old.len() == trees.len() && old.iter().zip(&trees).all(|(a, b)| Arc::ptr_eq(a, b)));
+        if old.len() == trees.len() && old.iter().zip(&trees).all(|(a, b)| same_tree(a, b)));
     match &mut world.colliders {
         Some((_, gpu)) if same_trees => gpu.update_frames(&queue, &world.extracted_colliders),
         slot => {

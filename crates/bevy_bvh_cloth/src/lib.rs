@@ -87,13 +87,16 @@ mod clock;
 mod cloth;
 mod cloth_mesh;
 mod collider;
+mod collider_hierarchy;
 mod collider_mesh;
 mod cpu_backend;
 mod debug_view;
+mod events;
 mod gpu_backend;
 mod messages;
 #[cfg(feature = "egui")]
 pub mod panel;
+mod primitive_collider;
 mod readback;
 mod settings;
 mod simulation;
@@ -115,8 +118,11 @@ pub use bvh_cloth_core::{ClothParams, ClothPins, ColorChannel, Integrator, Sprin
 pub use clock::ClothClock;
 pub use cloth::{Cloth, ClothAnchor, ClothShape};
 pub use collider::{ASYNC_BUILD_MIN_VERTICES, AutoCollider, ClothCollider, ColliderStatus};
+pub use collider_hierarchy::{ColliderHierarchy, ColliderPart};
 pub use collider_mesh::{ColliderFailure, collider_from_mesh};
+pub use events::{AnchorLost, ClothDiverged, ClothRejected, ColliderFailed, ColliderReady};
 pub use messages::{ClothMessage, ResetCloth};
+pub use primitive_collider::{PrimitiveCollider, PrimitiveShape};
 pub use readback::ClothReadback;
 pub use settings::ClothSettings;
 pub use simulation::ClothSimulation;
@@ -127,10 +133,11 @@ pub mod prelude {
     #[cfg(feature = "egui")]
     pub use crate::panel::ClothPanelPlugin;
     pub use crate::{
-        ActiveClothBackend, AutoCollider, BvhClothPlugin, BvhClothPlugins, Cloth, ClothAnchor, ClothBackend,
-        ClothClock, ClothDebugViewPlugin, ClothMessage, ClothParams, ClothPins, ClothReadback, ClothSettings,
-        ClothShape, ClothSimulation, ClothStats, ClothSystems, ColliderStatus, ColorChannel, Integrator, ResetCloth,
-        SpringStiffness,
+        ActiveClothBackend, AnchorLost, AutoCollider, BvhClothPlugin, BvhClothPlugins, Cloth, ClothAnchor,
+        ClothBackend, ClothClock, ClothDebugViewPlugin, ClothDiverged, ClothMessage, ClothParams, ClothPins,
+        ClothReadback, ClothRejected, ClothSettings, ClothShape, ClothSimulation, ClothStats, ClothSystems,
+        ColliderFailed, ColliderHierarchy, ColliderReady, ColliderStatus, ColorChannel, Integrator, PrimitiveCollider,
+        PrimitiveShape, ResetCloth, SpringStiffness,
     };
 }
 
@@ -174,6 +181,9 @@ impl Plugin for BvhClothPlugin {
     fn build(&self, app: &mut App) {
         app.register_type::<Cloth>()
             .register_type::<AutoCollider>()
+            .register_type::<PrimitiveCollider>()
+            .register_type::<ColliderHierarchy>()
+            .register_type::<ColliderPart>()
             .register_type::<ColliderStatus>()
             .register_type::<ClothSettings>()
             .register_type::<ClothClock>()
@@ -200,7 +210,12 @@ impl Plugin for BvhClothPlugin {
             .add_systems(
                 PostUpdate,
                 (
-                    (collider::build_colliders, collider::update_collider_poses)
+                    (
+                        collider_hierarchy::spread_colliders,
+                        collider::build_colliders,
+                        primitive_collider::build_primitive_colliders,
+                        collider::update_collider_poses,
+                    )
                         .chain()
                         .in_set(ClothSystems::BuildColliders),
                     (
@@ -224,6 +239,7 @@ impl Plugin for BvhClothPlugin {
                         gpu_cloths_skip_culling.run_if(not(backend::cpu_backend_active)),
                     )
                         .in_set(ClothSystems::Writeback),
+                    events::trigger_message_events.after(ClothSystems::Writeback),
                 ),
             );
     }

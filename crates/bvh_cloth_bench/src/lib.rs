@@ -8,7 +8,8 @@ use std::time::Instant;
 
 use bvh_cloth_core::obj::{ObjMesh, parse_obj};
 use bvh_cloth_core::{
-    Affine3A, ClothGrid, ClothParams, ClothSim, ClothTopology, Collider, Integrator, MeshRef, UVec2, Vec2, Vec3,
+    Affine3A, ClothGrid, ClothParams, ClothSim, ClothTopology, Collider, Integrator, MeshRef, Primitive, UVec2, Vec2,
+    Vec3,
 };
 
 /// The simulation tick: one frame at 60 Hz.
@@ -49,10 +50,27 @@ pub fn authored_grid(size: u32) -> ClothTopology {
 /// A cloth of `topology` (Looper 16, the paper's other parameters) held flat 0.3 m above
 /// `collider`, a little off its centre so that it slides off one side.
 pub fn topology_above(collider: &Collider, topology: ClothTopology, integrator: Integrator) -> ClothSim {
-    let top = collider.lbvh.bounds().expect("a collider has spheres").1.y;
+    let top = top_of(collider);
     let params = ClothParams { damping: 1.0, integrator, ..Default::default() };
     let pose = Affine3A::from_translation(Vec3::new(-0.2, top + 0.3, 0.0));
     ClothSim::new(params, Arc::new(topology), pose, &[]).expect("valid cloth")
+}
+
+/// The height of `collider`'s highest point (its plane's height for a half-space).
+pub fn top_of(collider: &Collider) -> f32 {
+    let pose = collider.pose;
+    let Some(primitive) = collider.as_primitive() else {
+        let local_top = collider.lbvh().expect("a mesh collider").bounds().expect("a collider has spheres").1.y;
+        return pose.translation.y + pose.scale * local_top;
+    };
+    // The top of the shape's bounding sphere (exact for the sphere and the plane).
+    let reach = match *primitive {
+        Primitive::Sphere { radius } => radius,
+        Primitive::Capsule { radius, half_length } => radius + half_length,
+        Primitive::Cuboid { half_extents } => half_extents.length(),
+        Primitive::HalfSpace { .. } => 0.0,
+    };
+    pose.translation.y + pose.scale * reach
 }
 
 /// A `size x size` grid cloth (1.4 m wide) above `collider`, as [`topology_above`].

@@ -94,7 +94,7 @@ fn build(c: &mut Criterion) {
 
 /// 4096 query points spread through the bunny's box and a margin around it.
 fn query_points(collider: &Collider) -> Vec<Vec3> {
-    let (lo, hi) = collider.lbvh.bounds().unwrap();
+    let (lo, hi) = collider.lbvh().expect("a mesh collider").bounds().unwrap();
     let mut state = 0x2545_F491_4F6C_DD1Du64;
     let mut unit = move || {
         state ^= state << 13;
@@ -117,7 +117,7 @@ fn query(c: &mut Criterion) {
             b.iter(|| {
                 let mut hits = 0u32;
                 for &p in &points {
-                    collider.lbvh.for_each_containing(p, 0.0, |_, _| hits += 1);
+                    collider.lbvh().expect("a mesh collider").for_each_containing(p, 0.0, |_, _| hits += 1);
                 }
                 hits
             })
@@ -126,7 +126,7 @@ fn query(c: &mut Criterion) {
             b.iter(|| {
                 let mut hits = 0u32;
                 for &p in &points {
-                    collider.lbvh.brute_force_containing(p, 0.0, |_, _| hits += 1);
+                    collider.lbvh().expect("a mesh collider").brute_force_containing(p, 0.0, |_, _| hits += 1);
                 }
                 hits
             })

@@ -1,5 +1,6 @@
-//! A rigid collider: a mesh voxelised into spheres, arranged in an LBVH, placed in the world by
-//! a pose (paper section 2.4.1). Moving a collider only changes its pose: no rebuild.
+//! A rigid collider placed in the world by a pose: a mesh voxelised into spheres arranged in an
+//! LBVH (paper section 2.4.1), or an exact [`Primitive`]. Moving a collider only changes its
+//! pose: no rebuild.
 
 use std::sync::Arc;
 
@@ -7,6 +8,7 @@ use glam::{Affine3A, Quat, Vec3};
 
 use crate::error::ColliderError;
 use crate::lbvh::Lbvh;
+use crate::primitives::Primitive;
 use crate::voxel_spheres::{MeshRef, voxel_spheres};
 
 /// Where a collider is in the world: rotation, uniform scale, translation.
@@ -45,15 +47,27 @@ impl ColliderPose {
     }
 }
 
-/// A collider built from a triangle mesh.
+/// What a collider is made of, in its local frame.
+#[derive(Clone, Debug)]
+pub enum ColliderShape {
+    /// A mesh voxelised into spheres. The tree is shared, so that a collider is cheap to clone
+    /// with a new pose every frame.
+    Spheres {
+        /// The sphere tree.
+        lbvh: Arc<Lbvh>,
+        /// The voxel resolution `n` it was built with.
+        resolution: u32,
+    },
+    /// An exact convex shape.
+    Primitive(Primitive),
+}
+
+/// A collider: a shape, where it is, and how its surface answers.
 #[derive(Clone, Debug)]
 pub struct Collider {
-    /// The sphere tree, in the collider's local frame. Shared, so that a collider is cheap to
-    /// clone with a new pose every frame.
-    pub lbvh: Arc<Lbvh>,
-    /// The voxel resolution `n` it was built with.
-    pub resolution: u32,
-    /// Extra thickness in world units added to every sphere (the cloth's thickness).
+    /// The shape, in the collider's local frame.
+    pub shape: ColliderShape,
+    /// Extra thickness in world units added to the surface (the cloth's thickness).
     pub margin: f32,
     /// Coulomb friction coefficient of the surface (see [`crate::collision`]); 0, the paper's
     /// response, keeps the whole tangential velocity.
@@ -67,13 +81,34 @@ impl Collider {
     /// LBVH over the spheres. The pose starts at identity, the margin and the friction at zero.
     pub fn from_mesh(mesh: MeshRef<'_>, n: u32) -> Result<Self, ColliderError> {
         let voxels = voxel_spheres(mesh, n)?;
-        Ok(Self {
-            lbvh: Arc::new(Lbvh::build(&voxels.spheres)),
-            resolution: n,
-            margin: 0.0,
-            friction: 0.0,
-            pose: ColliderPose::default(),
-        })
+        let shape = ColliderShape::Spheres { lbvh: Arc::new(Lbvh::build(&voxels.spheres)), resolution: n };
+        Ok(Self::with_shape(shape))
+    }
+
+    /// An exact primitive, checked by [`Primitive::validate`]. The pose starts at identity, the
+    /// margin and the friction at zero.
+    pub fn primitive(primitive: Primitive) -> Result<Self, ColliderError> {
+        Ok(Self::with_shape(ColliderShape::Primitive(primitive.validate()?)))
+    }
+
+    fn with_shape(shape: ColliderShape) -> Self {
+        Self { shape, margin: 0.0, friction: 0.0, pose: ColliderPose::default() }
+    }
+
+    /// The sphere tree of a mesh collider; `None` for a primitive.
+    pub fn lbvh(&self) -> Option<&Arc<Lbvh>> {
+        match &self.shape {
+            ColliderShape::Spheres { lbvh, .. } => Some(lbvh),
+            ColliderShape::Primitive(_) => None,
+        }
+    }
+
+    /// The primitive of a primitive collider; `None` for a mesh collider.
+    pub fn as_primitive(&self) -> Option<&Primitive> {
+        match &self.shape {
+            ColliderShape::Primitive(primitive) => Some(primitive),
+            ColliderShape::Spheres { .. } => None,
+        }
     }
 
     /// Sets the extra thickness (world units).
@@ -94,14 +129,13 @@ impl Collider {
         self
     }
 
-    /// Number of leaf spheres.
+    /// Number of leaf spheres (0 for a primitive).
     pub fn sphere_count(&self) -> usize {
-        self.lbvh.leaf_count()
+        self.lbvh().map_or(0, |lbvh| lbvh.leaf_count())
     }
 
-    /// Whether the world-space point `p` lies inside any sphere grown by the margin.
+    /// Whether the world-space point `p` lies inside the shape grown by the margin.
     pub fn contains(&self, p: Vec3) -> bool {
-        crate::collision::ColliderFrame::new(self)
-            .is_some_and(|frame| self.lbvh.any_containing(frame.to_local(p), frame.margin_local))
+        crate::collision::ColliderFrame::new(self).is_some_and(|frame| frame.contains(p))
     }
 }

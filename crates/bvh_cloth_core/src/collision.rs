@@ -1,4 +1,5 @@
-//! Collision response between a particle and a collider's spheres (paper section 2.4.4).
+//! Collision response between a particle and a collider's spheres (paper section 2.4.4); the
+//! exact primitives answer in [`crate::primitives`], with the same guarantee.
 //!
 //! The paper moves a particle that ends a substep inside a sphere back to where its path entered
 //! the sphere and keeps only the tangential part of its velocity. Its spheres only cover the
@@ -42,8 +43,9 @@
 
 use glam::{Affine3A, Quat, Vec3};
 
-use crate::collider::Collider;
+use crate::collider::{Collider, ColliderShape};
 use crate::lbvh::{Lbvh, Sphere};
+use crate::primitives::Primitive;
 use crate::traversal::sphere_contains;
 
 /// Relative distance above a sphere's surface within which a previous position counts as in
@@ -54,12 +56,21 @@ pub const CONTACT_BAND: f32 = 1.0e-2;
 /// How many times a particle that starts a substep inside a sphere is pushed out.
 pub const MAX_PASSES: usize = 4;
 
+/// What a [`ColliderFrame`] tests against.
+#[derive(Clone, Copy, Debug)]
+pub enum FrameShape<'a> {
+    /// A mesh collider's sphere tree.
+    Spheres(&'a Lbvh),
+    /// An exact primitive (see [`crate::primitives`]).
+    Primitive(Primitive),
+}
+
 /// A collider's frame, prepared once per substep: the world-to-local transform and the margin
 /// in local units.
 #[derive(Clone, Copy, Debug)]
 pub struct ColliderFrame<'a> {
-    /// The collider's sphere tree.
-    pub lbvh: &'a Lbvh,
+    /// The collider's shape.
+    pub shape: FrameShape<'a>,
     world_to_local: Affine3A,
     local_to_world: Affine3A,
     rotation: Quat,
@@ -68,7 +79,7 @@ pub struct ColliderFrame<'a> {
     /// The friction coefficient (0 when the collider's is negative or not finite).
     pub friction: f32,
     /// How far beyond a node's box (grown by the margin) a contact can be: the contact band of
-    /// the largest sphere.
+    /// the largest sphere (0 for a primitive).
     pub contact_reach: f32,
 }
 
@@ -76,20 +87,27 @@ impl<'a> ColliderFrame<'a> {
     /// Prepares `collider`; `None` when its pose is unusable or it has no sphere.
     pub fn new(collider: &'a Collider) -> Option<Self> {
         let pose = collider.pose;
-        if !pose.is_valid() || collider.lbvh.spheres.is_empty() {
+        if !pose.is_valid() {
             return None;
         }
         let local_to_world = pose.to_affine();
         let usable = |v: f32| if v.is_finite() { v.max(0.0) } else { 0.0 };
         let margin_local = usable(collider.margin) / pose.scale;
+        let (shape, contact_reach) = match &collider.shape {
+            ColliderShape::Spheres { lbvh, .. } if lbvh.spheres.is_empty() => return None,
+            ColliderShape::Spheres { lbvh, .. } => {
+                (FrameShape::Spheres(lbvh), contact_reach(lbvh.max_radius, margin_local))
+            }
+            ColliderShape::Primitive(primitive) => (FrameShape::Primitive(*primitive), 0.0),
+        };
         Some(Self {
-            lbvh: &collider.lbvh,
+            shape,
             world_to_local: local_to_world.inverse(),
             local_to_world,
             rotation: pose.rotation.normalize(),
             margin_local,
             friction: usable(collider.friction),
-            contact_reach: contact_reach(collider.lbvh.max_radius, margin_local),
+            contact_reach,
         })
     }
 
@@ -99,16 +117,29 @@ impl<'a> ColliderFrame<'a> {
         self.world_to_local.transform_point3(p)
     }
 
-    /// Resolves one particle (world space): moves `position` out of the spheres and removes the
+    /// Whether the world-space point `p` is inside the shape grown by the margin.
+    pub fn contains(&self, p: Vec3) -> bool {
+        let local = self.to_local(p);
+        match self.shape {
+            FrameShape::Spheres(lbvh) => lbvh.any_containing(local, self.margin_local),
+            FrameShape::Primitive(primitive) => primitive.contains(local, self.margin_local),
+        }
+    }
+
+    /// Resolves one particle (world space): moves `position` out of the shape and removes the
     /// normal part of `velocity` at each contact. `prev` is where the particle started the
     /// substep. Returns whether anything was touched.
     #[inline]
     pub fn resolve(&self, prev: Vec3, position: &mut Vec3, velocity: &mut Vec3) -> bool {
         let prev_local = self.to_local(prev);
         let p = self.to_local(*position);
-        let response = respond(self.lbvh, prev_local, p, self.margin_local, self.contact_reach, |normal| {
+        let touch = |normal: Vec3| {
             *velocity = self.contact_velocity(*velocity, self.rotation * normal);
-        });
+        };
+        let response = match self.shape {
+            FrameShape::Spheres(lbvh) => respond(lbvh, prev_local, p, self.margin_local, self.contact_reach, touch),
+            FrameShape::Primitive(primitive) => primitive.respond(prev_local, p, self.margin_local, touch),
+        };
         match response {
             Response::Free => return false,
             Response::Moved(local) => *position = self.local_to_world.transform_point3(local),

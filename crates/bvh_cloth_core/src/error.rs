@@ -186,7 +186,7 @@ impl fmt::Display for ClothError {
 
 impl std::error::Error for ClothError {}
 
-/// Why a collider could not be built from a triangle mesh.
+/// Why a collider could not be built from a triangle mesh or a primitive.
 #[derive(Clone, Debug, PartialEq)]
 pub enum ColliderError {
     /// The mesh has no vertex positions.
@@ -241,6 +241,8 @@ pub enum ColliderError {
         /// The size of the allocation that failed, in bytes.
         bytes: usize,
     },
+    /// A primitive with a zero, negative or non-finite size, or a zero normal.
+    BadPrimitive(crate::primitives::Primitive),
 }
 
 impl fmt::Display for ColliderError {
@@ -272,6 +274,9 @@ impl fmt::Display for ColliderError {
             }
             Self::OutOfMemory { bytes } => {
                 write!(f, "collider voxelisation could not allocate {bytes} bytes")
+            }
+            Self::BadPrimitive(shape) => {
+                write!(f, "collider primitive {shape:?} needs finite positive sizes and a non-zero normal")
             }
         }
     }

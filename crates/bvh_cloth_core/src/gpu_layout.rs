@@ -5,7 +5,7 @@
 use bytemuck::{Pod, Zeroable};
 use glam::{Affine3A, Mat4, Vec3};
 
-use crate::collider::Collider;
+use crate::collider::{Collider, ColliderShape};
 use crate::collision::ColliderFrame;
 use crate::forces::ForceModel;
 use crate::params::{ClothParams, Integrator};
@@ -176,8 +176,8 @@ pub fn gpu_surface_words(topology: &ClothTopology) -> Vec<u32> {
     words
 }
 
-/// One collider's frame and where its tree lies in the shared node and sphere arrays.
-/// 176 bytes.
+/// One collider's frame, its shape, and (for a mesh collider) where its tree lies in the shared
+/// node and sphere arrays. 192 bytes.
 #[repr(C)]
 #[derive(Clone, Copy, Debug, Default, PartialEq, Pod, Zeroable)]
 pub struct GpuCollider {
@@ -196,15 +196,20 @@ pub struct GpuCollider {
     /// Index of its first sphere in the tree buffer, which holds every collider's nodes (two
     /// `vec4`s each) and then every sphere (one `vec4` each), counted in `vec4`s.
     pub sphere_offset: u32,
-    /// Number of inner nodes (0 for a single-sphere collider).
+    /// Number of inner nodes (0 for a single-sphere collider and for a primitive).
     pub node_count: u32,
-    /// Number of spheres.
+    /// Number of spheres (0 for a primitive).
     pub sphere_count: u32,
     /// How far beyond a node's box a contact can be (see [`ColliderFrame::contact_reach`]).
     pub contact_reach: f32,
-    /// Padding.
-    pub pad: u32,
+    /// [`SHAPE_SPHERES`] for a sphere tree, else [`Primitive::kind`](crate::primitives::Primitive::kind).
+    pub shape: u32,
+    /// A primitive's sizes in local units ([`Primitive::size`](crate::primitives::Primitive::size)); zero for a sphere tree.
+    pub size: [f32; 4],
 }
+
+/// [`GpuCollider::shape`] of a mesh collider's sphere tree.
+pub const SHAPE_SPHERES: u32 = 0;
 
 impl GpuCollider {
     /// The frame of `collider`, whose tree starts at the given offsets; `None` when the collider
@@ -212,6 +217,12 @@ impl GpuCollider {
     pub fn new(collider: &Collider, node_offset: u32, sphere_offset: u32) -> Option<Self> {
         let frame = ColliderFrame::new(collider)?;
         let world_from_local = collider.pose.to_affine();
+        let (node_count, sphere_count, shape, size) = match &collider.shape {
+            ColliderShape::Spheres { lbvh, .. } => {
+                (lbvh.nodes.len() as u32, lbvh.spheres.len() as u32, SHAPE_SPHERES, [0.0; 4])
+            }
+            ColliderShape::Primitive(primitive) => (0, 0, primitive.kind(), primitive.size()),
+        };
         let mat = |a: Affine3A| Mat4::from(a).to_cols_array_2d();
         Some(Self {
             local_from_world: mat(world_from_local.inverse()),
@@ -221,10 +232,11 @@ impl GpuCollider {
             friction: frame.friction,
             node_offset,
             sphere_offset,
-            node_count: collider.lbvh.nodes.len() as u32,
-            sphere_count: collider.lbvh.spheres.len() as u32,
+            node_count,
+            sphere_count,
             contact_reach: frame.contact_reach,
-            pad: 0,
+            shape,
+            size,
         })
     }
 }
@@ -341,7 +353,7 @@ mod tests {
         assert_eq!(size_of::<GpuBatchStep>(), 16);
         assert_eq!(size_of::<GpuBatchWriteback>(), 176);
         assert_eq!(size_of::<GpuWritebackGroup>(), 16);
-        assert_eq!(size_of::<GpuCollider>(), 176);
+        assert_eq!(size_of::<GpuCollider>(), 192);
         assert_eq!(size_of::<GpuMeshWriteback>(), 144);
     }
 }

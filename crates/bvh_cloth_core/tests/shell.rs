@@ -34,7 +34,7 @@ fn closest_on_segment(a: Vec3, b: Vec3, c: Vec3) -> Vec3 {
 fn spheres_crossed(collider: &Collider, a: Vec3, b: Vec3) -> Vec<(Vec3, f32)> {
     let margin = collider.margin;
     let mut crossed = Vec::new();
-    collider.lbvh.for_each_overlapping(a.min(b), a.max(b), margin, |_, s| {
+    collider.lbvh().expect("a mesh collider").for_each_overlapping(a.min(b), a.max(b), margin, |_, s| {
         let r = (s.radius + margin) * (1.0 - TOLERANCE);
         if closest_on_segment(a, b, s.centre()).distance_squared(s.centre()) < r * r {
             crossed.push((s.centre(), s.radius + margin));
@@ -53,7 +53,7 @@ struct Drop {
 
 /// Drops the cloth on `collider` (identity pose) for `seconds` and checks every substep.
 fn drop_on(collider: &Collider, seconds: f32, solid: Option<&(dyn Fn(Vec3) -> bool + Sync)>) -> Drop {
-    let top = collider.lbvh.bounds().expect("spheres").1.y;
+    let top = collider.lbvh().expect("a mesh collider").bounds().expect("spheres").1.y;
     let params = ClothParams { looper: 16, ..ClothParams::default() };
     let pose = Affine3A::from_translation(Vec3::new(0.0, top + 0.1, 0.0));
     let mut sim = ClothSim::new(params, common::grid_topology(2.0, 64, 64), pose, &[]).expect("a valid cloth");

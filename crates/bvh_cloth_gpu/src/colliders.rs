@@ -1,4 +1,5 @@
-//! Every collider of a scene on the GPU: frames, and the trees concatenated.
+//! Every collider of a scene on the GPU: frames (a primitive's whole shape), and the mesh
+//! colliders' trees concatenated.
 
 use bvh_cloth_core::gpu_layout::GpuCollider;
 use bvh_cloth_core::{BvhNode, Collider, Sphere};
@@ -51,7 +52,11 @@ impl GpuColliders {
         let mut offsets = Vec::with_capacity(colliders.len());
         let mut left_out = Vec::new();
         for (k, collider) in colliders.iter().enumerate() {
-            let tree = &collider.lbvh;
+            let Some(tree) = collider.lbvh() else {
+                // A primitive has no tree: its frame holds its whole shape.
+                offsets.push(Some((nodes.len() as u32, spheres.len() as u32)));
+                continue;
+            };
             if !fits(nodes.len() + tree.nodes.len(), spheres.len() + tree.spheres.len()) {
                 offsets.push(None);
                 left_out.push(k);

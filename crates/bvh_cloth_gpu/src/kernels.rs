@@ -10,9 +10,10 @@ use wgpu::{
 /// The kernels' WGSL files, in the order [`shader_source`] joins them: the shared types, the
 /// spring forces, the collision response, then one file per kernel. Each starts with naga_oil directives
 /// (`#define_import_path`, `#import`) for engines that compose shaders that way.
-pub const SHADER_FILES: [(&str, &str); 8] = [
+pub const SHADER_FILES: [(&str, &str); 9] = [
     ("types.wgsl", include_str!("shaders/types.wgsl")),
     ("springs.wgsl", include_str!("shaders/springs.wgsl")),
+    ("primitives.wgsl", include_str!("shaders/primitives.wgsl")),
     ("collision.wgsl", include_str!("shaders/collision.wgsl")),
     ("node_update.wgsl", include_str!("shaders/node_update.wgsl")),
     ("node_update_final.wgsl", include_str!("shaders/node_update_final.wgsl")),

@@ -94,8 +94,10 @@ fn a_cloth_beyond_one_storage_binding_is_refused() {
 #[test]
 fn colliders_beyond_one_storage_binding_are_left_out_and_the_rest_kept() {
     let (small, large) = (boxy(1), boxy(8));
-    let node_bytes = |c: &Collider| c.lbvh.nodes.len() * size_of::<bvh_cloth_core::BvhNode>();
-    let sphere_bytes = |c: &Collider| c.lbvh.spheres.len() * size_of::<bvh_cloth_core::Sphere>();
+    let node_bytes =
+        |c: &Collider| c.lbvh().expect("a mesh collider").nodes.len() * size_of::<bvh_cloth_core::BvhNode>();
+    let sphere_bytes =
+        |c: &Collider| c.lbvh().expect("a mesh collider").spheres.len() * size_of::<bvh_cloth_core::Sphere>();
     // Room for the small tree twice (nodes and spheres share one buffer), not for the large
     // one beside it.
     let room = (2 * (node_bytes(&small) + sphere_bytes(&small))) as u64;

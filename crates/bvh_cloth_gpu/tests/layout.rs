@@ -8,7 +8,7 @@ use bvh_cloth_core::gpu_layout::{
     GpuBatchCloth, GpuBatchFrame, GpuBatchStep, GpuBatchWriteback, GpuCollider, GpuColourPass, GpuMeshWriteback,
     GpuParticle, GpuWritebackGroup,
 };
-use bvh_cloth_core::{BvhNode, Sphere};
+use bvh_cloth_core::{BvhNode, Sphere, Vec3};
 use bvh_cloth_gpu::{SHADER_FILES, shader_source};
 use naga::valid::{Capabilities, ValidationFlags, Validator};
 
@@ -126,7 +126,8 @@ fn wgsl_structs_match_the_rust_layouts() {
             node_count,
             sphere_count,
             contact_reach,
-            pad
+            shape,
+            size
         ]
     );
     assert_layout!(&module, "BvhNode", BvhNode, [aabb_min, left, aabb_max, right]);
@@ -156,6 +157,19 @@ fn shared_constants_match_the_core() {
     assert_eq!(constant("SURFACE_TOLERANCE").parse::<f32>().unwrap(), bvh_cloth_core::traversal::SURFACE_TOLERANCE);
     assert_eq!(constant("CONTACT_BAND").parse::<f32>().unwrap(), bvh_cloth_core::collision::CONTACT_BAND);
     assert_eq!(constant("NO_CLOTH"), format!("{:#x}u", bvh_cloth_core::gpu_layout::NO_CLOTH));
+    assert_eq!(constant("SHAPE_SPHERES"), format!("{}u", bvh_cloth_core::gpu_layout::SHAPE_SPHERES));
+    use bvh_cloth_core::Primitive;
+    let shapes = [
+        ("SHAPE_SPHERE", Primitive::Sphere { radius: 1.0 }),
+        ("SHAPE_CAPSULE", Primitive::Capsule { radius: 1.0, half_length: 1.0 }),
+        ("SHAPE_CUBOID", Primitive::Cuboid { half_extents: Vec3::ONE }),
+        ("SHAPE_HALF_SPACE", Primitive::HalfSpace { normal: Vec3::Y }),
+    ];
+    for (name, shape) in shapes {
+        assert_eq!(constant(name), format!("{}u", shape.kind()), "{name}");
+    }
+    assert_eq!(constant("SWEEP_STEPS"), format!("{}u", bvh_cloth_core::primitives::SWEEP_STEPS));
+    assert_eq!(constant("CLOSEST_STEPS"), format!("{}u", bvh_cloth_core::primitives::CLOSEST_STEPS));
     assert_eq!(constant("INTEGRATOR_EULER"), format!("{}u", bvh_cloth_core::gpu_layout::INTEGRATOR_EULER));
     assert_eq!(
         constant("INTEGRATOR_BLOCK_DESCENT"),

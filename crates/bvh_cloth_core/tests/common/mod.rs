@@ -59,7 +59,8 @@ pub fn uv_sphere(centre: Vec3, r: f32, stacks: u32, slices: u32) -> (Vec<[f32; 3
 
 /// A collider made of the given spheres directly (no voxelisation).
 pub fn sphere_collider(spheres: &[Sphere]) -> Collider {
-    Collider { lbvh: Lbvh::build(spheres).into(), resolution: 1, margin: 0.0, friction: 0.0, pose: Default::default() }
+    let shape = bvh_cloth_core::ColliderShape::Spheres { lbvh: Lbvh::build(spheres).into(), resolution: 1 };
+    Collider { shape, margin: 0.0, friction: 0.0, pose: Default::default() }
 }
 
 /// A square grid `size` metres wide of `cols x rows` particles (square cells, as the paper's).

@@ -1,8 +1,10 @@
 // CollisionDetectionWithBVH: stack traversal (Algorithm 2) and the response of section 2.4.4,
-// as a function the final integrator stage calls for each free particle.
+// as a function the final integrator stage calls for each free particle; primitives answer in
+// primitives.wgsl.
 
 #define_import_path bvh_cloth::collision
-#import bvh_cloth::types::{GpuParticle, GpuCollider, LEAF_BIT, STACK_SIZE, SURFACE_TOLERANCE, CONTACT_BAND, MAX_PASSES, frame}
+#import bvh_cloth::types::{GpuParticle, GpuCollider, LEAF_BIT, STACK_SIZE, SURFACE_TOLERANCE, CONTACT_BAND, MAX_PASSES, SHAPE_SPHERES, frame}
+#import bvh_cloth::primitives::respond_primitive
 
 @group(0) @binding(11) var<storage, read> colliders: array<GpuCollider>;
 // Every collider's tree: the nodes (bvh_cloth_core::BvhNode, two vec4 each: the box's minimum
@@ -280,6 +282,14 @@ fn collide(prev_world: vec3<f32>, moved: GpuParticle) -> GpuParticle {
         let col = colliders[c];
         let prev = (col.local_from_world * vec4(prev_world, 1.0)).xyz;
         let p = (col.local_from_world * vec4(position, 1.0)).xyz;
+        if (col.shape != SHAPE_SPHERES) {
+            let contact = respond_primitive(col, prev, p);
+            if (contact.moved) {
+                velocity = contact_velocity(velocity, rotate(col.rotation, contact.normal), col.friction);
+                position = (col.world_from_local * vec4(contact.position, 1.0)).xyz;
+            }
+            continue;
+        }
         let response = respond(col, prev, p, velocity);
         velocity = response.velocity;
         if (response.kind == 1u) {

@@ -9,7 +9,8 @@
 //
 // Bindings (group 0), unique across the kernels so that the files form one module:
 // 0 frame, 1 step: shared; 3 and 6-8 (springs.wgsl): the integrator kernels; 2, 4-5:
-// node_update; 9-12: node_update_final (11-12 in collision.wgsl, which vbd_finish shares);
+// node_update; 9-12: node_update_final (11-12 in collision.wgsl, which vbd_finish shares;
+// primitives.wgsl has no binding);
 // 19-22 and 25: block_descent.wgsl; 13-14: apply_anchors; 15-18 and 23-24: normal_shader.
 
 #define_import_path bvh_cloth::types
@@ -71,7 +72,8 @@ struct GpuCollider {
     node_count: u32,
     sphere_count: u32,
     contact_reach: f32,
-    pad: u32,
+    shape: u32,         // SHAPE_SPHERES, or a primitive (primitives.wgsl)
+    size: vec4<f32>,
 }
 
 struct GpuMeshWriteback {
@@ -105,6 +107,7 @@ struct WritebackGroup {
 const NO_CLOTH: u32 = 0xffffffffu;         // bvh_cloth_core::gpu_layout::NO_CLOTH
 const INTEGRATOR_EULER: u32 = 1u;          // bvh_cloth_core::gpu_layout::INTEGRATOR_EULER
 const INTEGRATOR_BLOCK_DESCENT: u32 = 2u;  // bvh_cloth_core::gpu_layout::INTEGRATOR_BLOCK_DESCENT
+const SHAPE_SPHERES: u32 = 0u;            // bvh_cloth_core::gpu_layout::SHAPE_SPHERES
 const LEAF_BIT: u32 = 0x80000000u;
 const STACK_SIZE: u32 = 64u;               // bvh_cloth_core::traversal::STACK_SIZE
 const SURFACE_TOLERANCE: f32 = 1.0e-3;     // bvh_cloth_core::traversal::SURFACE_TOLERANCE

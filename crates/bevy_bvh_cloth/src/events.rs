@@ -1,0 +1,75 @@
+//! Entity events for observers: each [`ClothMessage`] is also triggered on its entity, and a
+//! collider that becomes ready says so.
+//!
+//! ```
+//! # use bevy::prelude::*;
+//! # use bevy_bvh_cloth::prelude::*;
+//! # fn setup(mut commands: Commands) {
+//! commands.spawn(PrimitiveCollider::sphere(0.5)).observe(|ready: On<ColliderReady>| {
+//!     info!("collider {} is ready", ready.entity);
+//! });
+//! # }
+//! ```
+
+use bevy::prelude::*;
+use bvh_cloth_core::ClothError;
+
+use crate::collider_mesh::ColliderFailure;
+use crate::messages::ClothMessage;
+
+/// A collider was built (or rebuilt) and takes part from the next tick on.
+#[derive(EntityEvent, Clone, Debug, PartialEq)]
+pub struct ColliderReady {
+    /// The collider entity.
+    pub entity: Entity,
+    /// Its leaf spheres (0 for a primitive).
+    pub spheres: u32,
+}
+
+/// A collider could not be built: [`ClothMessage::ColliderFailed`] on its entity.
+#[derive(EntityEvent, Clone, Debug, PartialEq)]
+pub struct ColliderFailed {
+    /// The collider entity.
+    pub entity: Entity,
+    /// Why.
+    pub failure: ColliderFailure,
+}
+
+/// A cloth's parameters were refused: [`ClothMessage::Rejected`] on its entity.
+#[derive(EntityEvent, Clone, Debug, PartialEq)]
+pub struct ClothRejected {
+    /// The cloth entity.
+    pub entity: Entity,
+    /// What is wrong.
+    pub error: ClothError,
+}
+
+/// A cloth went non-finite and was reset: [`ClothMessage::Diverged`] on its entity.
+#[derive(EntityEvent, Clone, Debug, PartialEq)]
+pub struct ClothDiverged {
+    /// The cloth entity.
+    pub entity: Entity,
+    /// How many particles went non-finite.
+    pub particles: u32,
+}
+
+/// A cloth's anchor target was despawned: [`ClothMessage::AnchorLost`] on the cloth.
+#[derive(EntityEvent, Clone, Debug, PartialEq)]
+pub struct AnchorLost {
+    /// The cloth entity.
+    pub entity: Entity,
+    /// The anchor's target.
+    pub target: Entity,
+}
+
+/// Triggers each message of this frame as its entity event.
+pub(crate) fn trigger_message_events(mut commands: Commands, mut messages: MessageReader<ClothMessage>) {
+    for message in messages.read() {
+        match message.clone() {
+            ClothMessage::Rejected { entity, error } => commands.trigger(ClothRejected { entity, error }),
+            ClothMessage::Diverged { entity, particles } => commands.trigger(ClothDiverged { entity, particles }),
+            ClothMessage::AnchorLost { entity, target } => commands.trigger(AnchorLost { entity, target }),
+            ClothMessage::ColliderFailed { entity, failure } => commands.trigger(ColliderFailed { entity, failure }),
+        }
+    }
+}
