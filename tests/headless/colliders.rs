@@ -3,7 +3,7 @@
 use bevy::asset::RenderAssetUsages;
 use bevy::mesh::{Indices, PrimitiveTopology};
 use bevy::prelude::*;
-use bevy_bvh_cloth::bvh_cloth_core::{Collider, MeshRef, obj::parse_obj};
+use bevy_bvh_cloth::bvh_cloth_core::{Collider, ColliderShape, MeshRef, obj::parse_obj};
 use bevy_bvh_cloth::prelude::*;
 use bevy_bvh_cloth::{ClothCollider, ColliderFailure, ColliderPart};
 
@@ -284,4 +284,38 @@ fn an_auto_collider_on_a_root_covers_the_meshes_under_it() {
         assert!(app.world().get::<AutoCollider>(part).is_none());
     }
     assert!(app.world().get::<ClothCollider>(own).is_some());
+}
+
+/// A voxel size in metres gives every mesh under one root voxels of that size, whatever its
+/// extent or its entity's scale; a size that would make too many voxels fails that collider
+/// with a clear error.
+#[test]
+fn a_voxel_size_in_metres_is_the_same_for_every_mesh() {
+    let mut app = app();
+    let small = ball(&mut app, 0.2);
+    let big = ball(&mut app, 0.8);
+    let root = app.world_mut().spawn((AutoCollider::with_voxel_size(0.1), Transform::default())).id();
+    let parts = [
+        app.world_mut().spawn(Mesh3d(small.clone())).insert(ChildOf(root)).id(),
+        app.world_mut().spawn(Mesh3d(big)).insert(ChildOf(root)).id(),
+        app.world_mut()
+            .spawn((Mesh3d(small.clone()), Transform::from_scale(Vec3::splat(2.0))))
+            .insert(ChildOf(root))
+            .id(),
+    ];
+    let tiny = app.world_mut().spawn((Mesh3d(small), AutoCollider::with_voxel_size(1e-5))).id();
+    run(&mut app, 0.1);
+    let counts: Vec<UVec3> = parts
+        .iter()
+        .map(|&part| match &app.world().get::<ClothCollider>(part).expect("built").collider().shape {
+            ColliderShape::Spheres { counts, .. } => *counts,
+            other => panic!("{other:?}"),
+        })
+        .collect();
+    // 0.4 m, 1.6 m and (scaled by 2) 0.8 m across, in 10 cm voxels.
+    assert_eq!(counts, [UVec3::splat(4), UVec3::splat(16), UVec3::splat(8)]);
+    let Some(ColliderStatus::Failed(reason)) = app.world().get::<ColliderStatus>(tiny) else {
+        panic!("a 10 µm voxel on a 0.4 m ball must fail")
+    };
+    assert!(reason.contains("voxels; at most 2097152 are accepted"), "{reason}");
 }

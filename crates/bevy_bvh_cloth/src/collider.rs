@@ -11,7 +11,7 @@ use std::collections::HashSet;
 use bevy::asset::LoadState;
 use bevy::prelude::*;
 use bevy::tasks::{AsyncComputeTaskPool, Task, block_on, poll_once};
-use bvh_cloth_core::{Collider, ColliderPose};
+use bvh_cloth_core::{Collider, ColliderPose, Voxels};
 
 use crate::collider_mesh::{ColliderFailure, TriangleList};
 use crate::events::ColliderReady;
@@ -38,8 +38,15 @@ pub const ASYNC_BUILD_MIN_VERTICES: usize = 20_000;
 #[require(Transform, ColliderStatus)]
 pub struct AutoCollider {
     /// Voxels per axis, `n` in the paper (which uses 1, 3 and 5). Higher is tighter and costs
-    /// more memory; between 1 and [`bvh_cloth_core::voxel_spheres::MAX_RESOLUTION`].
+    /// more memory; between 1 and [`bvh_cloth_core::voxel_spheres::MAX_RESOLUTION`]. Unused
+    /// when [`Self::voxel_size`] is set.
     pub resolution: u32,
+    /// The voxels' side in world units (metres), instead of a count per axis: each axis of the
+    /// mesh's box gets as many voxels as that size needs, so every mesh built with one size
+    /// (all those under one root, say) has voxels of that size, whatever its extent. The
+    /// entity's scale when the collider is built converts it to the mesh's units; a size that
+    /// would make more than `128³` voxels fails the collider with a clear error.
+    pub voxel_size: Option<f32>,
     /// Extra thickness in world units added to every sphere, so that the cloth rests a little
     /// above the surface instead of on it.
     pub margin: f32,
@@ -53,7 +60,7 @@ pub struct AutoCollider {
 
 impl Default for AutoCollider {
     fn default() -> Self {
-        Self { resolution: 5, margin: 0.01, friction: 1.0 }
+        Self { resolution: 5, voxel_size: None, margin: 0.01, friction: 1.0 }
     }
 }
 
@@ -61,6 +68,20 @@ impl AutoCollider {
     /// A collider with `resolution³` voxels and the default margin.
     pub fn new(resolution: u32) -> Self {
         Self { resolution, ..default() }
+    }
+
+    /// A collider with cubic voxels of `size` world units (metres) and the default margin.
+    pub fn with_voxel_size(size: f32) -> Self {
+        Self { voxel_size: Some(size), ..default() }
+    }
+
+    /// The voxels to build with, in the mesh's units, for an entity whose world scale is
+    /// `scale` (its largest axis).
+    fn voxels(&self, scale: f32) -> Voxels {
+        match self.voxel_size {
+            Some(size) => Voxels::Size(size / scale),
+            None => Voxels::PerAxis(self.resolution),
+        }
     }
 }
 
@@ -114,11 +135,14 @@ impl ClothCollider {
     }
 }
 
-/// What a build was (or is being) made from.
+/// What a build was (or is being) made from. The entity's scale, which converts a voxel size to
+/// the mesh's units, is not part of it: an animated scale does not rebuild the collider.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 struct BuildKey {
     mesh: AssetId<Mesh>,
     resolution: u32,
+    /// The voxel size's bits.
+    voxel_size: Option<u32>,
 }
 
 /// Per-entity build bookkeeping.
@@ -137,7 +161,14 @@ pub(crate) fn build_colliders(
     meshes: Res<Assets<Mesh>>,
     asset_server: Option<Res<AssetServer>>,
     mut mesh_events: MessageReader<AssetEvent<Mesh>>,
-    mut colliders: Query<(Entity, &AutoCollider, Option<&Mesh3d>, Option<&mut ColliderBuild>, &mut ColliderStatus)>,
+    mut colliders: Query<(
+        Entity,
+        &AutoCollider,
+        Option<&Mesh3d>,
+        Option<&GlobalTransform>,
+        Option<&mut ColliderBuild>,
+        &mut ColliderStatus,
+    )>,
     mut messages: MessageWriter<ClothMessage>,
 ) {
     let modified: HashSet<AssetId<Mesh>> = mesh_events
@@ -151,7 +182,7 @@ pub(crate) fn build_colliders(
         Some(LoadState::Failed(error)) => Some(error.to_string()),
         _ => None,
     };
-    for (entity, auto, mesh3d, build, mut status) in &mut colliders {
+    for (entity, auto, mesh3d, transform, build, mut status) in &mut colliders {
         let Some(mut build) = build else {
             commands.entity(entity).try_insert(ColliderBuild::default());
             continue;
@@ -160,8 +191,16 @@ pub(crate) fn build_colliders(
             // An AutoCollider without a mesh covers the meshes under it (collider_hierarchy).
             None => continue,
             Some(mesh3d) => {
-                let key = BuildKey { mesh: mesh3d.id(), resolution: auto.resolution };
-                match advance_build(&mut build, key, &meshes, modified.contains(&key.mesh), load_failure) {
+                // A bad scale is reported where the pose is read (update_collider_poses).
+                let scale = transform.map_or(1.0, |t| t.scale().max_element());
+                let scale = if scale.is_finite() && scale > 0.0 { scale } else { 1.0 };
+                let key = BuildKey {
+                    mesh: mesh3d.id(),
+                    resolution: auto.resolution,
+                    voxel_size: auto.voxel_size.map(f32::to_bits),
+                };
+                let voxels = auto.voxels(scale);
+                match advance_build(&mut build, key, voxels, &meshes, modified.contains(&key.mesh), load_failure) {
                     Progress::Done(result) => result,
                     Progress::Idle => continue,
                     Progress::Waiting => {
@@ -203,11 +242,12 @@ enum Progress {
     Done(Result<Collider, ColliderFailure>),
 }
 
-/// Moves one entity's build forward: finishes a task, or starts a build when the collider is
-/// out of date with `key` (or its mesh asset was `modified`).
+/// Moves one entity's build forward: finishes a task, or starts a build into `voxels` when the
+/// collider is out of date with `key` (or its mesh asset was `modified`).
 fn advance_build(
     build: &mut ColliderBuild,
     key: BuildKey,
+    voxels: Voxels,
     meshes: &Assets<Mesh>,
     modified: bool,
     load_failure: impl Fn(AssetId<Mesh>) -> Option<String>,
@@ -246,7 +286,7 @@ fn advance_build(
         }
     };
     let big = triangles.len() >= ASYNC_BUILD_MIN_VERTICES;
-    let job = move || triangles.build(key.resolution);
+    let job = move || triangles.build(voxels);
     if big {
         build.pending = Some((key, AsyncComputeTaskPool::get().spawn(async move { job() })));
         Progress::Building

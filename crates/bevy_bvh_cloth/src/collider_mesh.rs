@@ -5,7 +5,7 @@ use core::fmt;
 use bevy::asset::RenderAssetUsages;
 use bevy::mesh::{Indices, PrimitiveTopology, VertexAttributeValues};
 use bevy::prelude::*;
-use bvh_cloth_core::{Collider, ColliderError, MeshRef};
+use bvh_cloth_core::{Collider, ColliderError, MeshRef, Voxels};
 
 /// Why an [`AutoCollider`](crate::AutoCollider) or a [`PrimitiveCollider`](crate::PrimitiveCollider)
 /// could not be built.
@@ -93,9 +93,9 @@ impl TriangleList {
         MeshRef { positions: &self.positions, indices: self.indices.as_deref() }
     }
 
-    /// Voxelises the triangles at resolution `n` into a collider.
-    pub fn build(&self, n: u32) -> Result<Collider, ColliderFailure> {
-        Collider::from_mesh(self.as_mesh_ref(), n).map_err(ColliderFailure::Rejected)
+    /// Voxelises the triangles into `voxels` and builds a collider.
+    pub fn build(&self, voxels: Voxels) -> Result<Collider, ColliderFailure> {
+        Collider::from_mesh_in(self.as_mesh_ref(), voxels).map_err(ColliderFailure::Rejected)
     }
 }
 
@@ -105,7 +105,7 @@ impl TriangleList {
 ///
 /// [`AutoCollider`]: crate::AutoCollider
 pub fn collider_from_mesh(mesh: &Mesh, n: u32) -> Result<Collider, ColliderFailure> {
-    TriangleList::from_mesh(mesh)?.build(n)
+    TriangleList::from_mesh(mesh)?.build(Voxels::PerAxis(n))
 }
 
 #[cfg(test)]

@@ -3,8 +3,10 @@
 //! Real-time mass-spring cloth for Bevy, with colliders nobody has to set up by hand: put
 //! [`AutoCollider`] on any entity with a [`Mesh3d`] and the mesh is voxelised into spheres
 //! arranged in a Morton-code LBVH, after Mei, Fan, Zhang and Liu, *A Collision Detection and
-//! Cloth Simulation Method Based on Parallel BVH*. The math lives in [`bvh_cloth_core`], which
-//! knows nothing of Bevy.
+//! Cloth Simulation Method Based on Parallel BVH*. On an entity without a mesh (a glTF scene
+//! root, a character) it covers every mesh under it. [`PrimitiveCollider`] adds exact spheres,
+//! capsules, boxes and a ground that follow their entity (and so a bone). The math lives in
+//! [`bvh_cloth_core`], which knows nothing of Bevy.
 //!
 //! ## Getting started
 //!

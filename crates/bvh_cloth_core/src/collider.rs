@@ -9,7 +9,7 @@ use glam::{Affine3A, Quat, Vec3};
 use crate::error::ColliderError;
 use crate::lbvh::Lbvh;
 use crate::primitives::Primitive;
-use crate::voxel_spheres::{MeshRef, voxel_spheres};
+use crate::voxel_spheres::{MeshRef, Voxels, voxel_spheres_in};
 
 /// Where a collider is in the world: rotation, uniform scale, translation.
 ///
@@ -55,8 +55,8 @@ pub enum ColliderShape {
     Spheres {
         /// The sphere tree.
         lbvh: Arc<Lbvh>,
-        /// The voxel resolution `n` it was built with.
-        resolution: u32,
+        /// The voxels it was built with along each axis of the mesh's box.
+        counts: glam::UVec3,
     },
     /// An exact convex shape.
     Primitive(Primitive),
@@ -80,8 +80,13 @@ impl Collider {
     /// Voxelises `mesh` at resolution `n` (an `n x n x n` grid over its AABB) and builds the
     /// LBVH over the spheres. The pose starts at identity, the margin and the friction at zero.
     pub fn from_mesh(mesh: MeshRef<'_>, n: u32) -> Result<Self, ColliderError> {
-        let voxels = voxel_spheres(mesh, n)?;
-        let shape = ColliderShape::Spheres { lbvh: Arc::new(Lbvh::build(&voxels.spheres)), resolution: n };
+        Self::from_mesh_in(mesh, Voxels::PerAxis(n))
+    }
+
+    /// As [`Self::from_mesh`], with the voxels `voxels` gives (a count per axis or a size).
+    pub fn from_mesh_in(mesh: MeshRef<'_>, voxels: Voxels) -> Result<Self, ColliderError> {
+        let voxels = voxel_spheres_in(mesh, voxels)?;
+        let shape = ColliderShape::Spheres { lbvh: Arc::new(Lbvh::build(&voxels.spheres)), counts: voxels.counts };
         Ok(Self::with_shape(shape))
     }
 

@@ -241,6 +241,18 @@ pub enum ColliderError {
         /// The size of the allocation that failed, in bytes.
         bytes: usize,
     },
+    /// A voxel size that is zero, negative or not finite.
+    BadVoxelSize(f32),
+    /// A voxel size so small against the mesh that the grid would have more voxels than the
+    /// core accepts.
+    TooManyVoxels {
+        /// The voxel size asked for (the mesh's units).
+        size: f32,
+        /// The voxels it would make.
+        voxels: u64,
+        /// The most accepted.
+        max: u64,
+    },
     /// A primitive with a zero, negative or non-finite size, or a zero normal.
     BadPrimitive(crate::primitives::Primitive),
 }
@@ -275,6 +287,11 @@ impl fmt::Display for ColliderError {
             Self::OutOfMemory { bytes } => {
                 write!(f, "collider voxelisation could not allocate {bytes} bytes")
             }
+            Self::BadVoxelSize(size) => write!(f, "collider voxel size {size} is not a positive finite length"),
+            Self::TooManyVoxels { size, voxels, max } => write!(
+                f,
+                "collider voxel size {size} would cut the mesh into {voxels} voxels; at most {max} are accepted"
+            ),
             Self::BadPrimitive(shape) => {
                 write!(f, "collider primitive {shape:?} needs finite positive sizes and a non-zero normal")
             }

@@ -69,7 +69,7 @@ pub mod voxel_spheres;
 
 pub use collider::{Collider, ColliderPose, ColliderShape};
 pub use error::{ClothError, ColliderError};
-pub use glam::{Affine3A, Quat, UVec2, Vec2, Vec3};
+pub use glam::{Affine3A, Quat, UVec2, UVec3, Vec2, Vec3};
 pub use grid::{ClothGrid, MAX_PARTICLES};
 pub use lbvh::{BvhNode, Lbvh, Sphere};
 pub use params::{ClothParams, Integrator, SpringStiffness};
@@ -77,4 +77,4 @@ pub use pins::{ClothPins, ColorChannel, MeshVertices};
 pub use primitives::Primitive;
 pub use sim::ClothSim;
 pub use topology::{ClothTopology, SpringEnd};
-pub use voxel_spheres::MeshRef;
+pub use voxel_spheres::{MeshRef, Voxels};

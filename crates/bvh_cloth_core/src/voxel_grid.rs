@@ -8,7 +8,7 @@
 //! touches, not its bounding box. The corners of each final piece are the points that voxel's
 //! sphere must enclose for the sphere to cover that part of the triangle.
 
-use glam::Vec3;
+use glam::{UVec3, Vec3};
 
 /// Most corners a triangle clipped by six planes can have: each cut adds at most one.
 const MAX_CORNERS: usize = 9;
@@ -66,7 +66,7 @@ impl Piece {
     }
 }
 
-/// The `n x n x n` voxels over a mesh's bounding box: boxes, one layer on a flat axis.
+/// The `nx x ny x nz` voxels over a mesh's bounding box: boxes, one layer on a flat axis.
 #[derive(Clone, Copy, Debug)]
 pub(crate) struct VoxelGrid {
     min: Vec3,
@@ -74,14 +74,16 @@ pub(crate) struct VoxelGrid {
     cell: Vec3,
     /// Voxels per unit length on each axis (0 on a flat axis).
     inv_cell: Vec3,
-    n: u32,
+    /// Voxels along each axis, each at least 1.
+    n: UVec3,
 }
 
 impl VoxelGrid {
-    pub(crate) fn new(min: Vec3, max: Vec3, n: u32) -> Self {
+    pub(crate) fn new(min: Vec3, max: Vec3, n: UVec3) -> Self {
         let extent = max - min;
-        let inv_cell = Vec3::select(extent.cmpgt(Vec3::ZERO), Vec3::splat(n as f32) / extent, Vec3::ZERO);
-        Self { min, cell: extent / n as f32, inv_cell, n }
+        let counts = n.as_vec3();
+        let inv_cell = Vec3::select(extent.cmpgt(Vec3::ZERO), counts / extent, Vec3::ZERO);
+        Self { min, cell: extent / counts, inv_cell, n }
     }
 
     /// The cell index along `axis` of coordinate `x`; points on the far face go to the last
@@ -90,7 +92,7 @@ impl VoxelGrid {
     fn cell_along(&self, axis: usize, x: f32) -> u32 {
         // `as` truncates, which is `floor` here because the offset is not negative (and it
         // saturates, should rounding push a point a hair outside the box).
-        (((x - self.min[axis]) * self.inv_cell[axis]).max(0.0) as u32).min(self.n - 1)
+        (((x - self.min[axis]) * self.inv_cell[axis]).max(0.0) as u32).min(self.n[axis] - 1)
     }
 
     /// The length of a voxel's diagonal.
@@ -100,13 +102,13 @@ impl VoxelGrid {
 
     /// Whether the whole grid is one voxel (`n = 1`).
     pub(crate) fn is_single_voxel(&self) -> bool {
-        self.n == 1
+        self.n == UVec3::ONE
     }
 
-    /// The key `x + n (y + n z)` of cell `(x, y, z)`.
+    /// The key `x + nx (y + ny z)` of cell `(x, y, z)`.
     #[inline]
     fn key(&self, x: u32, y: u32, z: u32) -> u32 {
-        x + self.n * (y + self.n * z)
+        x + self.n.x * (y + self.n.y * z)
     }
 
     /// The voxel holding `p`.
@@ -165,7 +167,7 @@ mod tests {
     use super::*;
 
     fn unit_grid(n: u32) -> VoxelGrid {
-        VoxelGrid::new(Vec3::ZERO, Vec3::ONE, n)
+        VoxelGrid::new(Vec3::ZERO, Vec3::ONE, UVec3::splat(n))
     }
 
     #[test]

@@ -1,5 +1,7 @@
 //! Voxel sphere fitting (paper section 2.4.1): the mesh's AABB is cut into `n x n x n` voxels
-//! and every voxel the surface passes through gets a sphere enclosing the surface in it.
+//! (or, given a voxel size, into as many near-cubic voxels along each axis as that size needs;
+//! see [`Voxels`]) and every voxel the surface passes through gets a sphere enclosing the
+//! surface in it.
 //!
 //! # Which points a sphere encloses
 //!
@@ -54,7 +56,7 @@
 
 use std::sync::atomic::{AtomicI64, AtomicU32, Ordering::Relaxed};
 
-use glam::Vec3;
+use glam::{UVec3, Vec3};
 use rayon::prelude::*;
 
 use crate::error::ColliderError;
@@ -64,6 +66,40 @@ use crate::voxel_grid::VoxelGrid;
 /// Largest voxel resolution accepted: 128³ voxels; beyond that the spheres are smaller than
 /// any sensible cloth spacing and the voxel table grows past 8 MiB.
 pub const MAX_RESOLUTION: u32 = 128;
+
+/// Most voxels a grid may have, whichever way it is given: `MAX_RESOLUTION³`.
+pub const MAX_VOXELS: u64 = (MAX_RESOLUTION as u64).pow(3);
+
+/// How a mesh's bounding box is cut into voxels.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum Voxels {
+    /// `n` voxels along every axis of the box, whatever its shape: the paper's `n x n x n`.
+    PerAxis(u32),
+    /// Cubes of this side (the mesh's units) as near as whole counts allow: each axis of the box
+    /// gets `ceil(extent / size)` voxels (at least one), so that the meshes of one scene built
+    /// with one size have voxels of one size, whatever their extents.
+    Size(f32),
+}
+
+impl Voxels {
+    /// The voxels along each axis of a box of `extent`, checked.
+    pub fn counts(self, extent: Vec3) -> Result<UVec3, ColliderError> {
+        match self {
+            Self::PerAxis(0) => Err(ColliderError::ZeroResolution),
+            Self::PerAxis(n) if n > MAX_RESOLUTION => Err(ColliderError::ResolutionTooHigh { n, max: MAX_RESOLUTION }),
+            Self::PerAxis(n) => Ok(UVec3::splat(n)),
+            Self::Size(size) if !(size.is_finite() && size > 0.0) => Err(ColliderError::BadVoxelSize(size)),
+            Self::Size(size) => {
+                let counts = (extent / size).ceil().max(Vec3::ONE);
+                let voxels = f64::from(counts.x) * f64::from(counts.y) * f64::from(counts.z);
+                if voxels > MAX_VOXELS as f64 {
+                    return Err(ColliderError::TooManyVoxels { size, voxels: voxels as u64, max: MAX_VOXELS });
+                }
+                Ok(counts.as_uvec3())
+            }
+        }
+    }
+}
 
 /// How far every sphere reaches beyond the part of the surface it encloses, as a fraction of
 /// the voxel's diagonal (see the module docs): 0.27 mm on a 1 m mesh at `n = 64`.
@@ -129,23 +165,27 @@ fn used_vertices(mesh: MeshRef<'_>) -> Result<Option<Vec<bool>>, ColliderError> 
 pub struct VoxelSpheres {
     /// One sphere per non-empty voxel.
     pub spheres: Vec<Sphere>,
-    /// The voxel of each sphere, as `x + n (y + n z)`, ascending.
+    /// The voxel of each sphere, as `x + nx (y + ny z)`, ascending.
     pub voxels: Vec<u32>,
     /// The mesh's bounding box minimum corner.
     pub mesh_min: Vec3,
     /// The mesh's bounding box maximum corner.
     pub mesh_max: Vec3,
-    /// The resolution `n` used.
-    pub resolution: u32,
+    /// The voxels along each axis.
+    pub counts: UVec3,
 }
 
-/// Voxelises `mesh` at resolution `n` and fits one sphere per non-empty voxel.
+/// Voxelises `mesh` at resolution `n` (`n x n x n` voxels) and fits one sphere per non-empty
+/// voxel.
 pub fn voxel_spheres(mesh: MeshRef<'_>, n: u32) -> Result<VoxelSpheres, ColliderError> {
-    if n == 0 {
-        return Err(ColliderError::ZeroResolution);
-    }
-    if n > MAX_RESOLUTION {
-        return Err(ColliderError::ResolutionTooHigh { n, max: MAX_RESOLUTION });
+    voxel_spheres_in(mesh, Voxels::PerAxis(n))
+}
+
+/// Voxelises `mesh` into the voxels `voxels` gives and fits one sphere per non-empty voxel.
+pub fn voxel_spheres_in(mesh: MeshRef<'_>, voxels: Voxels) -> Result<VoxelSpheres, ColliderError> {
+    if let Voxels::PerAxis(_) = voxels {
+        // A bad resolution is reported before anything about the mesh.
+        voxels.counts(Vec3::ONE)?;
     }
     let used = used_vertices(mesh)?;
     let is_used = |i: usize| used.as_ref().is_none_or(|u| u[i]);
@@ -164,6 +204,7 @@ pub fn voxel_spheres(mesh: MeshRef<'_>, n: u32) -> Result<VoxelSpheres, Collider
         return Err(ColliderError::ZeroExtent);
     }
 
+    let n = voxels.counts(extent)?;
     let grid = VoxelGrid::new(min, max, n);
     let mut keys = filled(positions.len(), UNUSED)?;
     keys.par_chunks_mut(CHUNK).zip(positions.par_chunks(CHUNK)).enumerate().for_each(|(c, (keys, chunk))| {
@@ -176,7 +217,7 @@ pub fn voxel_spheres(mesh: MeshRef<'_>, n: u32) -> Result<VoxelSpheres, Collider
     let points = Points { mesh, grid: &grid, keys: &keys };
 
     // First pass: each voxel's box, point count and coordinate sum.
-    let cells = (n as usize).pow(3);
+    let cells = n.x as usize * n.y as usize * n.z as usize;
     let fixed = FixedPoint::new(min, extent);
     let boxes = VoxelBoxes::new(cells)?;
     points.for_each(|key, run| boxes.add(key as usize, run, &fixed));
@@ -228,7 +269,7 @@ pub fn voxel_spheres(mesh: MeshRef<'_>, n: u32) -> Result<VoxelSpheres, Collider
         spheres.push(Sphere::new(centre, radius + clearance));
         voxels.push(key as u32);
     }
-    Ok(VoxelSpheres { spheres, voxels, mesh_min: min, mesh_max: max, resolution: n })
+    Ok(VoxelSpheres { spheres, voxels, mesh_min: min, mesh_max: max, counts: n })
 }
 
 /// Where a mesh's points are: its used vertices, and for every triangle that spans more than
@@ -413,7 +454,7 @@ const UNUSED: u32 = u32::MAX;
 impl VoxelSpheres {
     /// The voxel a point of the mesh falls in, in the numbering of [`Self::voxels`].
     pub fn voxel_of(&self, p: Vec3) -> u32 {
-        VoxelGrid::new(self.mesh_min, self.mesh_max, self.resolution).voxel_of(p)
+        VoxelGrid::new(self.mesh_min, self.mesh_max, self.counts).voxel_of(p)
     }
 
     /// The sphere of the voxel holding `p`, if that voxel is not empty.
@@ -451,7 +492,7 @@ mod tests {
 
     /// How far inside its sphere every point of the surface must be.
     fn clearance(v: &VoxelSpheres) -> f32 {
-        SURFACE_CLEARANCE * ((v.mesh_max - v.mesh_min) / v.resolution as f32).length()
+        SURFACE_CLEARANCE * ((v.mesh_max - v.mesh_min) / v.counts.as_vec3()).length()
     }
 
     /// Every point of a triangle lies in the sphere of the voxel that holds it, with the
@@ -521,5 +562,35 @@ mod tests {
         assert_eq!(v.spheres.len(), 16);
         let corners = quad.map(Vec3::from);
         assert_covered(&v, &[[corners[0], corners[1], corners[2]], [corners[0], corners[2], corners[3]]]);
+    }
+
+    /// A voxel size cuts each axis of the box into its own count: a 2 x 1 x 0.5 box at 0.25
+    /// has 8 x 4 x 2 voxels, every one of them on the surface, each face covered.
+    #[test]
+    fn a_voxel_size_gives_each_axis_its_own_count() {
+        let (p, idx) = cube();
+        let stretched: Vec<[f32; 3]> = p.iter().map(|&[x, y, z]| [2.0 * x, y, 0.5 * z]).collect();
+        let v = voxel_spheres_in(MeshRef { positions: &stretched, indices: Some(&idx) }, Voxels::Size(0.25)).unwrap();
+        assert_eq!(v.counts, UVec3::new(8, 4, 2));
+        assert_eq!(v.spheres.len(), 64);
+        let triangles: Vec<[Vec3; 3]> =
+            idx.chunks(3).map(|t| [0, 1, 2].map(|k| Vec3::from(stretched[t[k] as usize]))).collect();
+        assert_covered(&v, &triangles);
+        // A size that does not divide the extent rounds the count up: voxels never grow past it.
+        assert_eq!(Voxels::Size(0.3).counts(Vec3::new(2.0, 1.0, 0.5)), Ok(UVec3::new(7, 4, 2)));
+    }
+
+    #[test]
+    fn bad_voxel_sizes_are_typed_errors() {
+        let (p, idx) = cube();
+        let mesh = MeshRef { positions: &p, indices: Some(&idx) };
+        for size in [0.0, -1.0, f32::NAN, f32::INFINITY] {
+            assert!(matches!(voxel_spheres_in(mesh, Voxels::Size(size)), Err(ColliderError::BadVoxelSize(_))));
+        }
+        // A tenth of a millimetre on a 1 m mesh: 10^12 voxels, refused before any allocation.
+        let Err(ColliderError::TooManyVoxels { voxels, max, .. }) = voxel_spheres_in(mesh, Voxels::Size(1e-4)) else {
+            panic!("a 0.1 mm voxel on a 1 m mesh must be refused")
+        };
+        assert!(voxels > 999_000_000_000 && max == MAX_VOXELS, "{voxels} voxels, {max} accepted");
     }
 }

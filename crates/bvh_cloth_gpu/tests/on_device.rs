@@ -11,7 +11,7 @@ use std::sync::Arc;
 
 use bvh_cloth_core::{
     Affine3A, ClothGrid, ClothParams, ClothSim, ClothTopology, Collider, ColliderPose, ColliderShape, Integrator, Lbvh,
-    MeshRef, Primitive, Quat, Sphere, SpringStiffness, UVec2, Vec2, Vec3,
+    MeshRef, Primitive, Quat, Sphere, SpringStiffness, UVec2, UVec3, Vec2, Vec3,
 };
 use bvh_cloth_gpu::wgpu::util::DeviceExt;
 use bvh_cloth_gpu::wgpu::{self, Device, Queue};
@@ -310,7 +310,7 @@ fn collision_response_on_a_posed_ball() {
     let pose =
         ColliderPose { translation: Vec3::new(5.0, 1.0, -2.0), rotation: Quat::from_rotation_z(0.7), scale: 2.0 };
     let ball = Collider {
-        shape: ColliderShape::Spheres { lbvh: Lbvh::build(&[Sphere::new(Vec3::ZERO, 1.0)]).into(), resolution: 1 },
+        shape: ColliderShape::Spheres { lbvh: Lbvh::build(&[Sphere::new(Vec3::ZERO, 1.0)]).into(), counts: UVec3::ONE },
         margin: 0.1,
         friction: 0.0,
         pose,
@@ -492,7 +492,7 @@ fn bunny_drop_agrees_with_the_cpu() {
 /// A ball of radius 0.3 m at `centre`, one sphere, with a 1 cm margin and friction 1.
 fn rough_ball(centre: Vec3) -> Collider {
     Collider {
-        shape: ColliderShape::Spheres { lbvh: Lbvh::build(&[Sphere::new(Vec3::ZERO, 0.3)]).into(), resolution: 1 },
+        shape: ColliderShape::Spheres { lbvh: Lbvh::build(&[Sphere::new(Vec3::ZERO, 0.3)]).into(), counts: UVec3::ONE },
         margin: 0.01,
         friction: 1.0,
         pose: ColliderPose { translation: centre, ..Default::default() },

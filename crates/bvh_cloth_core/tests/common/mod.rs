@@ -59,7 +59,10 @@ pub fn uv_sphere(centre: Vec3, r: f32, stacks: u32, slices: u32) -> (Vec<[f32; 3
 
 /// A collider made of the given spheres directly (no voxelisation).
 pub fn sphere_collider(spheres: &[Sphere]) -> Collider {
-    let shape = bvh_cloth_core::ColliderShape::Spheres { lbvh: Lbvh::build(spheres).into(), resolution: 1 };
+    let shape = bvh_cloth_core::ColliderShape::Spheres {
+        lbvh: Lbvh::build(spheres).into(),
+        counts: bvh_cloth_core::UVec3::ONE,
+    };
     Collider { shape, margin: 0.0, friction: 0.0, pose: Default::default() }
 }
 
