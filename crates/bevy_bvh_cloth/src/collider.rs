@@ -217,8 +217,10 @@ pub(crate) fn build_colliders(
         match outcome {
             Ok(collider) => {
                 *status = ColliderStatus::ready(&collider);
-                commands.trigger(ColliderReady { entity, spheres: collider.sphere_count() as u32 });
+                let spheres = collider.sphere_count() as u32;
+                // Inserted first, so that an observer of the event finds the collider.
                 commands.entity(entity).try_insert(ClothCollider::new(collider));
+                commands.trigger(ColliderReady { entity, spheres });
             }
             Err(failure) => {
                 error!("AutoCollider on {entity}: {failure}; it will not collide");

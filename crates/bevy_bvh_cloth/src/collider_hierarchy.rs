@@ -5,7 +5,7 @@
 use bevy::platform::collections::HashMap;
 use bevy::prelude::*;
 
-use crate::collider::{AutoCollider, ClothCollider, ColliderStatus};
+use crate::collider::{AutoCollider, ClothCollider, ColliderBuild, ColliderStatus};
 use crate::collider_mesh::ColliderFailure;
 use crate::messages::ClothMessage;
 use crate::primitive_collider::PrimitiveCollider;
@@ -66,6 +66,9 @@ pub struct ColliderPart {
     pub root: Entity,
 }
 
+/// What a part carries, all removed together when it stops being one.
+type PartComponents = (AutoCollider, ColliderPart, ClothCollider, ColliderStatus, ColliderBuild);
+
 /// Gives every mesh under a mesh-less [`AutoCollider`] its collider, keeps the parts' settings
 /// in step with the root, removes parts whose root is gone, and sums the parts' statuses into
 /// the root's.
@@ -85,7 +88,7 @@ pub(crate) fn spread_colliders(
     // Parts whose root no longer has a mesh-less AutoCollider stop colliding.
     for (entity, part, _) in &parts {
         if !roots.contains(part.root) {
-            commands.entity(entity).try_remove::<(AutoCollider, ColliderPart, ClothCollider, ColliderStatus)>();
+            commands.entity(entity).try_remove::<PartComponents>();
         }
     }
     for (root, auto, hierarchy, mut status) in &mut roots {
@@ -107,9 +110,7 @@ pub(crate) fn spread_colliders(
             match setting {
                 Some(None) => {
                     if ours {
-                        commands
-                            .entity(entity)
-                            .try_remove::<(AutoCollider, ColliderPart, ClothCollider, ColliderStatus)>();
+                        commands.entity(entity).try_remove::<PartComponents>();
                     }
                 }
                 Some(Some(collider)) => set_part(&mut commands, entity, root, existing, collider),
