@@ -53,7 +53,7 @@
 //!
 //! The main-world systems run in [`PostUpdate`], after transform propagation, in the chained
 //! [`ClothSystems`] sets. A fixed-rate clock ([`ClothSettings::tick_rate`]) decides how many
-//! whole ticks a frame runs, and each tick runs [`Cloth::looper`] substeps, so a cloth behaves
+//! whole ticks a frame runs, and each tick runs [`ClothParams::looper`] substeps, so a cloth behaves
 //! the same at 30 and at 144 frames per second.
 //!
 //! Who runs the ticks is decided once at start-up ([`ClothBackend`], [`ActiveClothBackend`]):
