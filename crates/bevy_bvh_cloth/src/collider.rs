@@ -214,20 +214,34 @@ pub(crate) fn build_colliders(
                 }
             }
         };
-        match outcome {
-            Ok(collider) => {
-                *status = ColliderStatus::ready(&collider);
-                let spheres = collider.sphere_count() as u32;
-                // Inserted first, so that an observer of the event finds the collider.
-                commands.entity(entity).try_insert(ClothCollider::new(collider));
-                commands.trigger(ColliderReady { entity, spheres });
-            }
-            Err(failure) => {
-                error!("AutoCollider on {entity}: {failure}; it will not collide");
-                *status = ColliderStatus::Failed(failure.to_string());
-                messages.write(ClothMessage::ColliderFailed { entity, failure });
-                commands.entity(entity).try_remove::<ClothCollider>();
-            }
+        settle(&mut commands, &mut messages, entity, "AutoCollider", &mut status, outcome);
+    }
+}
+
+/// Applies a finished build of `entity`'s collider (a `kind` component): on success the
+/// collider goes in, the status says ready and [`ColliderReady`] is triggered; on failure the
+/// old collider goes, the status says why, and the failure is logged and sent.
+pub(crate) fn settle(
+    commands: &mut Commands,
+    messages: &mut MessageWriter<ClothMessage>,
+    entity: Entity,
+    kind: &str,
+    status: &mut ColliderStatus,
+    outcome: Result<Collider, ColliderFailure>,
+) {
+    match outcome {
+        Ok(collider) => {
+            *status = ColliderStatus::ready(&collider);
+            let spheres = collider.sphere_count() as u32;
+            // Inserted first, so that an observer of the event finds the collider.
+            commands.entity(entity).try_insert(ClothCollider::new(collider));
+            commands.trigger(ColliderReady { entity, spheres });
+        }
+        Err(failure) => {
+            error!("{kind} on {entity}: {failure}; it will not collide");
+            *status = ColliderStatus::Failed(failure.to_string());
+            messages.write(ClothMessage::ColliderFailed { entity, failure });
+            commands.entity(entity).try_remove::<ClothCollider>();
         }
     }
 }

@@ -1,13 +1,11 @@
 //! `PrimitiveCollider`: an exact sphere, capsule, box or ground that follows its entity.
 
+use bevy::ecs::entity::EntityHashSet;
 use bevy::prelude::*;
 use bvh_cloth_core::{Collider, Primitive};
 
-use bevy::ecs::entity::EntityHashSet;
-
-use crate::collider::{AutoCollider, ClothCollider, ColliderStatus};
+use crate::collider::{AutoCollider, ClothCollider, ColliderStatus, settle};
 use crate::collider_mesh::ColliderFailure;
-use crate::events::ColliderReady;
 use crate::messages::ClothMessage;
 
 /// The shape of a [`PrimitiveCollider`], in the entity's local frame, with Bevy's math
@@ -138,19 +136,7 @@ pub(crate) fn build_primitive_colliders(
         if built.is_none() && matches!(*status, ColliderStatus::Failed(_)) && !primitive.is_changed() {
             continue;
         }
-        match Collider::primitive(shape) {
-            Ok(collider) => {
-                *status = ColliderStatus::ready(&collider);
-                commands.entity(entity).try_insert(ClothCollider::new(collider));
-                commands.trigger(ColliderReady { entity, spheres: 0 });
-            }
-            Err(error) => {
-                let failure = ColliderFailure::Rejected(error);
-                error!("PrimitiveCollider on {entity}: {failure}; it will not collide");
-                *status = ColliderStatus::Failed(failure.to_string());
-                commands.entity(entity).try_remove::<ClothCollider>();
-                messages.write(ClothMessage::ColliderFailed { entity, failure });
-            }
-        }
+        let outcome = Collider::primitive(shape).map_err(ColliderFailure::Rejected);
+        settle(&mut commands, &mut messages, entity, "PrimitiveCollider", &mut status, outcome);
     }
 }
