@@ -11,3 +11,4 @@ mod hanging;
 mod lifecycle;
 mod parameters;
 mod primitives;
+mod skinned;

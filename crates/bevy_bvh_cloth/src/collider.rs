@@ -4,14 +4,18 @@
 //! builds the collider: inline for small meshes, on the [`AsyncComputeTaskPool`] for big ones so
 //! that no frame hitches. Until a new build is done the previous collider (if any) keeps working.
 //! The collider follows the entity's [`GlobalTransform`] every frame without a rebuild; changing
-//! the resolution `n`, the [`Mesh3d`] or the mesh asset rebuilds it.
+//! the resolution `n`, the [`Mesh3d`] or the mesh asset rebuilds it. On an entity with a
+//! [`SkinnedMesh`] the spheres follow the joints instead, refitted every frame in
+//! [`update_collider_poses`] (see `bvh_cloth_core::skinning`).
 
 use std::collections::HashSet;
 
 use bevy::asset::LoadState;
+use bevy::ecs::system::SystemParam;
+use bevy::mesh::skinning::{SkinnedMesh, SkinnedMeshInverseBindposes};
 use bevy::prelude::*;
 use bevy::tasks::{AsyncComputeTaskPool, Task, block_on, poll_once};
-use bvh_cloth_core::{Collider, ColliderPose, Voxels};
+use bvh_cloth_core::{Affine3A, Collider, ColliderPose, SkinScratch, Voxels};
 
 use crate::collider_mesh::{ColliderFailure, TriangleList};
 use crate::events::ColliderReady;
@@ -33,6 +37,14 @@ pub const ASYNC_BUILD_MIN_VERTICES: usize = 20_000;
 /// resolution (see `bvh_cloth_core::collision`). The collider follows the entity's transform
 /// (rotation, translation and uniform scale; with a non-uniform scale the largest axis is used,
 /// and a warning says so).
+///
+/// On an entity with a [`SkinnedMesh`] (an animated character's body, as glTF loads it) the
+/// collider follows the joints instead: every frame each sphere is fitted again around its part
+/// of the skinned surface, so the spheres cover the body in whatever pose the animation puts it
+/// (see `bvh_cloth_core::skinning`). The mesh needs joint indices and weights, every weighted
+/// joint must exist, and the collider waits for the skin's inverse bind poses to load. If a
+/// joint entity is despawned, the collider stays where the last complete pose put it and a
+/// warning names the joint.
 #[derive(Component, Clone, Debug, PartialEq, Reflect)]
 #[reflect(Component, Default, Debug)]
 #[require(Transform, ColliderStatus)]
@@ -121,11 +133,22 @@ impl ColliderStatus {
 pub struct ClothCollider {
     collider: Collider,
     warned_non_uniform: bool,
+    /// A skinned collider's refit memory, and whether it has been posed by its joints yet.
+    skin_scratch: SkinScratch,
+    skin_posed: bool,
+    /// A skinned collider's pose problem, said once until it clears.
+    skin_warning: Option<String>,
 }
 
 impl ClothCollider {
     pub(crate) fn new(collider: Collider) -> Self {
-        Self { collider, warned_non_uniform: false }
+        Self {
+            collider,
+            warned_non_uniform: false,
+            skin_scratch: SkinScratch::default(),
+            skin_posed: false,
+            skin_warning: None,
+        }
     }
 
     /// The collider: its shape (a sphere tree in the mesh's local frame, or a primitive), its
@@ -143,6 +166,8 @@ struct BuildKey {
     resolution: u32,
     /// The voxel size's bits.
     voxel_size: Option<u32>,
+    /// A skinned mesh's joint count.
+    joints: Option<usize>,
 }
 
 /// Per-entity build bookkeeping.
@@ -166,9 +191,11 @@ pub(crate) fn build_colliders(
         &AutoCollider,
         Option<&Mesh3d>,
         Option<&GlobalTransform>,
+        Option<&SkinnedMesh>,
         Option<&mut ColliderBuild>,
         &mut ColliderStatus,
     )>,
+    skins: Skins,
     mut messages: MessageWriter<ClothMessage>,
 ) {
     let modified: HashSet<AssetId<Mesh>> = mesh_events
@@ -182,7 +209,7 @@ pub(crate) fn build_colliders(
         Some(LoadState::Failed(error)) => Some(error.to_string()),
         _ => None,
     };
-    for (entity, auto, mesh3d, transform, build, mut status) in &mut colliders {
+    for (entity, auto, mesh3d, transform, skinned, build, mut status) in &mut colliders {
         let Some(mut build) = build else {
             commands.entity(entity).try_insert(ColliderBuild::default());
             continue;
@@ -191,13 +218,27 @@ pub(crate) fn build_colliders(
             // An AutoCollider without a mesh covers the meshes under it (collider_hierarchy).
             None => continue,
             Some(mesh3d) => {
-                // A bad scale is reported where the pose is read (update_collider_poses).
-                let scale = transform.map_or(1.0, |t| t.scale().max_element());
+                // A skinned mesh waits for its inverse bind poses: they give its joint count.
+                let skin = match skinned.map(|skinned| skins.pose(skinned)) {
+                    None => None,
+                    Some(Some(pose)) => Some(pose),
+                    Some(None) => {
+                        *status = ColliderStatus::Waiting;
+                        continue;
+                    }
+                };
+                // A bad scale is reported where the pose is read (update_collider_poses). A
+                // skinned mesh is placed by its joints, so their scale converts a voxel size.
+                let scale = match &skin {
+                    Some(skin) => skin.scale(),
+                    None => transform.map_or(1.0, |t| t.scale().max_element()),
+                };
                 let scale = if scale.is_finite() && scale > 0.0 { scale } else { 1.0 };
                 let key = BuildKey {
                     mesh: mesh3d.id(),
                     resolution: auto.resolution,
                     voxel_size: auto.voxel_size.map(f32::to_bits),
+                    joints: skin.as_ref().map(SkinPose::joint_count),
                 };
                 let voxels = auto.voxels(scale);
                 match advance_build(&mut build, key, voxels, &meshes, modified.contains(&key.mesh), load_failure) {
@@ -294,7 +335,10 @@ fn advance_build(
             None => Progress::Waiting,
         };
     };
-    let triangles = match TriangleList::from_mesh(mesh) {
+    let triangles = match TriangleList::from_mesh(mesh).and_then(|list| match key.joints {
+        Some(joints) => list.with_skin(mesh, joints),
+        None => Ok(list),
+    }) {
         Ok(triangles) => triangles,
         Err(failure) => {
             build.done = Some(key);
@@ -312,24 +356,92 @@ fn advance_build(
     }
 }
 
-/// Places every collider (mesh or primitive) where its entity is, and applies margin and friction
-/// changes (no rebuild).
+/// What a skinned collider reads of the world: the skins' inverse bind poses and the joints'
+/// transforms.
+#[derive(SystemParam)]
+pub(crate) struct Skins<'w, 's> {
+    bindposes: Res<'w, Assets<SkinnedMeshInverseBindposes>>,
+    transforms: Query<'w, 's, &'static GlobalTransform>,
+}
+
+impl<'w, 's> Skins<'w, 's> {
+    /// The joints of `skinned` as this frame places them; `None` while its inverse bind poses
+    /// are not loaded.
+    fn pose<'a>(&'a self, skinned: &'a SkinnedMesh) -> Option<SkinPose<'a, 'w, 's>> {
+        let inverse = self.bindposes.get(&skinned.inverse_bindposes)?;
+        Some(SkinPose { skinned, inverse, transforms: &self.transforms })
+    }
+}
+
+/// A skinned mesh's joints as this frame places them.
+struct SkinPose<'a, 'w, 's> {
+    skinned: &'a SkinnedMesh,
+    inverse: &'a SkinnedMeshInverseBindposes,
+    transforms: &'a Query<'w, 's, &'static GlobalTransform>,
+}
+
+impl SkinPose<'_, '_, '_> {
+    /// Joint matrices the skin has: Bevy's renderer pairs joints and inverse bind poses.
+    fn joint_count(&self) -> usize {
+        self.skinned.joints.len().min(self.inverse.len())
+    }
+
+    /// Each joint's world transform times its inverse bind pose, as the renderer forms them;
+    /// or the first joint that has no transform (despawned), and its entity.
+    fn matrices(&self, out: &mut Vec<Affine3A>) -> Result<(), (usize, Entity)> {
+        out.clear();
+        for (k, (&joint, inverse)) in self.skinned.joints.iter().zip(self.inverse.iter()).enumerate() {
+            let transform = self.transforms.get(joint).map_err(|_| (k, joint))?;
+            out.push(transform.affine() * Affine3A::from_mat4(*inverse));
+        }
+        Ok(())
+    }
+
+    /// The largest scale the first joint gives the bind-pose mesh (1 without joints).
+    fn scale(&self) -> f32 {
+        let mut matrices = Vec::new();
+        match self.matrices(&mut matrices) {
+            Ok(()) => matrices.first().map_or(1.0, |m| {
+                m.matrix3.x_axis.length().max(m.matrix3.y_axis.length()).max(m.matrix3.z_axis.length())
+            }),
+            Err(_) => 1.0,
+        }
+    }
+}
+
+/// Places every collider (mesh or primitive) where its entity is, moves skinned colliders with
+/// their joints, and applies margin and friction changes (no rebuild).
 #[allow(clippy::type_complexity)]
 pub(crate) fn update_collider_poses(
     mut colliders: Query<(
         Entity,
         AnyOf<(&AutoCollider, &PrimitiveCollider)>,
         &GlobalTransform,
+        Option<&SkinnedMesh>,
         &mut ClothCollider,
         &mut ColliderStatus,
     )>,
+    skins: Skins,
+    mut matrices: Local<Vec<Affine3A>>,
 ) {
-    for (entity, source, transform, mut built, mut status) in &mut colliders {
+    for (entity, source, transform, skinned, mut built, mut status) in &mut colliders {
         let (margin, friction) = match source {
             (Some(auto), _) => (auto.margin, auto.friction),
             (None, Some(primitive)) => (primitive.margin, primitive.friction),
             (None, None) => continue,
         };
+        // A skinned collider follows its joints; until its first pose it is placed as a rigid one.
+        if built.collider.skin().is_some()
+            && let Some(pose) = skinned.and_then(|skinned| skins.pose(skinned))
+        {
+            let built = built.bypass_change_detection();
+            built.collider.margin = margin;
+            built.collider.friction = friction;
+            pose_skinned(entity, &pose, built, &mut matrices);
+            if built.skin_posed {
+                continue;
+            }
+        }
         let (scale, rotation, translation) = transform.to_scale_rotation_translation();
         let uniform = scale.max_element();
         if !(scale.is_finite() && scale.min_element() > 0.0) {
@@ -348,6 +460,28 @@ pub(crate) fn update_collider_poses(
         collider.friction = friction;
         if matches!(*status, ColliderStatus::Failed(_)) && pose.is_valid() {
             *status = ColliderStatus::ready(collider);
+        }
+    }
+}
+
+/// Moves a skinned collider to its joints' pose; a pose that cannot be read (a despawned
+/// joint, a non-finite matrix) keeps the last one and is said once.
+fn pose_skinned(entity: Entity, pose: &SkinPose<'_, '_, '_>, built: &mut ClothCollider, matrices: &mut Vec<Affine3A>) {
+    let outcome = match pose.matrices(matrices) {
+        Err((k, joint)) => Err(format!("joint {k} ({joint}) has no GlobalTransform (was it despawned?)")),
+        Ok(()) => built.collider.pose_skin(matrices, &mut built.skin_scratch).map_err(|error| error.to_string()),
+    };
+    match outcome {
+        Ok(()) => {
+            built.skin_posed = true;
+            built.skin_warning = None;
+        }
+        Err(reason) => {
+            if built.skin_warning.as_ref() != Some(&reason) {
+                let held = if built.skin_posed { "its last pose" } else { "its bind pose at the entity" };
+                warn!("Skinned collider on {entity}: {reason}; it stays at {held}");
+                built.skin_warning = Some(reason);
+            }
         }
     }
 }

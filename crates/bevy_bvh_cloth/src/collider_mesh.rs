@@ -5,7 +5,7 @@ use core::fmt;
 use bevy::asset::RenderAssetUsages;
 use bevy::mesh::{Indices, PrimitiveTopology, VertexAttributeValues};
 use bevy::prelude::*;
-use bvh_cloth_core::{Collider, ColliderError, MeshRef, Voxels};
+use bvh_cloth_core::{Collider, ColliderError, MeshRef, SkinRef, Voxels};
 
 /// Why an [`AutoCollider`](crate::AutoCollider) or a [`PrimitiveCollider`](crate::PrimitiveCollider)
 /// could not be built.
@@ -26,6 +26,9 @@ pub enum ColliderFailure {
     PositionsNotFloat3,
     /// The transform's scale is zero, negative or not finite.
     BadScale(Vec3),
+    /// The entity has a `SkinnedMesh`, but its mesh has no `Mesh::ATTRIBUTE_JOINT_INDEX`
+    /// (`Uint16x4`) or no `Mesh::ATTRIBUTE_JOINT_WEIGHT` (`Float32x4`).
+    NoSkin,
     /// The mesh data or the primitive's sizes were rejected by the collider builder.
     Rejected(ColliderError),
 }
@@ -48,6 +51,10 @@ impl fmt::Display for ColliderFailure {
             Self::NoPositions => write!(f, "the mesh has no vertex positions"),
             Self::PositionsNotFloat3 => write!(f, "the mesh positions are not Float32x3"),
             Self::BadScale(scale) => write!(f, "the collider's scale {scale} is not positive and finite"),
+            Self::NoSkin => write!(
+                f,
+                "the entity has a SkinnedMesh, but its mesh lacks Uint16x4 joint indices or Float32x4 joint weights"
+            ),
             Self::Rejected(error) => error.fmt(f),
         }
     }
@@ -55,11 +62,21 @@ impl fmt::Display for ColliderFailure {
 
 impl std::error::Error for ColliderFailure {}
 
-/// A copy of a mesh's triangle list, ready to hand to a build task.
+/// A copy of a mesh's triangle list (and skin, for a skinned collider), ready to hand to a
+/// build task.
 #[derive(Clone, Debug, Default)]
 pub(crate) struct TriangleList {
     pub positions: Vec<[f32; 3]>,
     pub indices: Option<Vec<u32>>,
+    pub skin: Option<TriangleSkin>,
+}
+
+/// A copy of a mesh's skin: four joints and weights per vertex, and the skin's joint count.
+#[derive(Clone, Debug, Default)]
+pub(crate) struct TriangleSkin {
+    joints: Vec<[u16; 4]>,
+    weights: Vec<[f32; 4]>,
+    joint_count: usize,
 }
 
 impl TriangleList {
@@ -80,7 +97,21 @@ impl TriangleList {
             Indices::U16(i) => i.iter().map(|&i| u32::from(i)).collect(),
             Indices::U32(i) => i.clone(),
         });
-        Ok(Self { positions, indices })
+        Ok(Self { positions, indices, skin: None })
+    }
+
+    /// Also copies the mesh's joint indices and weights, for a skin of `joint_count` joints.
+    pub fn with_skin(mut self, mesh: &Mesh, joint_count: usize) -> Result<Self, ColliderFailure> {
+        let joints = match mesh.attribute(Mesh::ATTRIBUTE_JOINT_INDEX) {
+            Some(VertexAttributeValues::Uint16x4(joints)) => joints.clone(),
+            _ => return Err(ColliderFailure::NoSkin),
+        };
+        let weights = match mesh.attribute(Mesh::ATTRIBUTE_JOINT_WEIGHT) {
+            Some(VertexAttributeValues::Float32x4(weights)) => weights.clone(),
+            _ => return Err(ColliderFailure::NoSkin),
+        };
+        self.skin = Some(TriangleSkin { joints, weights, joint_count });
+        Ok(self)
     }
 
     /// Number of vertices.
@@ -93,9 +124,17 @@ impl TriangleList {
         MeshRef { positions: &self.positions, indices: self.indices.as_deref() }
     }
 
-    /// Voxelises the triangles into `voxels` and builds a collider.
+    /// Voxelises the triangles into `voxels` and builds a collider: a skinned one when the list
+    /// has a skin.
     pub fn build(&self, voxels: Voxels) -> Result<Collider, ColliderFailure> {
-        Collider::from_mesh_in(self.as_mesh_ref(), voxels).map_err(ColliderFailure::Rejected)
+        let built = match &self.skin {
+            None => Collider::from_mesh_in(self.as_mesh_ref(), voxels),
+            Some(skin) => {
+                let skin = SkinRef { joints: &skin.joints, weights: &skin.weights, joint_count: skin.joint_count };
+                Collider::from_skinned_mesh(self.as_mesh_ref(), skin, voxels)
+            }
+        };
+        built.map_err(ColliderFailure::Rejected)
     }
 }
 

@@ -298,10 +298,30 @@ fn prepare_cloths(
         (Some(a), Some(b)) => Arc::ptr_eq(a, b),
         (a, b) => a.is_none() && b.is_none(),
     };
-    let same_trees = matches!(&world.colliders, Some((old, _))
-        if old.len() == trees.len() && old.iter().zip(&trees).all(|(a, b)| same_tree(a, b)));
+    // Trees that changed with the same layout (a skinned collider's refit) are written in place.
+    let changed: Option<Vec<usize>> = match &world.colliders {
+        Some((old, _)) if old.len() == trees.len() => {
+            Some((0..trees.len()).filter(|&k| !same_tree(&old[k], &trees[k])).collect())
+        }
+        _ => None,
+    };
+    let GpuClothWorld { colliders, extracted_colliders, .. } = &mut *world;
+    let rewritten = match (colliders.as_mut(), &changed) {
+        (Some((_, gpu)), Some(changed)) if changed.is_empty() => {
+            gpu.update_frames(&queue, extracted_colliders);
+            true
+        }
+        (Some((old, gpu)), Some(changed)) => {
+            let done = gpu.rewrite_trees(&queue, extracted_colliders, changed);
+            if done {
+                *old = trees.clone();
+            }
+            done
+        }
+        _ => false,
+    };
     match &mut world.colliders {
-        Some((_, gpu)) if same_trees => gpu.update_frames(&queue, &world.extracted_colliders),
+        Some(_) if rewritten => {}
         slot => {
             let gpu = GpuColliders::new(device, &world.extracted_colliders);
             for &k in gpu.left_out() {

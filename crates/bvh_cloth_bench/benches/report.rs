@@ -13,12 +13,13 @@
 //! 7. The solvers: block descent against RK4 for the same sag, across stiffness, and big cloth
 //!    on the GPU.
 //! 8. Exact primitives against voxelised meshes: collision cost per particle.
+//! 9. Skinned colliders: one frame's refit against skinning the mesh's vertices.
 //!
 //! `WGPU_BACKEND=vulkan cargo bench -p bvh_cloth_bench --bench report`
 //! (without a GPU adapter the GPU columns say so and the rest still runs). Append `-- NAME` to
 //! run only the sections whose name contains NAME: `table_vii`, `queries`, `fidelity`,
 //! `step_scaling`, `topology`, `gpu_profile`, `many_cloths`, `build_scaling`, `far_from_origin`,
-//! `solver`, `primitives`.
+//! `solver`, `primitives`, `skinned_refit`.
 
 use std::fmt::Write as _;
 use std::sync::Arc;
@@ -30,6 +31,7 @@ use bvh_cloth_bench::{
 use bvh_cloth_core::obj::ObjMesh;
 
 use bvh_cloth_core::collision::ColliderFrame;
+use bvh_cloth_core::skinning::{SkinRef, SkinScratch, SkinnedVertices};
 use bvh_cloth_core::{
     Affine3A, ClothGrid, ClothParams, ClothSim, ClothTopology, Collider, ColliderPose, Integrator, Primitive, Quat,
     UVec2, Vec2, Vec3,
@@ -110,6 +112,9 @@ fn main() {
     }
     if run("primitives") {
         primitives(&meshes[0], gpu.as_ref());
+    }
+    if run("skinned_refit") {
+        skinned_refit(&meshes, &single);
     }
     println!("\nCSV written to docs/benchmarks/ (plot: python3 scripts/plot_benchmarks.py)");
 }
@@ -873,4 +878,90 @@ fn primitives(bunny: &ObjMesh, gpu: Option<&Gpu>) {
     if gpu.is_some_and(|gpu| gpu.software) {
         println!("\nThe GPU here is a software adapter: its column is left out.");
     }
+}
+
+/// Skinned colliders: each model given a skeleton of [`BONES`] bones stacked up its height,
+/// every vertex weighted to the two bones nearest its height, posed with every bone bent. One
+/// frame's collider update (skin the vertices the points use, fit every sphere to its points,
+/// refit the tree) against skinning every vertex of the mesh alone (what a renderer or a CPU
+/// skinning pass does), both on one thread, best of 15.
+fn skinned_refit(meshes: &[ObjMesh], single: &rayon::ThreadPool) {
+    println!("\n## Skinned colliders: one frame's refit against skinning the vertices, one thread\n");
+    println!("| model | vertices | n | spheres | points | skin vertices ms | refit ms | refit / skin | build ms |");
+    println!("|---|---|---|---|---|---|---|---|---|");
+    for (name, mesh) in MODELS.iter().zip(meshes) {
+        let (joints, weights) = bone_weights(mesh);
+        let skin = SkinRef { joints: &joints, weights: &weights, joint_count: BONES };
+        let pose = bent_pose();
+        let vertices = SkinnedVertices {
+            positions: mesh.positions.iter().map(|&p| p.into()).collect(),
+            joints: joints.clone(),
+            weights: weights.clone(),
+        };
+        for n in [5u32, 16] {
+            let mut build_s = 0.0;
+            let collider = single.install(|| {
+                let mut built = None;
+                build_s = best_of(3, || {
+                    built = Some(
+                        Collider::from_skinned_mesh(mesh.as_mesh_ref(), skin, bvh_cloth_core::Voxels::PerAxis(n))
+                            .expect("a valid skin"),
+                    );
+                });
+                built.expect("built")
+            });
+            let skinned = collider.skin().expect("a skinned collider").clone();
+            let (skin_s, refit_s) = single.install(|| {
+                let mut out = Vec::new();
+                let skin_s = best_of(15, || vertices.skin_into(&pose, &mut out));
+                let mut posed = collider.clone();
+                let mut scratch = SkinScratch::default();
+                let refit_s = best_of(15, || posed.pose_skin(&pose, &mut scratch).expect("a valid pose"));
+                (skin_s, refit_s)
+            });
+            println!(
+                "| {name} | {} | {n} | {} | {} | {:.3} | {:.3} | {:.2}x | {:.1} |",
+                mesh.positions.len(),
+                collider.sphere_count(),
+                skinned.points.len(),
+                skin_s * 1e3,
+                refit_s * 1e3,
+                refit_s / skin_s,
+                build_s * 1e3,
+            );
+        }
+    }
+}
+
+/// Bones of the skinned-collider scenes.
+const BONES: usize = 8;
+
+/// Every vertex weighted to the two bones whose centres are nearest its height, linearly.
+fn bone_weights(mesh: &ObjMesh) -> (Vec<[u16; 4]>, Vec<[f32; 4]>) {
+    let (lo, hi) =
+        mesh.positions.iter().fold((f32::INFINITY, f32::NEG_INFINITY), |(lo, hi), p| (lo.min(p[1]), hi.max(p[1])));
+    mesh.positions
+        .iter()
+        .map(|p| {
+            let t = ((p[1] - lo) / (hi - lo) * BONES as f32 - 0.5).clamp(0.0, (BONES - 1) as f32);
+            let below = (t.floor() as usize).min(BONES - 2);
+            let w = t - below as f32;
+            ([below as u16, below as u16 + 1, 0, 0], [1.0 - w, w, 0.0, 0.0])
+        })
+        .unzip()
+}
+
+/// Each bone turned 0.15 rad more than the one below it about a horizontal axis through its
+/// base, the bones chained: the model bends like a spine.
+fn bent_pose() -> Vec<Affine3A> {
+    let mut matrices = Vec::with_capacity(BONES);
+    let mut parent = Affine3A::IDENTITY;
+    for bone in 0..BONES {
+        let base = Vec3::new(0.0, bone as f32 / BONES as f32, 0.0);
+        let turn =
+            Affine3A::from_translation(base) * Affine3A::from_rotation_z(0.15) * Affine3A::from_translation(-base);
+        parent *= turn;
+        matrices.push(parent);
+    }
+    matrices
 }

@@ -1,14 +1,15 @@
-//! A rigid collider placed in the world by a pose: a mesh voxelised into spheres arranged in an
-//! LBVH (paper section 2.4.1), or an exact [`Primitive`]. Moving a collider only changes its
-//! pose: no rebuild.
+//! A collider placed in the world by a pose: a mesh voxelised into spheres arranged in an LBVH
+//! (paper section 2.4.1), or an exact [`Primitive`]. Moving a collider only changes its pose: no
+//! rebuild. A skinned mesh's spheres also follow its joints (see [`crate::skinning`]).
 
 use std::sync::Arc;
 
-use glam::{Affine3A, Quat, Vec3};
+use glam::{Affine3A, Quat, UVec3, Vec3};
 
 use crate::error::ColliderError;
 use crate::lbvh::Lbvh;
 use crate::primitives::Primitive;
+use crate::skinning::{SkinRef, SkinScratch, SkinnedSpheres};
 use crate::voxel_spheres::{MeshRef, Voxels, voxel_spheres_in};
 
 /// Where a collider is in the world: rotation, uniform scale, translation.
@@ -56,7 +57,10 @@ pub enum ColliderShape {
         /// The sphere tree.
         lbvh: Arc<Lbvh>,
         /// The voxels it was built with along each axis of the mesh's box.
-        counts: glam::UVec3,
+        counts: UVec3,
+        /// A skinned mesh's refit data: [`Collider::pose_skin`] moves the spheres with the
+        /// joints. `None` for a rigid mesh.
+        skin: Option<Arc<SkinnedSpheres>>,
     },
     /// An exact convex shape.
     Primitive(Primitive),
@@ -86,8 +90,22 @@ impl Collider {
     /// As [`Self::from_mesh`], with the voxels `voxels` gives (a count per axis or a size).
     pub fn from_mesh_in(mesh: MeshRef<'_>, voxels: Voxels) -> Result<Self, ColliderError> {
         let voxels = voxel_spheres_in(mesh, voxels)?;
-        let shape = ColliderShape::Spheres { lbvh: Arc::new(Lbvh::build(&voxels.spheres)), counts: voxels.counts };
-        Ok(Self::with_shape(shape))
+        Ok(Self::from_tree(Lbvh::build(&voxels.spheres), voxels.counts))
+    }
+
+    /// A collider of a sphere tree built elsewhere (`counts`: the voxels it was built with).
+    pub fn from_tree(lbvh: Lbvh, counts: UVec3) -> Self {
+        Self::with_shape(ColliderShape::Spheres { lbvh: Arc::new(lbvh), counts, skin: None })
+    }
+
+    /// A collider of a skinned mesh: voxelised in its bind pose as [`Self::from_mesh_in`] does,
+    /// and moved with its joints by [`Self::pose_skin`]. Until the first pose it is the bind
+    /// pose placed by [`Self::pose`].
+    pub fn from_skinned_mesh(mesh: MeshRef<'_>, skin: SkinRef<'_>, voxels: Voxels) -> Result<Self, ColliderError> {
+        let (lbvh, skinned) = SkinnedSpheres::build(mesh, skin, voxels)?;
+        let counts = skinned.counts;
+        let skin = Some(Arc::new(skinned));
+        Ok(Self::with_shape(ColliderShape::Spheres { lbvh: Arc::new(lbvh), counts, skin }))
     }
 
     /// An exact primitive, checked by [`Primitive::validate`]. The pose starts at identity, the
@@ -106,6 +124,30 @@ impl Collider {
             ColliderShape::Spheres { lbvh, .. } => Some(lbvh),
             ColliderShape::Primitive(_) => None,
         }
+    }
+
+    /// A skinned mesh collider's refit data; `None` for a rigid mesh or a primitive.
+    pub fn skin(&self) -> Option<&Arc<SkinnedSpheres>> {
+        match &self.shape {
+            ColliderShape::Spheres { skin, .. } => skin.as_ref(),
+            ColliderShape::Primitive(_) => None,
+        }
+    }
+
+    /// Moves a skinned collider's spheres to the pose `joint_matrices` gives (each joint's world
+    /// transform times its inverse bind pose) and refits its tree; the spheres are then in
+    /// world coordinates and the pose becomes the identity. A refused pose (too few or
+    /// non-finite matrices) leaves the collider where it was. Does nothing to any other
+    /// collider.
+    pub fn pose_skin(&mut self, joint_matrices: &[Affine3A], scratch: &mut SkinScratch) -> Result<(), ColliderError> {
+        let ColliderShape::Spheres { lbvh, skin: Some(skin), .. } = &mut self.shape else {
+            return Ok(());
+        };
+        // The tree is shared with whoever cloned this collider (a renderer's copy): a refit
+        // writes a copy of its own unless this is the only holder.
+        skin.refit(joint_matrices, Arc::make_mut(lbvh), scratch)?;
+        self.pose = ColliderPose::default();
+        Ok(())
     }
 
     /// The primitive of a primitive collider; `None` for a mesh collider.

@@ -255,6 +255,50 @@ pub enum ColliderError {
     },
     /// A primitive with a zero, negative or non-finite size, or a zero normal.
     BadPrimitive(crate::primitives::Primitive),
+    /// A skin whose joint or weight list does not have one entry per vertex.
+    SkinLength {
+        /// Vertices of the mesh.
+        vertices: usize,
+        /// Entries of the joint list.
+        joints: usize,
+        /// Entries of the weight list.
+        weights: usize,
+    },
+    /// A vertex whose skin weights are negative, not finite, or all zero.
+    BadSkinWeights {
+        /// The first such vertex.
+        vertex: usize,
+        /// Its weights.
+        weights: [f32; 4],
+    },
+    /// A vertex weighted to a joint the skin does not have.
+    JointOutOfRange {
+        /// The first such vertex.
+        vertex: usize,
+        /// The joint index it names.
+        joint: u16,
+        /// Joints of the skin.
+        joints: usize,
+    },
+    /// A skinned collider posed with fewer joint matrices than its skin has joints.
+    MissingJoints {
+        /// Matrices given.
+        joints: usize,
+        /// Matrices needed.
+        needed: usize,
+    },
+    /// A joint matrix with a NaN or infinite entry.
+    NonFiniteJoint {
+        /// The joint.
+        joint: usize,
+    },
+    /// A skinned collider's refit data and tree do not belong together.
+    SkinTreeMismatch {
+        /// Leaves of the tree.
+        leaves: usize,
+        /// Leaves the refit data has.
+        expected: usize,
+    },
 }
 
 impl fmt::Display for ColliderError {
@@ -294,6 +338,28 @@ impl fmt::Display for ColliderError {
             ),
             Self::BadPrimitive(shape) => {
                 write!(f, "collider primitive {shape:?} needs finite positive sizes and a non-zero normal")
+            }
+            Self::SkinLength { vertices, joints, weights } => write!(
+                f,
+                "skinned collider mesh has {vertices} vertices but {joints} joint indices and {weights} joint weights"
+            ),
+            Self::BadSkinWeights { vertex, weights } => write!(
+                f,
+                "skinned collider mesh vertex {vertex} has joint weights {weights:?}: they must be finite, not \
+                 negative, and not all zero"
+            ),
+            Self::JointOutOfRange { vertex, joint, joints } => write!(
+                f,
+                "skinned collider mesh vertex {vertex} is weighted to joint {joint}, but the skin has {joints} joints"
+            ),
+            Self::MissingJoints { joints, needed } => {
+                write!(f, "skinned collider posed with {joints} joint matrices, but its skin has {needed} joints")
+            }
+            Self::NonFiniteJoint { joint } => {
+                write!(f, "skinned collider joint {joint} has a NaN or infinite transform")
+            }
+            Self::SkinTreeMismatch { leaves, expected } => {
+                write!(f, "skinned collider refit data holds {expected} spheres but its tree has {leaves}")
             }
         }
     }

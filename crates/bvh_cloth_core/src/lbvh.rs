@@ -122,8 +122,13 @@ impl Lbvh {
     /// Builds the tree over `spheres`, whose Morton codes are taken inside the box of their
     /// centres. An empty input gives an empty tree; one sphere gives no inner node.
     pub fn build(spheres: &[Sphere]) -> Self {
+        Self::build_with_order(spheres).0
+    }
+
+    /// As [`Self::build`], and the input index of every leaf: leaf `k` is `spheres[order[k]]`.
+    pub fn build_with_order(spheres: &[Sphere]) -> (Self, Vec<u32>) {
         if spheres.is_empty() {
-            return Self::default();
+            return (Self::default(), Vec::new());
         }
         let (lo, hi) = spheres
             .iter()
@@ -143,7 +148,15 @@ impl Lbvh {
         };
         let depth = fit_bounds(&mut nodes, &sorted);
         let max_radius = sorted.iter().fold(0.0f32, |r, s| r.max(s.radius));
-        Self { nodes, spheres: sorted, depth, max_radius }
+        let order = keyed.into_iter().map(|(_, i)| i).collect();
+        (Self { nodes, spheres: sorted, depth, max_radius }, order)
+    }
+
+    /// Fits every inner node's box to the spheres as they are now, keeping the tree's topology
+    /// (after the spheres moved: a skinned collider's refit).
+    pub fn refit(&mut self) {
+        fit_bounds(&mut self.nodes, &self.spheres);
+        self.max_radius = self.spheres.iter().fold(0.0f32, |r, s| r.max(s.radius));
     }
 
     /// The reference to start a traversal from: inner node 0, or the only leaf.

@@ -12,6 +12,7 @@
 //! | [`sim`] (RK4, semi-implicit Euler) | 2.2, eq. 4 |
 //! | [`block_descent`], [`colouring`] | (vertex block descent, Chen et al. 2024; not in the paper) |
 //! | [`voxel_spheres`] | 2.4.1 |
+//! | [`skinning`] | (skinned colliders: the spheres follow the joints; not in the paper) |
 //! | [`morton`], [`lbvh`] | 2.4.2 (Karras 2012) |
 //! | [`traversal`] | 2.4.3, Algorithm 2 |
 //! | [`collision`] | 2.4.4 |
@@ -62,6 +63,7 @@ pub mod params;
 pub mod pins;
 pub mod primitives;
 pub mod sim;
+pub mod skinning;
 pub mod topology;
 pub mod traversal;
 mod voxel_grid;
@@ -76,5 +78,6 @@ pub use params::{ClothParams, Integrator, SpringStiffness};
 pub use pins::{ClothPins, ColorChannel, MeshVertices};
 pub use primitives::Primitive;
 pub use sim::ClothSim;
+pub use skinning::{SkinRef, SkinScratch, SkinnedSpheres};
 pub use topology::{ClothTopology, SpringEnd};
 pub use voxel_spheres::{MeshRef, Voxels};

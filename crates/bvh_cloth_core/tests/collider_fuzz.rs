@@ -192,5 +192,12 @@ fn error_holds(error: &ColliderError, positions: &[[f32; 3]], indices: Option<&[
         ColliderError::OutOfMemory { .. } => false,
         // The property test gives counts, not sizes, and a mesh is never a primitive.
         ColliderError::BadVoxelSize(_) | ColliderError::TooManyVoxels { .. } | ColliderError::BadPrimitive(_) => false,
+        // Nor is it skinned.
+        ColliderError::SkinLength { .. }
+        | ColliderError::BadSkinWeights { .. }
+        | ColliderError::JointOutOfRange { .. }
+        | ColliderError::MissingJoints { .. }
+        | ColliderError::NonFiniteJoint { .. }
+        | ColliderError::SkinTreeMismatch { .. } => false,
     }
 }

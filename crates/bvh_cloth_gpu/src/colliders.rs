@@ -9,7 +9,8 @@ use wgpu::{Buffer, BufferUsages, Device, Queue};
 use crate::kernels::storage_binding_limit;
 
 /// The colliders' frames and trees. Trees are uploaded once; [`Self::update_frames`] moves the
-/// colliders without touching them.
+/// colliders without touching them, and [`Self::rewrite_trees`] writes refitted trees (a
+/// skinned collider's, every frame) in place.
 ///
 /// The trees are concatenated into one buffer, nodes first and spheres after, which must fit
 /// one storage binding of the device: colliders that would overflow it are left out (see
@@ -25,6 +26,8 @@ pub struct GpuColliders {
     pub(crate) count: u32,
     /// Offsets of each input collider's tree, in input order; `None` for one left out.
     offsets: Vec<Option<(u32, u32)>>,
+    /// Node and sphere counts of each input collider's tree (zero for a primitive).
+    sizes: Vec<(usize, usize)>,
     /// Input indices of the colliders whose trees did not fit.
     left_out: Vec<usize>,
 }
@@ -51,6 +54,7 @@ impl GpuColliders {
         let mut spheres: Vec<Sphere> = Vec::new();
         let mut offsets = Vec::with_capacity(colliders.len());
         let mut left_out = Vec::new();
+        let sizes = colliders.iter().map(tree_size).collect();
         for (k, collider) in colliders.iter().enumerate() {
             let Some(tree) = collider.lbvh() else {
                 // A primitive has no tree: its frame holds its whole shape.
@@ -77,8 +81,36 @@ impl GpuColliders {
             tree: storage_buffer(device, "bvh_cloth_bvh_trees", &tree),
             nodes: node_count,
             offsets,
+            sizes,
             left_out,
         }
+    }
+
+    /// Writes the trees of the colliders `changed` (indices into `colliders`) in place, and the
+    /// frames of all, when `colliders` has the layout [`Self::new`] was given: the same number
+    /// of colliders, each tree with as many nodes and spheres as before (a refit keeps them).
+    /// Returns `false`, writing nothing, when the layout differs: then a new [`Self::new`] is
+    /// needed.
+    pub fn rewrite_trees(&mut self, queue: &Queue, colliders: &[Collider], changed: &[usize]) -> bool {
+        if colliders.len() != self.sizes.len() || colliders.iter().zip(&self.sizes).any(|(c, &s)| tree_size(c) != s) {
+            return false;
+        }
+        for &k in changed {
+            let (Some((node, sphere)), Some(tree)) = (self.offsets[k], colliders[k].lbvh()) else {
+                continue;
+            };
+            let node_bytes = u64::from(node) * size_of::<BvhNode>() as u64;
+            let sphere_bytes =
+                u64::from(self.nodes) * size_of::<BvhNode>() as u64 + u64::from(sphere) * size_of::<Sphere>() as u64;
+            if !tree.nodes.is_empty() {
+                queue.write_buffer(&self.tree, node_bytes, bytemuck::cast_slice(&tree.nodes));
+            }
+            if !tree.spheres.is_empty() {
+                queue.write_buffer(&self.tree, sphere_bytes, bytemuck::cast_slice(&tree.spheres));
+            }
+        }
+        self.update_frames(queue, colliders);
+        true
     }
 
     /// The frames of the colliders whose trees were uploaded; `sphere_offset` counts `vec4`s of
@@ -118,6 +150,11 @@ impl GpuColliders {
     pub fn left_out(&self) -> &[usize] {
         &self.left_out
     }
+}
+
+/// The node and sphere counts of a collider's tree.
+fn tree_size(collider: &Collider) -> (usize, usize) {
+    collider.lbvh().map_or((0, 0), |tree| (tree.nodes.len(), tree.spheres.len()))
 }
 
 /// The frame buffer is sized for every input collider, so that a collider whose pose becomes

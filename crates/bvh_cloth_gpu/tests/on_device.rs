@@ -11,7 +11,7 @@ use std::sync::Arc;
 
 use bvh_cloth_core::{
     Affine3A, ClothGrid, ClothParams, ClothSim, ClothTopology, Collider, ColliderPose, ColliderShape, Integrator, Lbvh,
-    MeshRef, Primitive, Quat, Sphere, SpringStiffness, UVec2, UVec3, Vec2, Vec3,
+    MeshRef, Primitive, Quat, SkinRef, SkinScratch, Sphere, SpringStiffness, UVec2, UVec3, Vec2, Vec3, Voxels,
 };
 use bvh_cloth_gpu::wgpu::util::DeviceExt;
 use bvh_cloth_gpu::wgpu::{self, Device, Queue};
@@ -310,7 +310,11 @@ fn collision_response_on_a_posed_ball() {
     let pose =
         ColliderPose { translation: Vec3::new(5.0, 1.0, -2.0), rotation: Quat::from_rotation_z(0.7), scale: 2.0 };
     let ball = Collider {
-        shape: ColliderShape::Spheres { lbvh: Lbvh::build(&[Sphere::new(Vec3::ZERO, 1.0)]).into(), counts: UVec3::ONE },
+        shape: ColliderShape::Spheres {
+            lbvh: Lbvh::build(&[Sphere::new(Vec3::ZERO, 1.0)]).into(),
+            counts: UVec3::ONE,
+            skin: None,
+        },
         margin: 0.1,
         friction: 0.0,
         pose,
@@ -492,7 +496,11 @@ fn bunny_drop_agrees_with_the_cpu() {
 /// A ball of radius 0.3 m at `centre`, one sphere, with a 1 cm margin and friction 1.
 fn rough_ball(centre: Vec3) -> Collider {
     Collider {
-        shape: ColliderShape::Spheres { lbvh: Lbvh::build(&[Sphere::new(Vec3::ZERO, 0.3)]).into(), counts: UVec3::ONE },
+        shape: ColliderShape::Spheres {
+            lbvh: Lbvh::build(&[Sphere::new(Vec3::ZERO, 0.3)]).into(),
+            counts: UVec3::ONE,
+            skin: None,
+        },
         margin: 0.01,
         friction: 1.0,
         pose: ColliderPose { translation: centre, ..Default::default() },
@@ -549,6 +557,68 @@ fn two_colliders_one_moving_agree_with_the_cpu() {
     }
     // The colliders hold the cloth up.
     assert!(centroid(&g).y > 0.1, "the cloth fell past the colliders: centroid {}", centroid(&g));
+}
+
+/// The low bunny as a skinned collider: its lower half on joint 0, its upper half on joint 1,
+/// blended across the middle 20 cm.
+fn skinned_bunny(n: u32) -> Collider {
+    let text = std::fs::read_to_string(format!(
+        "{}/../../assets/models/bunny_low.obj",
+        std::env::var("CARGO_MANIFEST_DIR").expect("run by cargo")
+    ))
+    .unwrap();
+    let obj = parse_obj(&text).unwrap();
+    let joints = vec![[0u16, 1, 0, 0]; obj.positions.len()];
+    let weights: Vec<[f32; 4]> = obj
+        .positions
+        .iter()
+        .map(|p| {
+            let upper = ((p[1] - 0.4) / 0.2).clamp(0.0, 1.0);
+            [1.0 - upper, upper, 0.0, 0.0]
+        })
+        .collect();
+    let skin = SkinRef { joints: &joints, weights: &weights, joint_count: 2 };
+    let mesh = MeshRef { positions: &obj.positions, indices: Some(&obj.indices) };
+    Collider::from_skinned_mesh(mesh, skin, Voxels::PerAxis(n)).unwrap().with_margin(0.01).with_friction(1.0)
+}
+
+/// A skinned collider whose upper half leans over, refitted every tick on the CPU and written
+/// into the GPU's tree buffer in place (`GpuColliders::rewrite_trees`), under a falling cloth:
+/// against the CPU with the bunny drop's tolerances, and no GPU particle inside it.
+#[test]
+fn a_skinned_collider_rewritten_in_place_agrees_with_the_cpu() {
+    let Some(rig) = rig() else { return };
+    let mut colliders = [skinned_bunny(5)];
+    let mut scratch = SkinScratch::default();
+    let params = ClothParams { damping: 1.0, integrator: Integrator::Rk4, ..Default::default() };
+    let mut cpu = grid_cloth(square(1.4, 40), params, Affine3A::from_translation(Vec3::new(0.0, 1.3, 0.0)), &[]);
+    let mut gpu_colliders = GpuColliders::new(&rig.device, &colliders);
+    let mut gpu = rig.cloth(&cpu, 1.0 / 60.0);
+    for tick in 0..180 {
+        // The upper half turns up to 0.3 rad about z, around a point at mid height.
+        let angle = 0.3 * (tick as f32 / 120.0).min(1.0);
+        let pivot = Vec3::new(0.0, 0.5, 0.0);
+        let lean =
+            Affine3A::from_translation(pivot) * Affine3A::from_rotation_z(angle) * Affine3A::from_translation(-pivot);
+        colliders[0].pose_skin(&[Affine3A::IDENTITY, lean], &mut scratch).unwrap();
+        assert!(gpu_colliders.rewrite_trees(&rig.queue, &colliders, &[0]), "a refit keeps the layout");
+        cpu.tick(1.0 / 60.0, &colliders);
+        rig.ticks(&mut gpu, &gpu_colliders, 1);
+    }
+    let (c, g) = (cpu.positions(), gpu_positions(&rig, &gpu));
+    eprintln!(
+        "skinned bunny, tick 180: centroid gap {:e} m, lowest {} vs {}",
+        centroid(&c).distance(centroid(&g)),
+        lowest(&c),
+        lowest(&g)
+    );
+    assert!(centroid(&c).distance(centroid(&g)) < 0.02);
+    assert!((lowest(&c) - lowest(&g)).abs() < 0.03);
+    let inside = g.iter().filter(|&&p| colliders[0].contains(p)).count();
+    assert_eq!(inside, 0, "{inside} GPU particles inside the skinned collider");
+    // The leaning bunny holds the cloth up, and a different layout is refused.
+    assert!(centroid(&g).y > 0.3, "the cloth fell past the collider: centroid {}", centroid(&g));
+    assert!(!gpu_colliders.rewrite_trees(&rig.queue, &[bunny(3)], &[0]));
 }
 
 /// A flag built as an artist exports one: `cols x rows` points over `width x height` metres in

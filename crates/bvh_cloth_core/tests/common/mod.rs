@@ -62,6 +62,7 @@ pub fn sphere_collider(spheres: &[Sphere]) -> Collider {
     let shape = bvh_cloth_core::ColliderShape::Spheres {
         lbvh: Lbvh::build(spheres).into(),
         counts: bvh_cloth_core::UVec3::ONE,
+        skin: None,
     };
     Collider { shape, margin: 0.0, friction: 0.0, pose: Default::default() }
 }
