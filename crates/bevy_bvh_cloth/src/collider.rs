@@ -397,15 +397,16 @@ impl SkinPose<'_, '_, '_> {
         Ok(())
     }
 
-    /// The largest scale the first joint gives the bind-pose mesh (1 without joints).
+    /// The largest scale the first joint gives the bind-pose mesh (1 without a placed joint).
     fn scale(&self) -> f32 {
-        let mut matrices = Vec::new();
-        match self.matrices(&mut matrices) {
-            Ok(()) => matrices.first().map_or(1.0, |m| {
-                m.matrix3.x_axis.length().max(m.matrix3.y_axis.length()).max(m.matrix3.z_axis.length())
-            }),
-            Err(_) => 1.0,
-        }
+        let first = self.skinned.joints.first().zip(self.inverse.first());
+        let Some(transform) = first.and_then(|(&joint, inverse)| {
+            Some(self.transforms.get(joint).ok()?.affine() * Affine3A::from_mat4(*inverse))
+        }) else {
+            return 1.0;
+        };
+        let axes = transform.matrix3;
+        axes.x_axis.length().max(axes.y_axis.length()).max(axes.z_axis.length())
     }
 }
 

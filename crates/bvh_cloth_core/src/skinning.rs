@@ -290,8 +290,10 @@ fn keyed_points(mesh: MeshRef<'_>, grid: &VoxelGrid) -> Vec<(u32, SkinPoint)> {
     }
     // The corners, with their positions, so that a corner two triangles share (where a grid
     // plane cuts their common edge) is kept once.
-    let mut corners_found: Vec<(u32, [u32; 3], SkinPoint)> = Vec::new();
-    let quantum = grid.cell_diagonal() * 1e-6;
+    let mut corners_found: Vec<(u32, [i64; 3], SkinPoint)> = Vec::new();
+    // Quantised relative to the box's corner, so that the steps fit an integer anywhere: the
+    // box spans at most 128 cells of 1e6 steps each per axis.
+    let (origin, quantum) = (grid.min(), grid.cell_diagonal() * 1e-6);
     for &vertices in &triangles {
         let corners = vertices.map(|v| Vec3::from(positions[v as usize]));
         let keys = vertices.map(key_of);
@@ -302,15 +304,20 @@ fn keyed_points(mesh: MeshRef<'_>, grid: &VoxelGrid) -> Vec<(u32, SkinPoint)> {
                 if (0..3).any(|k| corners[k] == p && keys[k] == key) {
                     continue;
                 }
-                let cell = (p / quantum).round().to_array().map(|c| c as i32 as u32);
-                corners_found.push((key, cell, SkinPoint { vertices, weights: barycentric(p, corners) }));
+                let step = corner_step(p, origin, quantum);
+                corners_found.push((key, step, SkinPoint { vertices, weights: barycentric(p, corners) }));
             }
         });
     }
-    corners_found.sort_unstable_by_key(|&(key, cell, _)| (key, cell));
-    corners_found.dedup_by_key(|&mut (key, cell, _)| (key, cell));
+    corners_found.sort_unstable_by_key(|&(key, step, _)| (key, step));
+    corners_found.dedup_by_key(|&mut (key, step, _)| (key, step));
     keyed.extend(corners_found.into_iter().map(|(key, _, point)| (key, point)));
     keyed
+}
+
+/// `p`'s position in steps of `quantum` from `origin`, the key corners are merged by.
+fn corner_step(p: Vec3, origin: Vec3, quantum: f32) -> [i64; 3] {
+    ((p - origin) / quantum).round().to_array().map(|c| c as i64)
 }
 
 /// The barycentric weights of the second and third corner for a point `p` of the triangle; on a
@@ -552,6 +559,17 @@ mod tests {
         ] {
             assert!(message.contains("joint"), "{message}");
         }
+    }
+
+    /// Corners are merged by their step relative to the mesh's box, so that points a hair apart
+    /// stay apart on a mesh 10 km from the origin, and equal points merge.
+    #[test]
+    fn corner_steps_stay_distinct_far_from_the_origin() {
+        let origin = Vec3::new(1.0e4, -1.0e4, 5.0e3);
+        let p = origin + Vec3::new(0.25, 0.5, 0.125);
+        let quantum = 1.0e-7;
+        assert_eq!(corner_step(p, origin, quantum), corner_step(p, origin, quantum));
+        assert_ne!(corner_step(p, origin, quantum), corner_step(p + Vec3::new(0.0, 2.0e-3, 0.0), origin, quantum));
     }
 
     #[test]

@@ -95,6 +95,11 @@ impl VoxelGrid {
         (((x - self.min[axis]) * self.inv_cell[axis]).max(0.0) as u32).min(self.n[axis] - 1)
     }
 
+    /// The box's minimum corner.
+    pub(crate) fn min(&self) -> Vec3 {
+        self.min
+    }
+
     /// The length of a voxel's diagonal.
     pub(crate) fn cell_diagonal(&self) -> f32 {
         self.cell.length()
