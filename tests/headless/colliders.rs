@@ -208,12 +208,14 @@ fn a_broken_collider_reports_and_a_valid_one_still_works() {
 
     assert_eq!(app.world().get::<ColliderStatus>(childless), Some(&ColliderStatus::Waiting));
 
-    // The valid collider still catches a cloth.
+    // The valid collider still catches a cloth. (The childless root waits for ever, so the
+    // cloth does not wait for colliders.)
     let cloth = app
         .world_mut()
         .spawn((
             Cloth {
                 params: ClothParams { damping: 2.0, ..default() },
+                start_at_once: true,
                 ..Cloth::grid(Vec2::splat(0.6), UVec2::splat(16))
             },
             Transform::from_xyz(0.0, 1.0, 0.0),
@@ -318,4 +320,52 @@ fn a_voxel_size_in_metres_is_the_same_for_every_mesh() {
         panic!("a 10 µm voxel on a 0.4 m ball must fail")
     };
     assert!(reason.contains("voxels; at most 2097152 are accepted"), "{reason}");
+}
+
+/// A cloth spawned while its collider's mesh is still loading waits, unbuilt, and starts at
+/// rest once the collider is ready, so that it lands on the ball instead of falling through
+/// where the ball will be; a cloth that starts at once falls meanwhile.
+#[test]
+fn a_new_cloth_waits_for_a_collider_being_built() {
+    let mut app = app();
+    let handle = app.world_mut().resource_mut::<Assets<Mesh>>().reserve_handle();
+    let ball_entity = app.world_mut().spawn((Mesh3d(handle.clone()), AutoCollider::new(8))).id();
+    let grid = || Cloth {
+        params: ClothParams { damping: 1.0, ..default() },
+        ..Cloth::grid(Vec2::splat(1.2), UVec2::splat(16))
+    };
+    let waiting = app.world_mut().spawn((grid(), Transform::from_xyz(0.0, 1.0, 0.0))).id();
+    let eager = app.world_mut().spawn((grid().starting_at_once(), Transform::from_xyz(3.0, 1.0, 0.0))).id();
+    run(&mut app, 1.0);
+    assert_eq!(app.world().get::<ColliderStatus>(ball_entity), Some(&ColliderStatus::Waiting));
+    assert!(app.world().get::<ClothSimulation>(waiting).is_none(), "the cloth must wait for the ball");
+    let fallen = positions(&app, eager).iter().map(|p| p.y).fold(f32::INFINITY, f32::min);
+    assert!(fallen < 0.0, "the eager cloth falls meanwhile: lowest {fallen}");
+
+    // The mesh arrives: the collider is built, and the cloth starts where it was spawned.
+    app.world_mut().resource_mut::<Assets<Mesh>>().insert(&handle, Sphere::new(0.5).mesh().uv(32, 18)).unwrap();
+    wait_for_collider(&mut app, ball_entity);
+    run(&mut app, 0.1);
+    let start = positions(&app, waiting);
+    assert!(start.iter().all(|p| p.y > 0.9), "the cloth starts at rest where it was spawned");
+    run(&mut app, 2.0);
+    let highest = positions(&app, waiting).iter().map(|p| p.y).fold(f32::NEG_INFINITY, f32::max);
+    assert!(highest > 0.45, "the cloth rests on the ball: highest particle at {highest}");
+    assert_eq!(inside(&app, waiting, ball_entity), 0);
+}
+
+/// A collider that never finishes (a mesh-less root whose scene never spawns) holds a new cloth
+/// only for `ClothSettings::collider_wait`.
+#[test]
+fn a_cloth_waits_no_longer_than_the_settings_allow() {
+    let mut app = app();
+    app.world_mut().resource_mut::<ClothSettings>().collider_wait = 0.5;
+    let root = app.world_mut().spawn(AutoCollider::new(5)).id();
+    let cloth =
+        app.world_mut().spawn((Cloth::grid(Vec2::ONE, UVec2::splat(8)), Transform::from_xyz(0.0, 1.0, 0.0))).id();
+    run(&mut app, 0.4);
+    assert!(app.world().get::<ClothSimulation>(cloth).is_none(), "within the limit the cloth waits");
+    run(&mut app, 0.3);
+    assert!(app.world().get::<ClothSimulation>(cloth).is_some(), "past the limit the cloth starts");
+    assert_eq!(app.world().get::<ColliderStatus>(root), Some(&ColliderStatus::Waiting));
 }

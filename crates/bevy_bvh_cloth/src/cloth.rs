@@ -14,6 +14,13 @@ use bvh_cloth_core::{ClothError, ClothParams, ClothPins};
 /// holder's motion over the frame spread evenly over the frame's ticks. The free particles are
 /// simulated in world space.
 ///
+/// A new cloth waits for the [`AutoCollider`](crate::AutoCollider)s still being built (their
+/// mesh still loading, or a big mesh voxelised off the main thread) before it starts, so that it
+/// does not fall through a body that is not there yet; it then starts at rest under the
+/// entity's transform of that moment. While it waits, an authored cloth shows its mesh as
+/// authored and a grid cloth has no mesh yet. [`ClothSettings::collider_wait`](crate::ClothSettings)
+/// bounds the wait; `start_at_once` opts out.
+///
 /// Editing `params` or an anchor's `offset` takes effect on the next tick and keeps the cloth's
 /// state. Editing `shape`, `pins` or which vertices or entity an anchor holds rebuilds the
 /// cloth at rest. Invalid values are refused with an error (see
@@ -43,6 +50,8 @@ pub struct Cloth {
     /// Groups of particles held by other entities. Where a particle is chosen more than once,
     /// the last anchor that chooses it holds it, and any anchor overrides `pins`.
     pub anchors: Vec<ClothAnchor>,
+    /// Start as soon as the cloth is spawned, without waiting for colliders still being built.
+    pub start_at_once: bool,
 }
 
 /// A group of a cloth's particles carried by another entity: a flagpole, a character's
@@ -131,6 +140,13 @@ impl Cloth {
     /// Adds a group of particles carried by another entity.
     pub fn with_anchor(mut self, anchor: ClothAnchor) -> Self {
         self.anchors.push(anchor);
+        self
+    }
+
+    /// Starts the cloth as soon as it is spawned, without waiting for colliders still being
+    /// built.
+    pub fn starting_at_once(mut self) -> Self {
+        self.start_at_once = true;
         self
     }
 

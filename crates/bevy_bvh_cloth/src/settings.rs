@@ -16,10 +16,14 @@ pub struct ClothSettings {
     pub paused: bool,
     /// Draw every collider's leaf spheres and inner boxes with gizmos (paper Table VI).
     pub debug_view: bool,
+    /// Longest a new cloth waits, in seconds, for [`AutoCollider`](crate::AutoCollider)s still
+    /// being built before it starts without them (a warning names them). Such a collider may
+    /// never finish: a mesh-less root whose scene never spawns waits forever.
+    pub collider_wait: f32,
 }
 
 impl Default for ClothSettings {
     fn default() -> Self {
-        Self { tick_rate: 60.0, max_ticks_per_frame: 4, paused: false, debug_view: false }
+        Self { tick_rate: 60.0, max_ticks_per_frame: 4, paused: false, debug_view: false, collider_wait: 10.0 }
     }
 }

@@ -5,14 +5,17 @@ use std::sync::atomic::{AtomicU64, Ordering};
 use std::sync::Arc;
 
 use bevy::camera::visibility::NoAutoAabb;
-use bevy::ecs::entity::EntityHashSet;
+use bevy::ecs::entity::{EntityHashMap, EntityHashSet};
+use bevy::ecs::system::SystemParam;
 use bevy::prelude::*;
 use bvh_cloth_core::{Affine3A, ClothError, ClothGrid, ClothSim, ClothTopology, MeshVertices, Vec3};
 
 use crate::clock::ClothClock;
 use crate::cloth::{Cloth, ClothShape};
 use crate::cloth_mesh::{authored_topology, authored_vertices, new_authored_mesh, new_grid_mesh};
+use crate::collider::{AutoCollider, ColliderStatus};
 use crate::messages::{ClothMessage, ResetCloth};
+use crate::settings::ClothSettings;
 
 /// The running simulation of a [`Cloth`] entity, added by the plugin.
 ///
@@ -215,8 +218,11 @@ pub(crate) fn sync_cloths(
     mut resets: MessageReader<ResetCloth>,
     mut messages: MessageWriter<ClothMessage>,
     mut loading: Local<EntityHashSet>,
+    mut start: ColliderWait,
 ) {
     let resets: Vec<ResetCloth> = resets.read().copied().collect();
+    // The colliders still being built, found when a new cloth first asks.
+    let mut pending: Option<Vec<Entity>> = None;
     for (entity, cloth, transform, state, mesh3d) in &mut cloths {
         let pose = rigid_pose(transform);
         let reset = resets.iter().any(|r| *r == ResetCloth::All || *r == ResetCloth::One(entity));
@@ -241,6 +247,12 @@ pub(crate) fn sync_cloths(
                 if reset {
                     state.reset(pose);
                 }
+            }
+            None if (cloth.is_changed() || reset || loading.contains(&entity))
+                && !cloth.start_at_once
+                && start.holds(entity, pending.get_or_insert_with(|| start.pending())) =>
+            {
+                loading.insert(entity);
             }
             state if cloth.is_changed() || reset || loading.contains(&entity) => {
                 // An authored cloth is rebuilt from the mesh it was first built from, not from the
@@ -296,6 +308,51 @@ pub(crate) fn sync_cloths(
         }
     }
     loading.retain(|&entity| cloths.contains(entity));
+    start.since.retain(|&entity, _| loading.contains(&entity));
+}
+
+/// What decides whether a new cloth waits for colliders still being built, and since when each
+/// waiting cloth has waited.
+#[derive(SystemParam)]
+pub(crate) struct ColliderWait<'w, 's> {
+    colliders: Query<'w, 's, (Entity, &'static ColliderStatus), With<AutoCollider>>,
+    settings: Res<'w, ClothSettings>,
+    time: Res<'w, Time>,
+    /// When each waiting cloth began to wait, and whether it was told it waited too long.
+    since: Local<'s, EntityHashMap<(f64, bool)>>,
+}
+
+impl ColliderWait<'_, '_> {
+    /// The colliders still being built (their mesh loading, or a build running).
+    fn pending(&self) -> Vec<Entity> {
+        self.colliders
+            .iter()
+            .filter(|(_, status)| matches!(status, ColliderStatus::Waiting | ColliderStatus::Building))
+            .map(|(collider, _)| collider)
+            .collect()
+    }
+
+    /// Whether the new cloth `entity` waits this frame: some collider is still being built
+    /// (`pending`) and the cloth has not waited [`ClothSettings::collider_wait`] yet.
+    fn holds(&mut self, entity: Entity, pending: &[Entity]) -> bool {
+        if pending.is_empty() {
+            return false;
+        }
+        let now = self.time.elapsed_secs_f64();
+        let (since, told) = self.since.entry(entity).or_insert((now, false));
+        if now - *since < f64::from(self.settings.collider_wait) {
+            return true;
+        }
+        if !*told {
+            warn!(
+                "Cloth on {entity}: colliders {pending:?} are still being built after {} s; the cloth starts \
+                 without them",
+                self.settings.collider_wait
+            );
+            *told = true;
+        }
+        false
+    }
 }
 
 /// Plans this frame's ticks for the pins of every cloth, on either backend: within a frame each
