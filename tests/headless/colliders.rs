@@ -369,3 +369,31 @@ fn a_cloth_waits_no_longer_than_the_settings_allow() {
     assert!(app.world().get::<ClothSimulation>(cloth).is_some(), "past the limit the cloth starts");
     assert_eq!(app.world().get::<ColliderStatus>(root), Some(&ColliderStatus::Waiting));
 }
+
+/// Removing an `AutoCollider` from a mesh entity takes its collider away; on an entity that
+/// also has a `PrimitiveCollider`, the primitive then takes over.
+#[test]
+fn removing_a_collider_component_stops_the_collision() {
+    let mut app = app();
+    let mesh = ball(&mut app, 0.5);
+    let plain = app.world_mut().spawn((Mesh3d(mesh.clone()), AutoCollider::new(3))).id();
+    let both = app
+        .world_mut()
+        .spawn((Mesh3d(mesh), AutoCollider::new(3), PrimitiveCollider::sphere(0.5), Transform::from_xyz(2.0, 0.0, 0.0)))
+        .id();
+    wait_for_collider(&mut app, plain);
+    wait_for_collider(&mut app, both);
+    let mesh_collider =
+        |app: &App, entity| app.world().get::<ClothCollider>(entity).map(|c| c.collider().lbvh().is_some());
+    assert_eq!(mesh_collider(&app, both), Some(true), "the AutoCollider wins while both are there");
+
+    app.world_mut().entity_mut(plain).remove::<AutoCollider>();
+    app.world_mut().entity_mut(both).remove::<AutoCollider>();
+    run(&mut app, 0.1);
+    assert!(app.world().get::<ClothCollider>(plain).is_none(), "a removed AutoCollider leaves no collider");
+    let primitive = app.world().get::<ClothCollider>(both).and_then(|c| c.collider().as_primitive().copied());
+    assert!(
+        matches!(primitive, Some(bevy_bvh_cloth::bvh_cloth_core::Primitive::Sphere { radius: 0.5 })),
+        "{primitive:?}"
+    );
+}

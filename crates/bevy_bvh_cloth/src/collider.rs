@@ -47,7 +47,7 @@ pub const ASYNC_BUILD_MIN_VERTICES: usize = 20_000;
 /// warning names the joint.
 #[derive(Component, Clone, Debug, PartialEq, Reflect)]
 #[reflect(Component, Default, Debug)]
-#[require(Transform, ColliderStatus)]
+#[require(Transform, ColliderStatus, ColliderBuild)]
 pub struct AutoCollider {
     /// Voxels per axis, `n` in the paper (which uses 1, 3 and 5). Higher is tighter and costs
     /// more memory; between 1 and [`bvh_cloth_core::voxel_spheres::MAX_RESOLUTION`]. Unused
@@ -192,7 +192,7 @@ pub(crate) fn build_colliders(
         Option<&Mesh3d>,
         Option<&GlobalTransform>,
         Option<&SkinnedMesh>,
-        Option<&mut ColliderBuild>,
+        &mut ColliderBuild,
         &mut ColliderStatus,
     )>,
     skins: Skins,
@@ -209,11 +209,7 @@ pub(crate) fn build_colliders(
         Some(LoadState::Failed(error)) => Some(error.to_string()),
         _ => None,
     };
-    for (entity, auto, mesh3d, transform, skinned, build, mut status) in &mut colliders {
-        let Some(mut build) = build else {
-            commands.entity(entity).try_insert(ColliderBuild::default());
-            continue;
-        };
+    for (entity, auto, mesh3d, transform, skinned, mut build, mut status) in &mut colliders {
         let outcome = match mesh3d {
             // An AutoCollider without a mesh covers the meshes under it (collider_hierarchy).
             None => continue,
@@ -483,6 +479,22 @@ fn pose_skinned(entity: Entity, pose: &SkinPose<'_, '_, '_>, built: &mut ClothCo
                 warn!("Skinned collider on {entity}: {reason}; it stays at {held}");
                 built.skin_warning = Some(reason);
             }
+        }
+    }
+}
+
+/// Takes the built collider off an entity whose [`AutoCollider`] or [`PrimitiveCollider`] was
+/// removed, so that it stops colliding; an entity that still has an `AutoCollider` keeps its
+/// collider, and one left with a `PrimitiveCollider` gets that built next.
+pub(crate) fn drop_removed_colliders(
+    mut commands: Commands,
+    mut removed_auto: RemovedComponents<AutoCollider>,
+    mut removed_primitive: RemovedComponents<PrimitiveCollider>,
+    autos: Query<(), With<AutoCollider>>,
+) {
+    for entity in removed_auto.read().chain(removed_primitive.read()) {
+        if !autos.contains(entity) {
+            commands.entity(entity).try_remove::<(ClothCollider, ColliderBuild)>();
         }
     }
 }

@@ -213,6 +213,7 @@ impl Plugin for BvhClothPlugin {
                 PostUpdate,
                 (
                     (
+                        collider::drop_removed_colliders,
                         collider_hierarchy::spread_colliders,
                         collider::build_colliders,
                         primitive_collider::build_primitive_colliders,
