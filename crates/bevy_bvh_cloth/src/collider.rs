@@ -15,6 +15,7 @@ use bevy::ecs::system::SystemParam;
 use bevy::mesh::skinning::{SkinnedMesh, SkinnedMeshInverseBindposes};
 use bevy::prelude::*;
 use bevy::tasks::{AsyncComputeTaskPool, Task, block_on, poll_once};
+use bvh_cloth_core::skinning::largest_scale;
 use bvh_cloth_core::{Affine3A, Collider, ColliderPose, SkinScratch, Voxels};
 
 use crate::collider_mesh::{ColliderFailure, TriangleList};
@@ -396,13 +397,11 @@ impl SkinPose<'_, '_, '_> {
     /// The largest scale the first joint gives the bind-pose mesh (1 without a placed joint).
     fn scale(&self) -> f32 {
         let first = self.skinned.joints.first().zip(self.inverse.first());
-        let Some(transform) = first.and_then(|(&joint, inverse)| {
-            Some(self.transforms.get(joint).ok()?.affine() * Affine3A::from_mat4(*inverse))
-        }) else {
-            return 1.0;
-        };
-        let axes = transform.matrix3;
-        axes.x_axis.length().max(axes.y_axis.length()).max(axes.z_axis.length())
+        first
+            .and_then(|(&joint, inverse)| {
+                Some(self.transforms.get(joint).ok()?.affine() * Affine3A::from_mat4(*inverse))
+            })
+            .map_or(1.0, |transform| largest_scale(&transform))
     }
 }
 

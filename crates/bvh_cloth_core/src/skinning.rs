@@ -89,7 +89,6 @@ impl SkinnedVertices {
             }
             *out = sum;
         };
-        let items = self.positions.iter().zip(&self.joints).zip(&self.weights);
         if self.positions.len() >= PARALLEL_MIN {
             self.positions
                 .par_iter()
@@ -99,6 +98,7 @@ impl SkinnedVertices {
                 .with_min_len(PARALLEL_MIN / 4)
                 .for_each(|(item, out)| skin(item, out));
         } else {
+            let items = self.positions.iter().zip(&self.joints).zip(&self.weights);
             items.zip(out.iter_mut()).for_each(|(item, out)| skin(item, out));
         }
     }
@@ -185,10 +185,7 @@ impl SkinnedSpheres {
             return Err(ColliderError::SkinTreeMismatch { leaves: lbvh.spheres.len(), expected: self.leaf_count() });
         }
         // The clearance grows with the largest scale any joint applies.
-        let scale = matrices
-            .iter()
-            .map(|m| m.matrix3.x_axis.length().max(m.matrix3.y_axis.length()).max(m.matrix3.z_axis.length()))
-            .fold(0.0f32, f32::max);
+        let scale = matrices.iter().map(largest_scale).fold(0.0f32, f32::max);
         let clearance = self.clearance * scale.max(f32::MIN_POSITIVE);
         self.vertices.skin_into(matrices, &mut scratch.skinned);
         // Every point is placed once, into an array in leaf order, so that fitting reads each
@@ -215,6 +212,12 @@ impl SkinnedSpheres {
         lbvh.refit();
         Ok(())
     }
+}
+
+/// The largest factor by which `transform` stretches any of its axes.
+pub fn largest_scale(transform: &Affine3A) -> f32 {
+    let axes = transform.matrix3;
+    axes.x_axis.length().max(axes.y_axis.length()).max(axes.z_axis.length())
 }
 
 /// The point's position among the skinned vertices.
