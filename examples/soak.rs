@@ -100,10 +100,17 @@ fn main() {
     let size: u32 = args.next().and_then(|a| a.parse().ok()).unwrap_or(24);
 
     let mut app = App::new();
-    app.add_plugins((MinimalPlugins, TransformPlugin, AssetPlugin::default(), MeshPlugin, ObjPlugin, BvhClothPlugin))
-        .insert_resource(TimeUpdateStrategy::ManualDuration(Duration::from_secs_f64(1.0 / 60.0)))
-        .init_resource::<Tally>()
-        .add_systems(Last, count);
+    app.add_plugins((
+        MinimalPlugins,
+        TransformPlugin,
+        AssetPlugin::default(),
+        MeshPlugin,
+        ObjPlugin,
+        BvhClothPlugin::default(),
+    ))
+    .insert_resource(TimeUpdateStrategy::ManualDuration(Duration::from_secs_f64(1.0 / 60.0)))
+    .init_resource::<Tally>()
+    .add_systems(Last, count);
     app.update();
 
     let bunny: Handle<Mesh> = app.world().resource::<AssetServer>().load("models/bunny_low.obj");

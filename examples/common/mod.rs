@@ -17,7 +17,7 @@ pub fn example_app(title: &str) -> App {
         DefaultPlugins
             .set(WindowPlugin { primary_window: Some(Window { title: title.into(), ..default() }), ..default() }),
         bevy_obj::ObjPlugin,
-        BvhClothPlugins,
+        BvhClothPlugins::default(),
     ))
     .insert_resource(ClearColor(Color::srgb(0.62, 0.72, 0.82)))
     .add_systems(Startup, spawn_stage)

@@ -21,10 +21,17 @@ fn collect(mut reader: MessageReader<ClothMessage>, mut sent: ResMut<Sent>) {
 /// An app stepping `fps` frames per (simulated) second.
 pub fn app_at(fps: f64) -> App {
     let mut app = App::new();
-    app.add_plugins((MinimalPlugins, TransformPlugin, AssetPlugin::default(), MeshPlugin, ObjPlugin, BvhClothPlugin))
-        .insert_resource(TimeUpdateStrategy::ManualDuration(Duration::from_secs_f64(1.0 / fps)))
-        .init_resource::<Sent>()
-        .add_systems(Last, collect);
+    app.add_plugins((
+        MinimalPlugins,
+        TransformPlugin,
+        AssetPlugin::default(),
+        MeshPlugin,
+        ObjPlugin,
+        BvhClothPlugin::default(),
+    ))
+    .insert_resource(TimeUpdateStrategy::ManualDuration(Duration::from_secs_f64(1.0 / fps)))
+    .init_resource::<Sent>()
+    .add_systems(Last, collect);
     // The first update starts the clock at zero.
     app.update();
     app

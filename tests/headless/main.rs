@@ -11,4 +11,5 @@ mod hanging;
 mod lifecycle;
 mod parameters;
 mod primitives;
+mod schedule;
 mod skinned;

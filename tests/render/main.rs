@@ -48,6 +48,11 @@ fn unlit(materials: &mut Assets<StandardMaterial>, color: Color) -> MeshMaterial
 
 /// A headless app with the whole renderer, asking for `backend`, ready to update.
 fn render_app(backend: ClothBackend) -> App {
+    render_app_with(backend, BvhClothPlugins::default())
+}
+
+/// As [`render_app`], with the cloth plugins given.
+fn render_app_with(backend: ClothBackend, plugins: BvhClothPlugins) -> App {
     let mut app = App::new();
     app.add_plugins((
         DefaultPlugins.build().disable::<WinitPlugin>().set(WindowPlugin {
@@ -57,7 +62,7 @@ fn render_app(backend: ClothBackend) -> App {
             ..default()
         }),
         bevy_obj::ObjPlugin,
-        BvhClothPlugins,
+        plugins,
     ))
     .insert_resource(backend)
     .insert_resource(TimeUpdateStrategy::ManualDuration(Duration::from_secs_f64(1.0 / 60.0)))
@@ -93,10 +98,15 @@ fn adapter_present() -> bool {
 /// wait at rest until they are ready: a probe cloth is read back until it has run a tick (at
 /// most 600 frames), then despawned.
 fn gpu_backend_app() -> Option<App> {
+    gpu_backend_app_with(BvhClothPlugins::new(FixedPostUpdate))
+}
+
+/// As [`gpu_backend_app`], with the cloth plugins given.
+fn gpu_backend_app_with(plugins: BvhClothPlugins) -> Option<App> {
     if !adapter_present() {
         return None;
     }
-    let mut app = render_app(ClothBackend::Gpu);
+    let mut app = render_app_with(ClothBackend::Gpu, plugins);
     assert_eq!(*app.world().resource::<ActiveClothBackend>(), ActiveClothBackend::Gpu);
     let probe = app.world_mut().spawn((Cloth::grid(Vec2::ONE, UVec2::splat(4)), ClothReadback::default())).id();
     let ran = |app: &App| app.world().get::<ClothReadback>(probe).unwrap().ticks_run.is_some_and(|t| t > 0);
@@ -385,6 +395,61 @@ fn the_gpu_backend_reads_a_cloth_back_when_asked() {
     assert!(got.iter().all(|p| p.y < 8.0), "the read-back cloth has fallen");
     let rest = app.world().get::<ClothSimulation>(unread).unwrap().sim().positions();
     assert!(rest.iter().all(|p| p.y == 10.0), "a cloth without ClothReadback keeps its built state");
+}
+
+/// In `FixedPostUpdate` (60 Hz steps) the render world runs every tick of every run: two runs
+/// in a 30 fps frame run two ticks in that frame's pass, and a 120 fps frame without a run runs
+/// none. The state read back is the core's after exactly the ticks the cloth has run, and those
+/// are the clock's (1e-4 m, as the test above). Running only the last run's ticks would leave
+/// the cloth half as far fallen; running them again in a frame without a run, twice as far.
+#[test]
+fn the_gpu_backend_runs_every_tick_of_a_fixed_schedule() {
+    let Some(mut app) = gpu_backend_app_with(BvhClothPlugins::new(FixedPostUpdate)) else { return };
+    app.insert_resource(Time::<Fixed>::from_hz(60.0));
+    let start = app.world().resource::<ClothClock>().total_ticks;
+    let cloth = app
+        .world_mut()
+        .spawn((
+            Cloth { params: ClothParams { damping: 0.5, ..default() }, ..Cloth::grid(Vec2::ONE, UVec2::splat(12)) },
+            Transform::from_xyz(0.0, 10.0, 0.0),
+            ClothReadback::default(),
+        ))
+        .id();
+    let frames = |app: &mut App, fps: f64, count: u32| {
+        app.insert_resource(TimeUpdateStrategy::ManualDuration(Duration::from_secs_f64(1.0 / fps)));
+        for _ in 0..count {
+            app.update();
+        }
+    };
+    frames(&mut app, 30.0, 20);
+    frames(&mut app, 120.0, 40);
+    frames(&mut app, 30.0, 10);
+    let readback = app.world().get::<ClothReadback>(cloth).unwrap();
+    let (late, ran) = (readback.ticks_late.expect("a state arrived"), readback.ticks_run.expect("a state arrived"));
+    let ticks = app.world().resource::<ClothClock>().total_ticks - start;
+    assert!(late <= 6, "the state is {late} ticks late (two ticks per frame at the end)");
+    assert!(ran > 60, "{ran} ticks run");
+    let got = app.world().get::<ClothSimulation>(cloth).unwrap().sim().positions();
+    let topology = std::sync::Arc::new(
+        bvh_cloth_core::ClothTopology::grid(bvh_cloth_core::ClothGrid::new(Vec2::ONE, UVec2::splat(12))).unwrap(),
+    );
+    let params = bvh_cloth_core::ClothParams { damping: 0.5, ..Default::default() };
+    let mut core = bvh_cloth_core::ClothSim::new(
+        params,
+        topology,
+        bvh_cloth_core::Affine3A::from_translation(Vec3::new(0.0, 10.0, 0.0)),
+        &[],
+    )
+    .unwrap();
+    for _ in 0..ran {
+        core.tick(1.0 / 60.0, &[]);
+    }
+    let gap = core.positions().iter().zip(&got).map(|(a, b)| a.distance(*b)).fold(0.0f32, f32::max);
+    eprintln!(
+        "fixed schedule: {ran} ticks run + {late} late of {ticks} since it spawned; within {gap:e} m of the core's state"
+    );
+    assert_eq!(ran + late, ticks, "the cloth ran {ran} ticks and is {late} behind {ticks} since it spawned");
+    assert!(gap < 1e-4, "the read-back state is not the core's after {ran} ticks ({gap} m)");
 }
 
 /// On the GPU backend a row anchored to another entity rides it: after the target has swung

@@ -5,7 +5,11 @@
 //! particles, without waiting for it.
 //!
 //! Per frame:
-//! 1. [`extract_cloths`] (`ExtractSchedule`) copies the clock, every cloth's parameters, the
+//! 0. In the main world, [`queue_render_ticks`] adds up the ticks of every run of the cloth
+//!    systems since the frame began, with each cloth's pin targets for each of them (one run
+//!    per frame in `PostUpdate`; none, one or several in a fixed-timestep schedule), and
+//!    [`start_render_frame`] (`First`) starts the count again.
+//! 1. [`extract_cloths`] (`ExtractSchedule`) copies those ticks, every cloth's parameters, the
 //!    targets of its pins for each tick of the frame, its transform and mesh, and every
 //!    collider's pose into [`GpuClothWorld`]; a cloth's whole state only when it was rebuilt or
 //!    reset.
@@ -137,6 +141,44 @@ pub(crate) fn add_render_systems(render_app: &mut SubApp, shaders: ClothShaders)
         .add_systems(RenderGraph, simulate_cloths.before(camera_driver));
 }
 
+/// Main world: the ticks the render world runs this frame, gathered from every run of the cloth
+/// systems since the frame began.
+#[derive(Resource, Default)]
+pub(crate) struct RenderTicks {
+    ticks: u32,
+    /// Each pinned cloth's pin targets for each of those ticks; a cloth that joined in a later
+    /// run has empty plans (pins stay) for the ticks before it.
+    anchor_targets: EntityHashMap<Vec<Vec<(u32, Vec3)>>>,
+}
+
+/// Main world, `First`: the frame's ticks start from none.
+pub(crate) fn start_render_frame(mut render_ticks: ResMut<RenderTicks>) {
+    render_ticks.ticks = 0;
+    render_ticks.anchor_targets.clear();
+}
+
+/// Main world, after each run's anchor planning: adds the run's ticks and pin targets to the
+/// frame's.
+pub(crate) fn queue_render_ticks(
+    clock: Res<ClothClock>,
+    cloths: Query<(Entity, &ClothSimulation)>,
+    mut render_ticks: ResMut<RenderTicks>,
+) {
+    if clock.ticks == 0 {
+        return;
+    }
+    let before = render_ticks.ticks as usize;
+    for (entity, state) in &cloths {
+        if state.anchor_targets.is_empty() {
+            continue;
+        }
+        let plans = render_ticks.anchor_targets.entry(entity).or_default();
+        plans.resize(before, Vec::new());
+        plans.extend(state.anchor_targets.iter().cloned());
+    }
+    render_ticks.ticks += clock.ticks;
+}
+
 /// A cloth whose particles went non-finite on the GPU, sent from the render world to the main
 /// world.
 #[derive(Message, Clone, Copy, Debug)]
@@ -210,10 +252,11 @@ type ClothToExtract = (Entity, &'static ClothSimulation, &'static GlobalTransfor
 fn extract_cloths(
     mut world: ResMut<GpuClothWorld>,
     clock: Extract<Res<ClothClock>>,
+    render_ticks: Extract<Res<RenderTicks>>,
     cloths: Extract<Query<ClothToExtract>>,
     colliders: Extract<Query<(Entity, &ClothCollider)>>,
 ) {
-    world.ticks = clock.ticks;
+    world.ticks = render_ticks.ticks;
     world.total_ticks = clock.total_ticks;
     world.tick_seconds = clock.tick_seconds;
     let extracted = cloths
@@ -226,7 +269,7 @@ fn extract_cloths(
                 generation: state.generation,
                 fresh: (known != Some(state.generation)).then(|| sim.clone()),
                 params: sim.params().clone(),
-                anchor_targets: state.anchor_targets.clone(),
+                anchor_targets: render_ticks.anchor_targets.get(&entity).cloned().unwrap_or_default(),
                 mesh: mesh.id(),
                 mesh_to_world: transform.affine(),
                 read_back,

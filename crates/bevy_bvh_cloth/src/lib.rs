@@ -16,7 +16,7 @@
 //!
 //! fn main() {
 //!     App::new()
-//!         .add_plugins((DefaultPlugins, BvhClothPlugins))
+//!         .add_plugins((DefaultPlugins, BvhClothPlugins::default()))
 //!         .add_systems(Startup, setup)
 //!         .run();
 //! }
@@ -52,7 +52,8 @@
 //! ## How it runs
 //!
 //! The main-world systems run in [`PostUpdate`], after transform propagation, in the chained
-//! [`ClothSystems`] sets. A fixed-rate clock ([`ClothSettings::tick_rate`]) decides how many
+//! [`ClothSystems`] sets (or in the schedule given to [`BvhClothPlugins::new`], such as
+//! `FixedPostUpdate` beside a physics engine). A fixed-rate clock ([`ClothSettings::tick_rate`]) decides how many
 //! whole ticks a frame runs, and each tick runs [`ClothParams::looper`] substeps, so a cloth behaves
 //! the same at 30 and at 144 frames per second.
 //!
@@ -106,6 +107,7 @@ mod stats;
 
 use bevy::app::PluginGroupBuilder;
 use bevy::camera::visibility::{NoFrustumCulling, VisibilitySystems};
+use bevy::ecs::schedule::{InternedScheduleLabel, ScheduleLabel};
 use bevy::prelude::*;
 use bevy::render::RenderApp;
 use bevy::render::mesh::allocator::MeshAllocatorSettings;
@@ -113,6 +115,7 @@ use bevy::render::render_resource::{BufferUsages, DownlevelFlags};
 use bevy::render::renderer::{RenderAdapter, RenderDevice};
 use bevy::shader::Shader;
 use bevy::transform::TransformSystems;
+use bevy::transform::systems::{mark_dirty_trees, propagate_parent_transforms, sync_simple_transforms};
 
 pub use backend::{ActiveClothBackend, ClothBackend};
 pub use bvh_cloth_core;
@@ -146,16 +149,37 @@ pub mod prelude {
 /// The plugins of `bevy_bvh_cloth`: [`BvhClothPlugin`] (the simulation) and
 /// [`ClothDebugViewPlugin`] (gizmos; it needs Bevy's gizmo plugin, part of `DefaultPlugins`).
 /// The egui panel is added separately, see [`panel`](crate#features).
-pub struct BvhClothPlugins;
+///
+/// `BvhClothPlugins::default()` runs the cloth in [`PostUpdate`];
+/// `BvhClothPlugins::new(FixedPostUpdate)` runs it in the schedule given (see
+/// [`BvhClothPlugin::new`]).
+#[derive(Debug, Clone)]
+pub struct BvhClothPlugins {
+    schedule: InternedScheduleLabel,
+}
 
-impl PluginGroup for BvhClothPlugins {
-    fn build(self) -> PluginGroupBuilder {
-        PluginGroupBuilder::start::<Self>().add(BvhClothPlugin).add(ClothDebugViewPlugin)
+impl BvhClothPlugins {
+    /// The plugins, with the cloth systems in `schedule`.
+    pub fn new(schedule: impl ScheduleLabel) -> Self {
+        Self { schedule: schedule.intern() }
     }
 }
 
-/// The system sets of the plugin, all in [`PostUpdate`] after
-/// [`TransformSystems::Propagate`], chained in this order. Order your own systems against them.
+impl Default for BvhClothPlugins {
+    fn default() -> Self {
+        Self::new(PostUpdate)
+    }
+}
+
+impl PluginGroup for BvhClothPlugins {
+    fn build(self) -> PluginGroupBuilder {
+        PluginGroupBuilder::start::<Self>().add(BvhClothPlugin { schedule: self.schedule }).add(ClothDebugViewPlugin)
+    }
+}
+
+/// The system sets of the plugin, chained in this order in the schedule the plugin runs in
+/// ([`PostUpdate`] by default, after [`TransformSystems::Propagate`]). Order your own systems
+/// against them.
 #[derive(SystemSet, Clone, Copy, Debug, PartialEq, Eq, Hash)]
 pub enum ClothSystems {
     /// [`AutoCollider`]s are built (or their async builds polled) and placed at their
@@ -177,10 +201,44 @@ pub enum ClothSystems {
 /// Needs Bevy's asset, mesh and transform plugins (all part of `DefaultPlugins`; with
 /// `MinimalPlugins`, add `AssetPlugin`, `MeshPlugin` and `TransformPlugin`, and the CPU backend
 /// runs).
-pub struct BvhClothPlugin;
+///
+/// `BvhClothPlugin::default()` runs the cloth systems in [`PostUpdate`], after transform
+/// propagation, once per frame. [`BvhClothPlugin::new`] puts them in another schedule.
+#[derive(Debug, Clone)]
+pub struct BvhClothPlugin {
+    schedule: InternedScheduleLabel,
+}
+
+impl BvhClothPlugin {
+    /// The simulation, with its systems ([`ClothSystems`]) in `schedule`: for example
+    /// `FixedPostUpdate`, beside a physics engine stepped there.
+    ///
+    /// The clock ([`ClothClock`]) advances by that schedule's [`Time`], so in a fixed-timestep
+    /// schedule it advances by [`Time<Fixed>`]'s step on each run, and a schedule that runs
+    /// twice in a frame runs the ticks of both (on the GPU backend, all in that frame's render
+    /// pass, against the colliders' poses of the last run). Outside [`PostUpdate`] the plugin
+    /// propagates transforms at the start of that schedule (Bevy's own propagation systems, in
+    /// [`TransformSystems::Propagate`]), so cloths, colliders, anchors and joints are where
+    /// their [`Transform`]s say when the cloth runs.
+    pub fn new(schedule: impl ScheduleLabel) -> Self {
+        Self { schedule: schedule.intern() }
+    }
+
+    /// The schedule the cloth systems run in.
+    pub fn schedule(&self) -> InternedScheduleLabel {
+        self.schedule
+    }
+}
+
+impl Default for BvhClothPlugin {
+    fn default() -> Self {
+        Self::new(PostUpdate)
+    }
+}
 
 impl Plugin for BvhClothPlugin {
     fn build(&self, app: &mut App) {
+        let schedule = self.schedule;
         app.register_type::<Cloth>()
             .register_type::<AutoCollider>()
             .register_type::<PrimitiveCollider>()
@@ -198,19 +256,19 @@ impl Plugin for BvhClothPlugin {
             .init_resource::<ClothStats>()
             .init_resource::<ClothBackend>()
             .init_resource::<ActiveClothBackend>()
+            .init_resource::<gpu_backend::RenderTicks>()
             .add_message::<ClothMessage>()
             .add_message::<ResetCloth>()
             .add_message::<gpu_backend::GpuClothDiverged>()
             .add_message::<readback::GpuClothState>()
             .configure_sets(
-                PostUpdate,
+                schedule,
                 (ClothSystems::BuildColliders, ClothSystems::Prepare, ClothSystems::Step, ClothSystems::Writeback)
-                    .chain()
-                    .after(TransformSystems::Propagate)
-                    .before(VisibilitySystems::CheckVisibility),
+                    .chain(),
             )
+            .add_systems(First, gpu_backend::start_render_frame.run_if(not(backend::cpu_backend_active)))
             .add_systems(
-                PostUpdate,
+                schedule,
                 (
                     (
                         collider::drop_removed_colliders,
@@ -233,6 +291,7 @@ impl Plugin for BvhClothPlugin {
                     (
                         simulation::plan_anchors,
                         cpu_backend::step_cloths.run_if(backend::cpu_backend_active),
+                        gpu_backend::queue_render_ticks.run_if(not(backend::cpu_backend_active)),
                         stats::update_stats,
                     )
                         .chain()
@@ -245,6 +304,25 @@ impl Plugin for BvhClothPlugin {
                     events::trigger_message_events.after(ClothSystems::Writeback),
                 ),
             );
+        if schedule == PostUpdate.intern() {
+            app.configure_sets(
+                PostUpdate,
+                (ClothSystems::BuildColliders, ClothSystems::Writeback)
+                    .after(TransformSystems::Propagate)
+                    .before(VisibilitySystems::CheckVisibility),
+            );
+        } else {
+            // Elsewhere the transforms are propagated first, as `TransformPlugin` does in
+            // `PostUpdate`: a cloth or collider spawned or moved since is where its `Transform`
+            // says, not where the last propagation left it.
+            app.add_systems(
+                schedule,
+                (mark_dirty_trees, propagate_parent_transforms, sync_simple_transforms)
+                    .chain()
+                    .in_set(TransformSystems::Propagate)
+                    .before(ClothSystems::BuildColliders),
+            );
+        }
     }
 
     fn finish(&self, app: &mut App) {

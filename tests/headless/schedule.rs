@@ -1,0 +1,93 @@
+//! The cloth systems in a schedule the app chooses: `FixedPostUpdate`, as a game that steps its
+//! physics there would put them.
+
+use core::time::Duration;
+
+use bevy::asset::AssetPlugin;
+use bevy::mesh::MeshPlugin;
+use bevy::prelude::*;
+use bevy::time::TimeUpdateStrategy;
+use bevy_bvh_cloth::bvh_cloth_core::{self, ClothGrid, ClothSim, ClothTopology};
+use bevy_bvh_cloth::prelude::*;
+
+/// The largest `ClothClock::ticks` seen by a system after the cloth's step in the fixed
+/// schedule, and how many ticks such systems saw in all.
+#[derive(Resource, Default)]
+struct SeenInFixed {
+    most: u32,
+    total: u64,
+}
+
+fn watch(clock: Res<ClothClock>, mut seen: ResMut<SeenInFixed>) {
+    seen.most = seen.most.max(clock.ticks);
+    seen.total += u64::from(clock.ticks);
+}
+
+/// Fixed steps of 1/30 s, first at 30 then at 120 frames per second: the schedule runs every
+/// frame, then every fourth, and its clock advances a whole step (two 60 Hz ticks) each time,
+/// not a frame's 1/120 s. The cloths are spawned just before a frame whose fixed run comes
+/// before `PostUpdate`'s propagation, so they are built where their `Transform`s say only
+/// because the plugin propagates in its schedule. After 2 s the falling cloth is exactly the
+/// core's after the clock's ticks (1e-5 m), all of them seen in the fixed schedule, and the
+/// other rests on a ball.
+#[test]
+fn the_cloth_runs_in_fixed_post_update() {
+    let mut app = App::new();
+    app.add_plugins((
+        MinimalPlugins,
+        TransformPlugin,
+        AssetPlugin::default(),
+        MeshPlugin,
+        BvhClothPlugin::new(FixedPostUpdate),
+    ))
+    .insert_resource(TimeUpdateStrategy::ManualDuration(Duration::from_secs_f64(1.0 / 30.0)))
+    .insert_resource(Time::<Fixed>::from_hz(30.0))
+    .init_resource::<SeenInFixed>()
+    .add_systems(FixedPostUpdate, watch.after(ClothSystems::Step));
+    app.update();
+    let params = ClothParams { damping: 0.5, ..default() };
+    let cloth = app
+        .world_mut()
+        .spawn((
+            Cloth { params: params.clone(), ..Cloth::grid(Vec2::ONE, UVec2::splat(10)) },
+            Transform::from_xyz(0.0, 10.0, 0.0),
+        ))
+        .id();
+    let ball = app.world_mut().spawn((PrimitiveCollider::sphere(0.5), Transform::from_xyz(5.0, 0.0, 0.0))).id();
+    let draped = app
+        .world_mut()
+        .spawn((
+            Cloth { params: params.clone(), ..Cloth::grid(Vec2::ONE, UVec2::splat(10)) },
+            Transform::from_xyz(5.0, 1.0, 0.0),
+        ))
+        .id();
+    for _ in 0..10 {
+        app.update();
+    }
+    app.insert_resource(TimeUpdateStrategy::ManualDuration(Duration::from_secs_f64(1.0 / 120.0)));
+    for _ in 0..200 {
+        app.update();
+    }
+    let seen = app.world().resource::<SeenInFixed>();
+    let clock = app.world().resource::<ClothClock>();
+    assert_eq!(seen.most, 2, "each fixed run advances two 60 Hz ticks");
+    assert_eq!(seen.total, clock.total_ticks, "every tick ran in the fixed schedule");
+    assert!((116..=120).contains(&clock.total_ticks), "{} ticks in 2 s", clock.total_ticks);
+
+    let topology = std::sync::Arc::new(ClothTopology::grid(ClothGrid::new(Vec2::ONE, UVec2::splat(10))).unwrap());
+    let mut core =
+        ClothSim::new(params, topology, bvh_cloth_core::Affine3A::from_translation(Vec3::new(0.0, 10.0, 0.0)), &[])
+            .unwrap();
+    for _ in 0..clock.total_ticks {
+        core.tick(1.0 / 60.0, &[]);
+    }
+    let got = app.world().get::<ClothSimulation>(cloth).unwrap().sim().positions();
+    let gap = core.positions().iter().zip(got.iter()).map(|(a, b)| a.distance(*b)).fold(0.0f32, f32::max);
+    assert!(gap < 1e-5, "the fixed-schedule cloth is {gap} m from the core's after the same ticks");
+
+    assert!(matches!(app.world().get::<ColliderStatus>(ball), Some(ColliderStatus::Ready { .. })));
+    let on_ball = app.world().get::<ClothSimulation>(draped).unwrap().sim().positions();
+    let top = on_ball.iter().map(|p| p.y).fold(f32::MIN, f32::max);
+    assert!(top > 0.45, "the cloth rests on the ball (highest particle at {top} m)");
+    assert!(on_ball.iter().all(|p| p.distance(Vec3::new(5.0, 0.0, 0.0)) > 0.49), "no particle inside the ball");
+}
