@@ -1,68 +1,37 @@
 //! A cape on a walking figure. The figure is a hierarchy of joints built in code (hips, chest,
 //! shoulders, head, arms, legs) and animated by a walk cycle; its chest and legs are exact
-//! capsule `PrimitiveCollider`s carried by their joints, and the floor is a ground primitive. The cape is a mesh built in code whose top edge carries a
-//! pin weight of 1 in the alpha channel of its vertex colours, the way an artist marks pinned
-//! vertices (alpha, so that an opaque material draws the cape in its own colour);
-//! `ClothPins::Painted` picks that edge and a
-//! `ClothAnchor` hangs it from the shoulders joint, so it rides the figure tick by tick. A joint
-//! of a loaded glTF skeleton is an entity like any other and anchors the same way.
+//! capsule `PrimitiveCollider`s carried by their joints, and the floor is a ground primitive.
+//! The cape is a mesh built in code whose top edge carries a pin weight of 1 in the alpha
+//! channel of its vertex colours, the way an artist marks pinned vertices; `ClothPins::Painted`
+//! picks that edge and a `ClothAnchor` hangs it from the shoulders joint, so it rides the figure
+//! tick by tick. A joint of a loaded glTF skeleton is an entity like any other and anchors the
+//! same way. (The `character` example wears the same cape on a skinned body.)
 //!
 //! `cargo run --release -p bevy_bvh_cloth --features egui --example cape`
 //!
 //! Drag to orbit, scroll to zoom, R resets, Space pauses.
 
 mod common;
+#[path = "common/walk.rs"]
+mod walk;
 
-use std::f32::consts::TAU;
-
-use bevy::asset::RenderAssetUsages;
-use bevy::mesh::{Indices, PrimitiveTopology};
 use bevy::prelude::*;
 use bevy_bvh_cloth::prelude::*;
-
-/// Radius of the circle the figure walks, in metres.
-const PATH_RADIUS: f32 = 1.3;
-/// Walking speed in m/s, and steps per second.
-const SPEED: f32 = 1.1;
-const CADENCE: f32 = 1.8;
-/// Height of the hip joint, and of the shoulders joint above it.
-const HIP_HEIGHT: f32 = 0.9;
-const SHOULDERS_ABOVE_HIPS: f32 = 0.55;
-/// The cape: width at the shoulders and at the hem, length, and its vertices across and down.
-const CAPE_TOP: f32 = 0.36;
-const CAPE_HEM: f32 = 0.8;
-const CAPE_LENGTH: f32 = 0.95;
-const CAPE_VERTICES: UVec2 = UVec2::new(17, 24);
+use walk::{ARM_DROP, HIP_HEIGHT, HIP_WIDTH, Hips, SHOULDER_WIDTH, SHOULDERS_ABOVE_HIPS, Walker, arm_swing, leg_swing};
 
 fn main() {
-    common::example_app("bevy_bvh_cloth: cape").add_systems(Startup, setup).add_systems(Update, walk).run();
+    common::example_app("bevy_bvh_cloth: cape").add_systems(Startup, setup).add_systems(Update, walk::walk).run();
 }
-
-/// The walking figure's root, on the ground.
-#[derive(Component)]
-struct Walker;
-
-/// A joint that swings with the walk cycle: `amplitude` radians about local X, in phase
-/// `phase` (in turns) with the stride.
-#[derive(Component)]
-struct Swing {
-    amplitude: f32,
-    phase: f32,
-}
-
-/// The joint the chest rolls and bobs on.
-#[derive(Component)]
-struct Hips;
 
 fn setup(mut commands: Commands, mut meshes: ResMut<Assets<Mesh>>, mut materials: ResMut<Assets<StandardMaterial>>) {
     common::spawn_camera(&mut commands, Vec3::new(0.0, 0.9, 0.0), 5.0);
     let skin = materials.add(StandardMaterial { base_color: Color::srgb(0.85, 0.75, 0.65), ..default() });
     let tunic = materials.add(StandardMaterial { base_color: Color::srgb(0.35, 0.42, 0.3), ..default() });
     let limb = meshes.add(Capsule3d::new(0.07, 0.62));
-    let leg = |x: f32, phase: f32| {
+    let leg = |left: bool| {
         (
-            Swing { amplitude: 0.45, phase },
-            Transform::from_xyz(x, HIP_HEIGHT, 0.0),
+            leg_swing(left),
+            Transform::from_xyz(if left { -HIP_WIDTH } else { HIP_WIDTH }, HIP_HEIGHT, 0.0),
             Visibility::default(),
             // The leg hangs from the hip joint; its capsule, exactly the mesh's, collides with the
             // hem.
@@ -74,17 +43,16 @@ fn setup(mut commands: Commands, mut meshes: ResMut<Assets<Mesh>>, mut materials
             )],
         )
     };
-    let arm = |x: f32, phase: f32| {
+    let arm = |left: bool| {
         (
-            Swing { amplitude: 0.35, phase },
-            Transform::from_xyz(x, -0.04, 0.0),
+            arm_swing(left),
+            Transform::from_xyz(if left { -SHOULDER_WIDTH } else { SHOULDER_WIDTH }, -ARM_DROP, 0.0),
             Visibility::default(),
             children![(Mesh3d(limb.clone()), MeshMaterial3d(skin.clone()), Transform::from_xyz(0.0, -0.36, 0.0))],
         )
     };
-    let start = walker_pose(0.0);
     let walker =
-        commands.spawn((Walker, start, Visibility::default(), children![leg(-0.11, 0.0), leg(0.11, 0.5)])).id();
+        commands.spawn((Walker, walk::walker_pose(0.0), Visibility::default(), children![leg(true), leg(false)])).id();
     let hips =
         commands.spawn((Hips, Transform::from_xyz(0.0, HIP_HEIGHT, 0.0), Visibility::default(), ChildOf(walker))).id();
     commands.spawn((
@@ -106,102 +74,11 @@ fn setup(mut commands: Commands, mut meshes: ResMut<Assets<Mesh>>, mut materials
                     MeshMaterial3d(skin.clone()),
                     Transform::from_xyz(0.0, 0.2, 0.0)
                 ),
-                arm(-0.24, 0.5),
-                arm(0.24, 0.0),
+                arm(true),
+                arm(false),
             ],
         ))
         .id();
-
-    // The cape is built around the shoulders where they stand at the start, in world space; its
-    // painted top edge is then carried by the shoulders joint.
-    let at_shoulders = start * Transform::from_xyz(0.0, HIP_HEIGHT + SHOULDERS_ABOVE_HIPS, 0.0);
-    let painted = ClothPins::Painted { channel: ColorChannel::Alpha, threshold: 0.5 };
-    commands.spawn((
-        Mesh3d(meshes.add(cape_mesh())),
-        Cloth {
-            params: ClothParams { mass: 0.5, damping: 0.6, spring_k: 300.0, looper: 20, ..default() },
-            ..Cloth::mesh()
-        }
-        .with_anchor(ClothAnchor::new(painted, shoulders)),
-        common::cloth_material(&mut materials, Color::srgb(0.6, 0.08, 0.1)),
-        at_shoulders,
-    ));
-}
-
-/// The cape, in the shoulders' frame (the figure faces +Z): a trapezoid hanging down the back,
-/// curved around it, flaring towards the hem. The vertex colours are white, with the pin weight
-/// in alpha: 1 on the top row, 0 elsewhere.
-fn cape_mesh() -> Mesh {
-    let (cols, rows) = (CAPE_VERTICES.x, CAPE_VERTICES.y);
-    let mut positions = Vec::new();
-    let mut colors = Vec::new();
-    let mut uvs = Vec::new();
-    for r in 0..rows {
-        let v = r as f32 / (rows - 1) as f32;
-        let half_width = 0.5 * (CAPE_TOP + (CAPE_HEM - CAPE_TOP) * v);
-        for c in 0..cols {
-            let u = c as f32 / (cols - 1) as f32;
-            let across = 2.0 * u - 1.0;
-            // Around the back at the top (the chest is 0.16 m deep behind the shoulders, its
-            // collider's spheres a few centimetres more), then straighter and further back as
-            // it falls.
-            let z = -0.22 - 0.06 * (1.0 - across * across) * (1.0 - v) - 0.1 * v;
-            positions.push([across * half_width, -CAPE_LENGTH * v, z]);
-            colors.push([1.0, 1.0, 1.0, if r == 0 { 1.0 } else { 0.0 }]);
-            uvs.push([u, v]);
-        }
-    }
-    let mut indices = Vec::new();
-    for r in 0..rows - 1 {
-        for c in 0..cols - 1 {
-            let i = r * cols + c;
-            indices.extend_from_slice(&[i, i + 1, i + cols, i + 1, i + cols + 1, i + cols]);
-        }
-    }
-    Mesh::new(PrimitiveTopology::TriangleList, RenderAssetUsages::default())
-        .with_inserted_attribute(Mesh::ATTRIBUTE_POSITION, positions)
-        .with_inserted_attribute(Mesh::ATTRIBUTE_COLOR, colors)
-        .with_inserted_attribute(Mesh::ATTRIBUTE_UV_0, uvs)
-        .with_inserted_indices(Indices::U32(indices))
-}
-
-/// Distance walked after `t` seconds: standing for a second, then speeding up over two.
-fn walked(t: f32) -> f32 {
-    let ramp = 2.0;
-    let t = (t - 1.0).max(0.0);
-    if t < ramp { SPEED * t * t / (2.0 * ramp) } else { SPEED * (t - ramp / 2.0) }
-}
-
-/// The figure on its circle after walking `distance` metres, facing where it goes.
-fn walker_pose(distance: f32) -> Transform {
-    let angle = distance / PATH_RADIUS;
-    Transform::from_xyz(PATH_RADIUS * angle.cos(), 0.0, PATH_RADIUS * angle.sin())
-        .with_rotation(Quat::from_rotation_y(-angle))
-}
-
-/// The walk cycle: the figure goes round its circle, the hips bob and roll with each step, and
-/// the legs and arms swing in opposition. The stride follows the distance walked, so the figure
-/// stands still while it stands. The walk keeps the cloth's time ([`ClothClock`]), so the two
-/// stay in step when rendering is slow (the cloth then runs behind the wall clock) or paused.
-#[allow(clippy::type_complexity)]
-fn walk(
-    clock: Res<ClothClock>,
-    mut walkers: Query<&mut Transform, (With<Walker>, Without<Hips>, Without<Swing>)>,
-    mut hips: Query<&mut Transform, (With<Hips>, Without<Swing>)>,
-    mut swings: Query<(&mut Transform, &Swing)>,
-) {
-    let distance = walked(clock.total_ticks as f32 * clock.tick_seconds);
-    let stride = TAU * CADENCE * distance / SPEED / 2.0;
-    for mut transform in &mut walkers {
-        *transform = walker_pose(distance);
-    }
-    let lift = (distance / (distance + 0.3)).min(1.0);
-    for mut transform in &mut hips {
-        transform.translation.y = HIP_HEIGHT + lift * 0.025 * (2.0 * stride).cos();
-        transform.rotation =
-            Quat::from_rotation_z(lift * 0.06 * stride.sin()) * Quat::from_rotation_y(lift * 0.12 * stride.sin());
-    }
-    for (mut transform, swing) in &mut swings {
-        transform.rotation = Quat::from_rotation_x(lift * swing.amplitude * (stride + TAU * swing.phase).sin());
-    }
+    let material = common::cloth_material(&mut materials, Color::srgb(0.6, 0.08, 0.1));
+    commands.spawn(walk::cape(shoulders, &mut meshes, material));
 }
