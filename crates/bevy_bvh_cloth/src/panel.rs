@@ -1,5 +1,6 @@
 //! The live parameter panel (feature `egui`): the paper's Looper, SpringK, Damping and
-//! External Force, plus pause, reset, the collider resolution, the debug view and live figures.
+//! External Force, plus pause, reset, the collider resolution (or voxel size), the debug view
+//! and live figures.
 
 use core::ops::DerefMut;
 
@@ -108,7 +109,10 @@ fn cloth_panel(
             };
             ui.label(format!("Collider {entity}: {state}"));
             edit_in_place(&mut collider, |c| {
-                ui.add(egui::Slider::new(&mut c.resolution, 1..=32).text("Voxels per axis (n)"));
+                match &mut c.voxel_size {
+                    Some(size) => ui.add(egui::Slider::new(size, 0.01..=0.2).text("Voxel size (m)")),
+                    None => ui.add(egui::Slider::new(&mut c.resolution, 1..=32).text("Voxels per axis (n)")),
+                };
                 ui.add(egui::Slider::new(&mut c.friction, 0.0..=1.5).text("Friction"));
             });
         }
