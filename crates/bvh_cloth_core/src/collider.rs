@@ -150,6 +150,20 @@ impl Collider {
         Ok(())
     }
 
+    /// Checks a skinned collider's pose as [`Self::pose_skin`] does and places the collider in
+    /// world coordinates (the identity pose), without refitting its spheres: for a renderer
+    /// that refits them from the same matrices itself (`bvh_cloth_gpu`'s `SkinRefit`). Returns
+    /// the clearance the refit gives the spheres at that pose, or `None` for a collider that is
+    /// not skinned. A refused pose leaves the collider as it was.
+    pub fn accept_skin_pose(&mut self, joint_matrices: &[Affine3A]) -> Result<Option<f32>, ColliderError> {
+        let ColliderShape::Spheres { lbvh, skin: Some(skin), .. } = &self.shape else {
+            return Ok(None);
+        };
+        let clearance = skin.check_pose(joint_matrices, lbvh)?;
+        self.pose = ColliderPose::default();
+        Ok(Some(clearance))
+    }
+
     /// The primitive of a primitive collider; `None` for a mesh collider.
     pub fn as_primitive(&self) -> Option<&Primitive> {
         match &self.shape {

@@ -10,6 +10,7 @@ use crate::collision::ColliderFrame;
 use crate::forces::ForceModel;
 use crate::params::{ClothParams, Integrator};
 use crate::sim::ClothSim;
+use crate::skinning::SkinnedVertices;
 use crate::topology::ClothTopology;
 
 /// One particle: position and velocity in world space. 32 bytes.
@@ -356,4 +357,67 @@ mod tests {
         assert_eq!(size_of::<GpuCollider>(), 192);
         assert_eq!(size_of::<GpuMeshWriteback>(), 144);
     }
+}
+
+/// One vertex of a skinned collider, as the GPU refit skins it: the bind position, four joints
+/// (two to a word, low half first) and their weights. 48 bytes.
+#[repr(C)]
+#[derive(Clone, Copy, Debug, Default, PartialEq, Pod, Zeroable)]
+pub struct GpuSkinVertex {
+    /// Bind-pose position, in the mesh's coordinates.
+    pub position: [f32; 3],
+    /// Joints 0 (low half) and 1.
+    pub joints_low: u32,
+    /// The weights of the four joints.
+    pub weights: [f32; 4],
+    /// Joints 2 (low half) and 3.
+    pub joints_high: u32,
+    /// Padding to the WGSL struct's 16-byte alignment.
+    pub pad: [u32; 3],
+}
+
+/// The vertices of `vertices`, for the GPU refit.
+pub fn gpu_skin_vertices(vertices: &SkinnedVertices) -> Vec<GpuSkinVertex> {
+    let pair = |a: u16, b: u16| u32::from(a) | (u32::from(b) << 16);
+    vertices
+        .positions
+        .iter()
+        .zip(&vertices.joints)
+        .zip(&vertices.weights)
+        .map(|((p, j), w)| GpuSkinVertex {
+            position: p.to_array(),
+            joints_low: pair(j[0], j[1]),
+            weights: *w,
+            joints_high: pair(j[2], j[3]),
+            pad: [0; 3],
+        })
+        .collect()
+}
+
+/// What one dispatch of the GPU refit works on. 32 bytes, one per dispatch at the device's
+/// uniform offset alignment.
+#[repr(C)]
+#[derive(Clone, Copy, Debug, Default, PartialEq, Pod, Zeroable)]
+pub struct GpuRefitParams {
+    /// Vertices to skin.
+    pub vertex_count: u32,
+    /// Spheres (leaves) to fit.
+    pub leaf_count: u32,
+    /// The collider's first node in the tree buffer, in nodes.
+    pub node_offset: u32,
+    /// Its first sphere in the tree buffer, in `vec4`s.
+    pub sphere_offset: u32,
+    /// This dispatch's first entry of the level list, and its number of nodes.
+    pub level_start: u32,
+    /// Number of nodes in this level.
+    pub level_count: u32,
+    /// The collider's index in the frame buffer, whose `contact_reach` the refit sets.
+    pub collider: u32,
+    /// How far each sphere reaches past its points (the skin's clearance at this pose).
+    pub clearance: f32,
+}
+
+/// Mat4 columns of an affine transform, as the GPU refit reads joint matrices.
+pub fn gpu_joint_matrix(matrix: &Affine3A) -> [[f32; 4]; 4] {
+    Mat4::from(*matrix).to_cols_array_2d()
 }

@@ -159,6 +159,38 @@ impl Lbvh {
         self.max_radius = self.spheres.iter().fold(0.0f32, |r, s| r.max(s.radius));
     }
 
+    /// The inner nodes grouped by depth, deepest first: `levels[starts[l]..starts[l + 1]]` are
+    /// level `l`'s nodes, and every node's inner children lie in earlier levels. Boxes refitted
+    /// level after level in this order (each level in parallel) are refitted children first.
+    pub fn levels(&self) -> (Vec<u32>, Vec<u32>) {
+        if self.nodes.is_empty() {
+            return (Vec::new(), vec![0]);
+        }
+        let mut depth = vec![0u32; self.nodes.len()];
+        // Children always come after a parent in a walk from the root.
+        let mut stack = vec![0u32];
+        while let Some(node) = stack.pop() {
+            let BvhNode { left, right, .. } = self.nodes[node as usize];
+            for child in [left, right] {
+                if child & LEAF_BIT == 0 {
+                    depth[child as usize] = depth[node as usize] + 1;
+                    stack.push(child);
+                }
+            }
+        }
+        let deepest = depth.iter().copied().max().unwrap_or(0);
+        let mut levels: Vec<u32> = (0..self.nodes.len() as u32).collect();
+        levels.sort_by_key(|&n| deepest - depth[n as usize]);
+        let mut starts = vec![0u32];
+        for k in 1..levels.len() {
+            if depth[levels[k] as usize] != depth[levels[k - 1] as usize] {
+                starts.push(k as u32);
+            }
+        }
+        starts.push(levels.len() as u32);
+        (levels, starts)
+    }
+
     /// The reference to start a traversal from: inner node 0, or the only leaf.
     pub fn root(&self) -> u32 {
         if self.nodes.is_empty() { LEAF_BIT } else { 0 }

@@ -162,6 +162,25 @@ impl SkinnedSpheres {
         self.leaf_starts.len().saturating_sub(1)
     }
 
+    /// Checks a pose for `lbvh` (the tree [`Self::build`] returned, or a refit of it) as
+    /// [`Self::refit`] does, and returns the clearance the spheres get at that pose: the build's,
+    /// grown by the largest scale any joint applies. A refit on the GPU checks the pose with
+    /// this first.
+    pub fn check_pose(&self, joint_matrices: &[Affine3A], lbvh: &Lbvh) -> Result<f32, ColliderError> {
+        if joint_matrices.len() < self.joint_count {
+            return Err(ColliderError::MissingJoints { joints: joint_matrices.len(), needed: self.joint_count });
+        }
+        let matrices = &joint_matrices[..self.joint_count];
+        if let Some(joint) = matrices.iter().position(|m| !m.is_finite()) {
+            return Err(ColliderError::NonFiniteJoint { joint });
+        }
+        if lbvh.spheres.len() != self.leaf_count() {
+            return Err(ColliderError::SkinTreeMismatch { leaves: lbvh.spheres.len(), expected: self.leaf_count() });
+        }
+        let scale = matrices.iter().map(largest_scale).fold(0.0f32, f32::max);
+        Ok(self.clearance * scale.max(f32::MIN_POSITIVE))
+    }
+
     /// Moves `lbvh`'s spheres to the pose `joint_matrices` gives (each joint's world transform
     /// times its inverse bind pose, as Bevy's renderer forms them), into world coordinates, and
     /// refits its boxes. `lbvh` must be the tree [`Self::build`] returned (or a refit of it).
@@ -174,19 +193,8 @@ impl SkinnedSpheres {
         lbvh: &mut Lbvh,
         scratch: &mut SkinScratch,
     ) -> Result<(), ColliderError> {
-        if joint_matrices.len() < self.joint_count {
-            return Err(ColliderError::MissingJoints { joints: joint_matrices.len(), needed: self.joint_count });
-        }
+        let clearance = self.check_pose(joint_matrices, lbvh)?;
         let matrices = &joint_matrices[..self.joint_count];
-        if let Some(joint) = matrices.iter().position(|m| !m.is_finite()) {
-            return Err(ColliderError::NonFiniteJoint { joint });
-        }
-        if lbvh.spheres.len() != self.leaf_count() {
-            return Err(ColliderError::SkinTreeMismatch { leaves: lbvh.spheres.len(), expected: self.leaf_count() });
-        }
-        // The clearance grows with the largest scale any joint applies.
-        let scale = matrices.iter().map(largest_scale).fold(0.0f32, f32::max);
-        let clearance = self.clearance * scale.max(f32::MIN_POSITIVE);
         self.vertices.skin_into(matrices, &mut scratch.skinned);
         // Every point is placed once, into an array in leaf order, so that fitting reads each
         // leaf's points from one contiguous run.

@@ -116,3 +116,54 @@ fn parallel_build_matches_invariants() {
     check_invariants(&bvh);
     check_queries(&bvh, &mut rng, -1.2, 1.2, 500);
 }
+
+/// The level order a parallel refit walks: every inner node once, each node's inner children in
+/// an earlier level than it, the root last; and boxes refitted level by level in that order
+/// are the boxes the tree was built with.
+#[test]
+fn levels_put_children_before_parents() {
+    let mut rng = Rng::new(5);
+    for count in [1, 2, 3, 17, 1000, 20_000] {
+        let bvh = Lbvh::build(&random_spheres(&mut rng, count));
+        let (levels, starts) = bvh.levels();
+        let mut level_of = vec![usize::MAX; bvh.nodes.len()];
+        for l in 0..starts.len() - 1 {
+            for &n in &levels[starts[l] as usize..starts[l + 1] as usize] {
+                assert_eq!(level_of[n as usize], usize::MAX, "node {n} listed twice");
+                level_of[n as usize] = l;
+            }
+        }
+        assert!(level_of.iter().all(|&l| l != usize::MAX), "every node is listed");
+        for (n, node) in bvh.nodes.iter().enumerate() {
+            for child in [node.left, node.right].into_iter().filter(|c| c & LEAF_BIT == 0) {
+                assert!(level_of[child as usize] < level_of[n], "child {child} is not before its parent {n}");
+            }
+        }
+        if !bvh.nodes.is_empty() {
+            assert_eq!(*levels.last().unwrap(), 0, "the root is last");
+            assert_eq!(starts.len() - 1, bvh.depth as usize, "one level per depth");
+        }
+        // Refit in that order from scratch.
+        let mut refit = bvh.clone();
+        for node in &mut refit.nodes {
+            node.aabb_min = [f32::NAN; 3];
+            node.aabb_max = [f32::NAN; 3];
+        }
+        for &n in &levels {
+            let node = refit.nodes[n as usize];
+            let bounds = |child: u32| -> (Vec3, Vec3) {
+                if child & LEAF_BIT != 0 {
+                    let s = refit.spheres[(child & !LEAF_BIT) as usize];
+                    (s.centre() - s.radius, s.centre() + s.radius)
+                } else {
+                    let c = refit.nodes[child as usize];
+                    (c.aabb_min.into(), c.aabb_max.into())
+                }
+            };
+            let ((a, b), (c, d)) = (bounds(node.left), bounds(node.right));
+            refit.nodes[n as usize].aabb_min = a.min(c).to_array();
+            refit.nodes[n as usize].aabb_max = b.max(d).to_array();
+        }
+        assert_eq!(refit.nodes, bvh.nodes);
+    }
+}

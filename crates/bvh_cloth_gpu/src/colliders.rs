@@ -28,6 +28,8 @@ pub struct GpuColliders {
     offsets: Vec<Option<(u32, u32)>>,
     /// Node and sphere counts of each input collider's tree (zero for a primitive).
     sizes: Vec<(usize, usize)>,
+    /// Each input collider's index in the frame buffer, as last written.
+    frame_indices: Vec<Option<u32>>,
     /// Input indices of the colliders whose trees did not fit.
     left_out: Vec<usize>,
 }
@@ -39,7 +41,7 @@ fn storage_buffer<T: bytemuck::Pod + Default>(device: &Device, label: &str, item
     device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
         label: Some(label),
         contents: bytemuck::cast_slice(contents),
-        usage: BufferUsages::STORAGE | BufferUsages::COPY_DST,
+        usage: BufferUsages::STORAGE | BufferUsages::COPY_DST | BufferUsages::COPY_SRC,
     })
 }
 
@@ -71,7 +73,7 @@ impl GpuColliders {
             spheres.extend_from_slice(&tree.spheres);
         }
         let node_count = nodes.len() as u32;
-        let frames = Self::frames_of(colliders, &offsets, node_count);
+        let (frames, frame_indices) = Self::frames_of(colliders, &offsets, node_count);
         let mut tree: Vec<[f32; 4]> = Vec::with_capacity(2 * nodes.len() + spheres.len());
         tree.extend_from_slice(bytemuck::cast_slice(&nodes));
         tree.extend_from_slice(bytemuck::cast_slice(&spheres));
@@ -82,6 +84,7 @@ impl GpuColliders {
             nodes: node_count,
             offsets,
             sizes,
+            frame_indices,
             left_out,
         }
     }
@@ -115,24 +118,57 @@ impl GpuColliders {
 
     /// The frames of the colliders whose trees were uploaded; `sphere_offset` counts `vec4`s of
     /// the tree buffer, past the `nodes` nodes.
-    fn frames_of(colliders: &[Collider], offsets: &[Option<(u32, u32)>], nodes: u32) -> Vec<GpuCollider> {
-        colliders
+    fn frames_of(
+        colliders: &[Collider],
+        offsets: &[Option<(u32, u32)>],
+        nodes: u32,
+    ) -> (Vec<GpuCollider>, Vec<Option<u32>>) {
+        let mut frames = Vec::with_capacity(colliders.len());
+        let indices = colliders
             .iter()
             .zip(offsets)
-            .filter_map(|(collider, offset)| {
-                offset.and_then(|(node, sphere)| GpuCollider::new(collider, node, 2 * nodes + sphere))
+            .map(|(collider, offset)| {
+                let frame = offset.and_then(|(node, sphere)| GpuCollider::new(collider, node, 2 * nodes + sphere))?;
+                frames.push(frame);
+                Some(frames.len() as u32 - 1)
             })
-            .collect()
+            .collect();
+        (frames, indices)
     }
 
     /// Uploads new poses, margins and frictions for the same colliders, in the same order, as
     /// [`Self::new`] was given.
     pub fn update_frames(&mut self, queue: &Queue, colliders: &[Collider]) {
-        let frames = Self::frames_of(colliders, &self.offsets, self.nodes);
+        let (frames, frame_indices) = Self::frames_of(colliders, &self.offsets, self.nodes);
+        self.frame_indices = frame_indices;
         self.count = frames.len() as u32;
         if !frames.is_empty() {
             queue.write_buffer(&self.frames, 0, bytemuck::cast_slice(&frames));
         }
+    }
+
+    /// Where input collider `k`'s tree lies in the tree buffer: its first node (in nodes) and
+    /// its first sphere (in `vec4`s); `None` for one left out.
+    pub fn tree_offsets(&self, k: usize) -> Option<(u32, u32)> {
+        let (node, sphere) = (*self.offsets.get(k)?)?;
+        Some((node, 2 * self.nodes + sphere))
+    }
+
+    /// Input collider `k`'s index in the frame buffer as last written; `None` for one left out
+    /// or with an invalid pose.
+    pub fn frame_index(&self, k: usize) -> Option<u32> {
+        *self.frame_indices.get(k)?
+    }
+
+    /// Spheres in input collider `k`'s tree.
+    pub fn spheres_of(&self, k: usize) -> u32 {
+        self.sizes.get(k).map_or(0, |&(_, spheres)| spheres as u32)
+    }
+
+    /// The frame buffer (an array of [`GpuCollider`]) and the tree buffer (every tree's nodes,
+    /// two `vec4`s each, then every sphere), for reading back.
+    pub fn buffers(&self) -> (&Buffer, &Buffer) {
+        (&self.frames, &self.tree)
     }
 
     /// Colliders the kernels test against.

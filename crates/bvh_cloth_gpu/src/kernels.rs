@@ -10,7 +10,7 @@ use wgpu::{
 /// The kernels' WGSL files, in the order [`shader_source`] joins them: the shared types, the
 /// spring forces, the collision response, then one file per kernel. Each starts with naga_oil directives
 /// (`#define_import_path`, `#import`) for engines that compose shaders that way.
-pub const SHADER_FILES: [(&str, &str); 9] = [
+pub const SHADER_FILES: [(&str, &str); 10] = [
     ("types.wgsl", include_str!("shaders/types.wgsl")),
     ("springs.wgsl", include_str!("shaders/springs.wgsl")),
     ("primitives.wgsl", include_str!("shaders/primitives.wgsl")),
@@ -20,6 +20,7 @@ pub const SHADER_FILES: [(&str, &str); 9] = [
     ("block_descent.wgsl", include_str!("shaders/block_descent.wgsl")),
     ("apply_anchors.wgsl", include_str!("shaders/apply_anchors.wgsl")),
     ("normal_shader.wgsl", include_str!("shaders/normal_shader.wgsl")),
+    ("skin_refit.wgsl", include_str!("shaders/skin_refit.wgsl")),
 ];
 
 /// The kernels as one WGSL module: [`SHADER_FILES`] joined, their import directives dropped.
@@ -112,11 +113,12 @@ pub struct KernelDescriptor {
 }
 
 /// Number of kernels (entry points): the length of [`ClothKernels::descriptors`].
-pub const KERNEL_COUNT: usize = 7;
+pub const KERNEL_COUNT: usize = 11;
 
 /// The compiled kernels: `node_update` (RK4's first three stages, the stage named by the step
 /// uniform), `node_update_final` (the last stage with the collision response), block descent's
-/// `vbd_predict`, `vbd_solve` and `vbd_finish`, `apply_anchors` and `normal_shader`, with their
+/// `vbd_predict`, `vbd_solve` and `vbd_finish`, `apply_anchors`, `normal_shader`, and a skinned
+/// collider's refit (`skin_vertices`, `fit_leaves`, `refit_nodes`, `refit_reach`), with their
 /// bind group layouts.
 #[derive(Debug)]
 pub struct ClothKernels {
@@ -127,6 +129,9 @@ pub struct ClothKernels {
     pub(crate) vbd_finish: ComputePipeline,
     pub(crate) anchors: ComputePipeline,
     pub(crate) normal: ComputePipeline,
+    /// The refit's four kernels, in order, and their layouts (the same entries).
+    pub(crate) refit: [ComputePipeline; 4],
+    pub(crate) refit_layouts: [BindGroupLayout; 4],
     pub(crate) node_update_layout: BindGroupLayout,
     pub(crate) final_layout: BindGroupLayout,
     pub(crate) vbd_predict_layout: BindGroupLayout,
@@ -152,10 +157,25 @@ fn storage(binding: u32, read_only: bool) -> BindGroupLayoutEntry {
 impl ClothKernels {
     /// The kernels, in the order [`Self::from_parts`] takes them: `node_update`,
     /// `node_update_final`, `vbd_predict`, `vbd_solve`, `vbd_finish`, `apply_anchors`,
-    /// `normal_shader`.
+    /// `normal_shader`, `skin_vertices`, `fit_leaves`, `refit_nodes`, `refit_reach`.
     pub fn descriptors() -> [KernelDescriptor; KERNEL_COUNT] {
         let frame = entry(0, BufferBindingType::Uniform, false);
         let step = entry(1, BufferBindingType::Uniform, true);
+        let refit = |entry_point| KernelDescriptor {
+            entry_point,
+            file: "skin_refit.wgsl",
+            layout: vec![
+                entry(26, BufferBindingType::Uniform, true),
+                storage(27, true),
+                storage(28, true),
+                storage(29, false),
+                storage(30, true),
+                storage(31, true),
+                storage(32, true),
+                storage(33, false),
+                storage(34, false),
+            ],
+        };
         [
             KernelDescriptor {
                 entry_point: "node_update",
@@ -252,6 +272,10 @@ impl ClothKernels {
                     entry(24, BufferBindingType::Uniform, true),
                 ],
             },
+            refit("skin_vertices"),
+            refit("fit_leaves"),
+            refit("refit_nodes"),
+            refit("refit_reach"),
         ]
     }
 
@@ -299,7 +323,8 @@ impl ClothKernels {
     /// Kernels compiled elsewhere (by an engine's pipeline cache, from [`Self::descriptors`]):
     /// the pipelines and their bind group layouts, in the order of [`Self::descriptors`].
     pub fn from_parts(pipelines: [ComputePipeline; KERNEL_COUNT], layouts: [BindGroupLayout; KERNEL_COUNT]) -> Self {
-        let [node_update, node_update_final, vbd_predict, vbd_solve, vbd_finish, anchors, normal] = pipelines;
+        let [node_update, node_update_final, vbd_predict, vbd_solve, vbd_finish, anchors, normal, r0, r1, r2, r3] =
+            pipelines;
         let [
             node_update_layout,
             final_layout,
@@ -308,6 +333,10 @@ impl ClothKernels {
             vbd_finish_layout,
             anchors_layout,
             normal_layout,
+            l0,
+            l1,
+            l2,
+            l3,
         ] = layouts;
         Self {
             node_update,
@@ -317,6 +346,8 @@ impl ClothKernels {
             vbd_finish,
             anchors,
             normal,
+            refit: [r0, r1, r2, r3],
+            refit_layouts: [l0, l1, l2, l3],
             node_update_layout,
             final_layout,
             vbd_predict_layout,

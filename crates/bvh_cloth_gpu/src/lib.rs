@@ -18,6 +18,7 @@
 //! |---|---|
 //! | [`ClothKernels`] | the compiled pipelines and their bind group layouts (one per device) |
 //! | [`GpuColliders`] | every collider's frame, nodes and spheres |
+//! | [`SkinRefit`] | a skinned collider's spheres and boxes refitted on the device from its joint matrices |
 //! | [`ClothBatch`] | every cloth's particles, shapes and constants in shared buffers; encodes the ticks of all of them and each one's writeback |
 //! | [`FaultReadback`] | reads a cloth's count of quarantined particles without stalling |
 //! | [`ParticleReadback`] | reads a cloth's positions and velocities without stalling |
@@ -30,6 +31,7 @@ mod colliders;
 pub mod headless;
 mod kernels;
 mod readback;
+mod skin_refit;
 
 pub use batch::{ClothBatch, ClothId, Kernel};
 pub use colliders::GpuColliders;
@@ -38,4 +40,5 @@ pub use kernels::{
     shader_source,
 };
 pub use readback::{FaultReadback, ParticleReadback};
+pub use skin_refit::SkinRefit;
 pub use wgpu;

@@ -6,8 +6,9 @@ use core::mem::{offset_of, size_of};
 
 use bvh_cloth_core::gpu_layout::{
     GpuBatchCloth, GpuBatchFrame, GpuBatchStep, GpuBatchWriteback, GpuCollider, GpuColourPass, GpuMeshWriteback,
-    GpuParticle, GpuWritebackGroup,
+    GpuParticle, GpuRefitParams, GpuSkinVertex, GpuWritebackGroup,
 };
+use bvh_cloth_core::skinning::SkinPoint;
 use bvh_cloth_core::{BvhNode, Sphere, Vec3};
 use bvh_cloth_gpu::{SHADER_FILES, shader_source};
 use naga::valid::{Capabilities, ValidationFlags, Validator};
@@ -53,12 +54,25 @@ fn wgsl_is_valid() {
             "vbd_solve",
             "vbd_finish",
             "apply_anchors",
-            "normal_shader"
+            "normal_shader",
+            "skin_vertices",
+            "fit_leaves",
+            "refit_nodes",
+            "refit_reach"
         ]
     );
     for entry in &module.entry_points {
-        assert_eq!(entry.workgroup_size, [8, 8, 1], "{} runs 8x8x1 workgroups", entry.name);
+        // The refit's kernels run one row of 64 threads.
+        let size = if entry.name.contains("refit") || entry.name.ends_with("_leaves") || entry.name.starts_with("skin")
+        {
+            [64, 1, 1]
+        } else {
+            [8, 8, 1]
+        };
+        assert_eq!(entry.workgroup_size, size, "{} runs {size:?} workgroups", entry.name);
     }
+    let descriptors: Vec<&str> = bvh_cloth_gpu::ClothKernels::descriptors().iter().map(|k| k.entry_point).collect();
+    assert_eq!(descriptors, entry_points, "one descriptor per entry point, in order");
 }
 
 #[test]
@@ -137,6 +151,30 @@ fn wgsl_structs_match_the_rust_layouts() {
         GpuMeshWriteback,
         [local_from_world, normal_from_world, first_word, stride_words, position_word, normal_word]
     );
+    assert_layout!(
+        &module,
+        "RefitParams",
+        GpuRefitParams,
+        [vertex_count, leaf_count, node_offset, sphere_offset, level_start, level_count, collider, clearance]
+    );
+    let (size, members) = wgsl_layout(&module, "GpuSkinVertex");
+    assert_eq!(size as usize, size_of::<GpuSkinVertex>(), "size of GpuSkinVertex");
+    let rust = [
+        ("position", offset_of!(GpuSkinVertex, position)),
+        ("joints_low", offset_of!(GpuSkinVertex, joints_low)),
+        ("weights", offset_of!(GpuSkinVertex, weights)),
+        ("joints_high", offset_of!(GpuSkinVertex, joints_high)),
+    ];
+    assert_eq!(
+        members.iter().map(|(n, o)| (n.as_str(), *o as usize)).collect::<Vec<_>>(),
+        rust,
+        "members of GpuSkinVertex (the Rust struct's padding ends it)"
+    );
+    // A point: three vertex indices, then two barycentric weights.
+    let (size, members) = wgsl_layout(&module, "SkinPoint");
+    assert_eq!(size as usize, size_of::<SkinPoint>());
+    assert_eq!(members.iter().map(|m| m.1 as usize).collect::<Vec<_>>(), [0, 4, 8, 12, 16]);
+    assert_eq!((offset_of!(SkinPoint, vertices), offset_of!(SkinPoint, weights)), (0, 12));
     // Nodes and spheres share one array of vec4<f32>: a node is two (box minimum and left
     // child, box maximum and right child), a sphere one (centre and radius).
     assert_eq!(size_of::<BvhNode>(), 32);

@@ -5,7 +5,7 @@
 //! Without an adapter these tests pass with a note, unless `BVH_CLOTH_REQUIRE_GPU` is set (as
 //! `.ci/run` sets it), where a missing adapter fails them.
 
-use bvh_cloth_core::gpu_layout::{GpuMeshWriteback, GpuParticle, load_gpu_particles};
+use bvh_cloth_core::gpu_layout::{GpuCollider, GpuMeshWriteback, GpuParticle, load_gpu_particles};
 use bvh_cloth_core::obj::parse_obj;
 use std::sync::Arc;
 
@@ -15,7 +15,7 @@ use bvh_cloth_core::{
 };
 use bvh_cloth_gpu::wgpu::util::DeviceExt;
 use bvh_cloth_gpu::wgpu::{self, Device, Queue};
-use bvh_cloth_gpu::{ClothBatch, ClothId, ClothKernels, FaultReadback, GpuColliders, Kernel, headless};
+use bvh_cloth_gpu::{ClothBatch, ClothId, ClothKernels, FaultReadback, GpuColliders, Kernel, SkinRefit, headless};
 
 struct Rig {
     device: Device,
@@ -619,6 +619,137 @@ fn a_skinned_collider_rewritten_in_place_agrees_with_the_cpu() {
     // The leaning bunny holds the cloth up, and a different layout is refused.
     assert!(centroid(&g).y > 0.3, "the cloth fell past the collider: centroid {}", centroid(&g));
     assert!(!gpu_colliders.rewrite_trees(&rig.queue, &[bunny(3)], &[0]));
+}
+
+/// The low bunny's pose `k` of a sway: its upper half turned about z around a point at mid
+/// height, by up to 0.4 rad, and the whole lifted and scaled by up to 10%.
+fn bunny_sway(t: f32) -> [Affine3A; 2] {
+    let pivot = Vec3::new(0.0, 0.5, 0.0);
+    let lean = Affine3A::from_translation(pivot)
+        * Affine3A::from_rotation_z(0.4 * (2.0 * t).sin())
+        * Affine3A::from_translation(-pivot);
+    let whole = Affine3A::from_scale_rotation_translation(
+        Vec3::splat(1.0 + 0.1 * t.sin().abs()),
+        Quat::from_rotation_y(0.5 * t),
+        Vec3::new(0.1 * t.sin(), 0.05 * t, 0.0),
+    );
+    [whole, whole * lean]
+}
+
+/// Refits a skinned collider on the GPU (`SkinRefit`: skin, fit, refit level by level, reach),
+/// `k`-th of a set after a static bunny so that its tree is not first in the buffer.
+fn gpu_refit(rig: &Rig, colliders: &mut [Collider; 2], refit: &SkinRefit, pose: &[Affine3A]) {
+    let clearance = colliders[1].accept_skin_pose(pose).unwrap().expect("a skinned collider");
+    refit.write_pose(&rig.queue, pose, clearance);
+    let mut encoder = rig.device.create_command_encoder(&Default::default());
+    {
+        let mut pass = encoder.begin_compute_pass(&Default::default());
+        refit.encode(&mut pass, &rig.kernels);
+    }
+    rig.queue.submit([encoder.finish()]);
+}
+
+/// A skinned collider refitted on the GPU from its joint matrices alone gives the CPU's refit:
+/// at six poses of a sway (bent, turned, lifted and scaled), every sphere's centre and radius
+/// and every box's corners within 1e-5 m of the CPU's (`SkinnedSpheres::refit`; the two sum the
+/// same points in the same order, so only rounding differs), the contact reach within 1e-6 m,
+/// and the static collider before it untouched (bit-equal). Then a cloth falls on the swaying
+/// collider refitted on the GPU every tick, against the CPU stepping with the CPU's refit, with
+/// the tolerances of the in-place test above and no GPU particle inside.
+#[test]
+fn a_skinned_collider_refitted_on_the_gpu_matches_the_cpu_refit() {
+    let Some(rig) = rig() else { return };
+    let mut colliders = [bunny(3), skinned_bunny(5)];
+    let ColliderShape::Spheres { lbvh: bind_tree, skin: Some(skin), .. } = &colliders[1].shape else {
+        panic!("a skinned collider")
+    };
+    let mut refit = SkinRefit::new(&rig.device, skin, bind_tree).unwrap();
+    let levels = refit.dispatches() - 3;
+    colliders[1].accept_skin_pose(&[Affine3A::IDENTITY; 2]).unwrap();
+    let gpu = GpuColliders::new(&rig.device, &colliders);
+    assert!(refit.bind(&rig.device, &rig.kernels, &gpu, 1), "the skinned tree is on the device");
+    let (frames_buffer, tree_buffer) = gpu.buffers();
+    let before: Vec<[f32; 4]> = headless::read(&rig.device, &rig.queue, tree_buffer);
+    let static_tree = colliders[0].lbvh().unwrap().clone();
+    let static_words = 2 * static_tree.nodes.len();
+    let (node_offset, sphere_offset) = gpu.tree_offsets(1).unwrap();
+    let mut scratch = SkinScratch::default();
+    let (mut worst_sphere, mut worst_box, mut worst_reach) = (0.0f32, 0.0f32, 0.0f32);
+    for k in 0..6 {
+        let pose = bunny_sway(0.4 * k as f32);
+        gpu_refit(&rig, &mut colliders, &refit, &pose);
+        let mut cpu = colliders[1].clone();
+        cpu.pose_skin(&pose, &mut scratch).unwrap();
+        let want = cpu.lbvh().unwrap();
+        let words: Vec<[f32; 4]> = headless::read(&rig.device, &rig.queue, tree_buffer);
+        for (j, s) in want.spheres.iter().enumerate() {
+            let got = words[sphere_offset as usize + j];
+            let gap = (Vec3::from_slice(&got[..3]) - s.centre()).abs().max_element().max((got[3] - s.radius).abs());
+            worst_sphere = worst_sphere.max(gap);
+        }
+        for (j, node) in want.nodes.iter().enumerate() {
+            let (lo, hi) = (words[2 * (node_offset as usize + j)], words[2 * (node_offset as usize + j) + 1]);
+            let gap = (Vec3::from_slice(&lo[..3]) - Vec3::from(node.aabb_min))
+                .abs()
+                .max(Vec3::from_slice(&hi[..3]) - Vec3::from(node.aabb_max))
+                .abs()
+                .max_element();
+            worst_box = worst_box.max(gap);
+            assert_eq!((lo[3].to_bits(), hi[3].to_bits()), (node.left, node.right), "node {j}'s children are kept");
+        }
+        let frames: Vec<GpuCollider> = headless::read(&rig.device, &rig.queue, frames_buffer);
+        let reach = bvh_cloth_core::collision::ColliderFrame::new(&cpu).unwrap().contact_reach;
+        worst_reach = worst_reach.max((frames[1].contact_reach - reach).abs());
+        // The static tree (its nodes first in the buffer, its spheres first after the nodes).
+        assert_eq!(&words[..static_words], &before[..static_words], "the static bunny's nodes are untouched");
+        let spheres_at = 2 * (static_tree.nodes.len() + want.nodes.len());
+        assert_eq!(
+            &words[spheres_at..spheres_at + static_tree.spheres.len()],
+            &before[spheres_at..spheres_at + static_tree.spheres.len()],
+            "the static bunny's spheres are untouched"
+        );
+    }
+    eprintln!(
+        "GPU refit ({} spheres, {levels} levels) against the CPU's: spheres {worst_sphere:e} m, boxes {worst_box:e} m, \
+         reach {worst_reach:e} m",
+        refit_leaves(&colliders[1])
+    );
+    assert!(worst_sphere < 1e-5 && worst_box < 1e-5, "the GPU refit is not the CPU's");
+    assert!(worst_reach < 1e-6, "the contact reach does not follow the refit");
+
+    // A cloth on it, 150 ticks.
+    let params = ClothParams { damping: 1.0, integrator: Integrator::Rk4, ..Default::default() };
+    let mut cpu = grid_cloth(square(1.4, 40), params, Affine3A::from_translation(Vec3::new(0.0, 1.3, 0.0)), &[]);
+    let mut cpu_colliders = colliders.clone();
+    let mut cloth = rig.cloth(&cpu, 1.0 / 60.0);
+    let mut gpu = gpu;
+    for tick in 0..150 {
+        let pose = bunny_sway(tick as f32 / 100.0);
+        cpu_colliders[1].pose_skin(&pose, &mut scratch).unwrap();
+        gpu.update_frames(&rig.queue, &colliders);
+        gpu_refit(&rig, &mut colliders, &refit, &pose);
+        cpu.tick(1.0 / 60.0, &cpu_colliders);
+        rig.ticks(&mut cloth, &gpu, 1);
+    }
+    let (c, g) = (cpu.positions(), gpu_positions(&rig, &cloth));
+    eprintln!(
+        "swaying skinned bunny refitted on the GPU, tick 150: centroid gap {:e} m, lowest {} vs {}",
+        centroid(&c).distance(centroid(&g)),
+        lowest(&c),
+        lowest(&g)
+    );
+    assert!(centroid(&c).distance(centroid(&g)) < 0.02);
+    assert!((lowest(&c) - lowest(&g)).abs() < 0.03);
+    let inside = g.iter().filter(|&&p| cpu_colliders[1].contains(p)).count();
+    assert_eq!(inside, 0, "{inside} GPU particles inside the skinned collider");
+    assert!(centroid(&g).y > 0.3, "the cloth fell past the collider: centroid {}", centroid(&g));
+    // A tree of another size is not bound.
+    let other = GpuColliders::new(&rig.device, &[bunny(3), bunny(4)]);
+    assert!(!refit.bind(&rig.device, &rig.kernels, &other, 1) && !refit.is_bound());
+}
+
+fn refit_leaves(collider: &Collider) -> usize {
+    collider.lbvh().map_or(0, |tree| tree.spheres.len())
 }
 
 /// A flag built as an artist exports one: `cols x rows` points over `width x height` metres in
