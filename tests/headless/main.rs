@@ -13,3 +13,5 @@ mod parameters;
 mod primitives;
 mod schedule;
 mod skinned;
+#[path = "../common/skinned_arm.rs"]
+mod skinned_arm;

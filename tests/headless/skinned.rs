@@ -1,125 +1,12 @@
 //! AutoCollider on a skinned mesh: the collider follows the joints as the animation moves them,
 //! checked against the skinned triangles themselves; bad skins and despawned joints.
 
-use bevy::asset::RenderAssetUsages;
-use bevy::math::Affine3A;
-use bevy::mesh::skinning::{SkinnedMesh, SkinnedMeshInverseBindposes};
-use bevy::mesh::{Indices, PrimitiveTopology};
 use bevy::prelude::*;
-use bevy_bvh_cloth::bvh_cloth_core::skinning::SkinnedVertices;
 use bevy_bvh_cloth::prelude::*;
 use bevy_bvh_cloth::{ClothCollider, ColliderFailure};
 
-use crate::harness::{add_mesh, app, positions, run, sent, wait_for_collider};
-
-const LENGTH: f32 = 1.2;
-const RADIUS: f32 = 0.12;
-const ELBOW: f32 = 0.6;
-
-/// Positions, indices, joints and weights.
-type SkinnedArm = (Vec<[f32; 3]>, Vec<u32>, Vec<[u16; 4]>, Vec<[f32; 4]>);
-
-/// A closed arm along +x from the origin: a 16-sided tube of `LENGTH` with capped ends. The part
-/// before the elbow is on joint 0, the part after it on joint 1, blended over 20 cm.
-fn arm() -> SkinnedArm {
-    let (rings, slices) = (30u32, 16u32);
-    let mut positions = Vec::new();
-    let mut weights = Vec::new();
-    let weight = |x: f32| ((x - (ELBOW - 0.1)) / 0.2).clamp(0.0, 1.0);
-    for i in 0..=rings {
-        let x = LENGTH * i as f32 / rings as f32;
-        for j in 0..slices {
-            let angle = std::f32::consts::TAU * j as f32 / slices as f32;
-            positions.push([x, RADIUS * angle.cos(), RADIUS * angle.sin()]);
-            weights.push([1.0 - weight(x), weight(x), 0.0, 0.0]);
-        }
-    }
-    let mut indices = Vec::new();
-    for i in 0..rings {
-        for j in 0..slices {
-            let a = i * slices + j;
-            let b = i * slices + (j + 1) % slices;
-            let (c, d) = (a + slices, b + slices);
-            indices.extend_from_slice(&[a, b, c, b, d, c]);
-        }
-    }
-    // The caps: a centre vertex at each end.
-    for (ring, x) in [(0, 0.0), (rings, LENGTH)] {
-        let centre = positions.len() as u32;
-        positions.push([x, 0.0, 0.0]);
-        weights.push([1.0 - weight(x), weight(x), 0.0, 0.0]);
-        for j in 0..slices {
-            let (a, b) = (ring * slices + j, ring * slices + (j + 1) % slices);
-            indices.extend_from_slice(&[centre, a, b]);
-        }
-    }
-    let joints = vec![[0, 1, 0, 0]; positions.len()];
-    (positions, indices, joints, weights)
-}
-
-fn arm_mesh() -> Mesh {
-    let (positions, indices, joints, weights) = arm();
-    Mesh::new(PrimitiveTopology::TriangleList, RenderAssetUsages::default())
-        .with_inserted_attribute(Mesh::ATTRIBUTE_POSITION, positions)
-        .with_inserted_attribute(Mesh::ATTRIBUTE_JOINT_INDEX, bevy::mesh::VertexAttributeValues::Uint16x4(joints))
-        .with_inserted_attribute(Mesh::ATTRIBUTE_JOINT_WEIGHT, weights)
-        .with_inserted_indices(Indices::U32(indices))
-}
-
-/// A shoulder joint at `at` and an elbow joint under it, a skinned arm mesh on them with an
-/// `AutoCollider`; returns (arm, shoulder, elbow).
-fn spawn_arm(app: &mut App, mesh: Mesh, at: Vec3) -> (Entity, Entity, Entity) {
-    let mesh = add_mesh(app, mesh);
-    let inverse = app
-        .world_mut()
-        .resource_mut::<Assets<SkinnedMeshInverseBindposes>>()
-        .add(vec![Mat4::IDENTITY, Mat4::from_translation(Vec3::new(-ELBOW, 0.0, 0.0))]);
-    let shoulder = app.world_mut().spawn(Transform::from_translation(at)).id();
-    let elbow = app.world_mut().spawn((Transform::from_xyz(ELBOW, 0.0, 0.0), ChildOf(shoulder))).id();
-    let arm = app
-        .world_mut()
-        .spawn((
-            Mesh3d(mesh),
-            SkinnedMesh { inverse_bindposes: inverse, joints: vec![shoulder, elbow] },
-            AutoCollider { margin: 0.01, ..AutoCollider::with_voxel_size(0.06) },
-        ))
-        .id();
-    (arm, shoulder, elbow)
-}
-
-/// The arm's triangles as the renderer draws them this frame.
-fn skinned_triangles(app: &App, shoulder: Entity, elbow: Entity) -> Vec<[Vec3; 3]> {
-    let (positions, indices, joints, weights) = arm();
-    let vertices = SkinnedVertices { positions: positions.iter().map(|&p| Vec3A::from(p)).collect(), joints, weights };
-    let global = |e: Entity| app.world().get::<GlobalTransform>(e).unwrap().affine();
-    let matrices = [global(shoulder), global(elbow) * Affine3A::from_translation(Vec3::new(-ELBOW, 0.0, 0.0))];
-    let mut skinned = Vec::new();
-    vertices.skin_into(&matrices, &mut skinned);
-    indices.chunks_exact(3).map(|t| [0, 1, 2].map(|k| Vec3::from(skinned[t[k] as usize]))).collect()
-}
-
-/// Whether `p` is inside the closed triangle mesh: the parity of a ray's crossings.
-fn inside(p: Vec3, triangles: &[[Vec3; 3]]) -> bool {
-    let dir = Vec3::new(0.1234, 1.0, 0.0457).normalize();
-    let crossings = triangles
-        .iter()
-        .filter(|[a, b, c]| {
-            // Möller–Trumbore.
-            let (e1, e2) = (*b - *a, *c - *a);
-            let h = dir.cross(e2);
-            let det = e1.dot(h);
-            if det.abs() < 1e-12 {
-                return false;
-            }
-            let s = p - *a;
-            let u = s.dot(h) / det;
-            let q = s.cross(e1);
-            let v = dir.dot(q) / det;
-            u >= 0.0 && v >= 0.0 && u + v <= 1.0 && e2.dot(q) / det > 0.0
-        })
-        .count();
-    crossings % 2 == 1
-}
+use crate::harness::{app, positions, run, sent, wait_for_collider};
+use crate::skinned_arm::{RADIUS, arm, arm_mesh, inside, skinned_triangles, spawn_arm};
 
 /// A cloth dropped on an arm that then swings at the shoulder and bends at the elbow for 10 s:
 /// after every tick no particle is inside the skinned body (the parity test against the triangles the

@@ -31,6 +31,9 @@ use bevy::window::ExitCondition;
 use bevy::winit::WinitPlugin;
 use bevy_bvh_cloth::prelude::*;
 
+#[path = "../common/skinned_arm.rs"]
+mod skinned_arm;
+
 const WIDTH: u32 = 320;
 const HEIGHT: u32 = 240;
 const CLOTH: Color = Color::srgb(0.0, 0.0, 1.0);
@@ -450,6 +453,54 @@ fn the_gpu_backend_runs_every_tick_of_a_fixed_schedule() {
     );
     assert_eq!(ran + late, ticks, "the cloth ran {ran} ticks and is {late} behind {ticks} since it spawned");
     assert!(gap < 1e-4, "the read-back state is not the core's after {ran} ticks ({gap} m)");
+}
+
+/// On the GPU backend a skinned collider is refitted on the GPU from its joint matrices: a
+/// cloth lands on an arm that is then lifted 0.4 m and bent at the elbow, and the state read
+/// back lies on the lifted arm with no particle inside its skinned triangles. (Unrefitted, the
+/// collider would sit at the mesh's origin in its bind pose, and the cloth would fall through
+/// the arm.) Then with the debug view on, the main world refits it on the CPU and writes the
+/// tree in place instead; the arm is lowered and the cloth still rests on it.
+#[test]
+fn the_gpu_backend_refits_a_skinned_collider() {
+    use skinned_arm::{RADIUS, arm_mesh, inside, skinned_triangles, spawn_arm};
+    let Some(mut app) = gpu_backend_app() else { return };
+    let (arm, shoulder, elbow) = spawn_arm(&mut app, arm_mesh(), Vec3::new(-0.6, 1.0, 0.0));
+    let cloth = app
+        .world_mut()
+        .spawn((
+            Cloth {
+                params: ClothParams { damping: 1.0, ..default() },
+                ..Cloth::grid(Vec2::splat(1.0), UVec2::splat(20))
+            },
+            Transform::from_xyz(-0.3, 1.3, 0.0),
+            ClothReadback::default(),
+        ))
+        .id();
+    let check = |app: &mut App, frames: u32, pose: &dyn Fn(f32) -> (f32, f32)| -> f32 {
+        for frame in 0..frames {
+            let (lift, bend) = pose((frame as f32 / 60.0).min(1.0));
+            app.world_mut().get_mut::<Transform>(shoulder).unwrap().translation.y = 1.0 + lift;
+            app.world_mut().get_mut::<Transform>(elbow).unwrap().rotation = Quat::from_rotation_z(bend);
+            app.update();
+        }
+        assert!(app.world().get::<ClothReadback>(cloth).unwrap().ticks_late.is_some(), "a state arrived");
+        let triangles = skinned_triangles(app, shoulder, elbow);
+        let p = app.world().get::<ClothSimulation>(cloth).unwrap().sim().positions().to_vec();
+        let bad = p.iter().filter(|&&q| inside(q, &triangles)).count();
+        assert_eq!(bad, 0, "{bad} particles read back inside the arm");
+        p.iter().map(|q| q.y).fold(f32::MIN, f32::max)
+    };
+    // Landing, then the lift and bend over a second, then half a second held.
+    check(&mut app, 60, &|_| (0.0, 0.0));
+    let top = check(&mut app, 90, &|t| (0.4 * t, 0.4 * t));
+    eprintln!("skinned arm lifted on the GPU backend: the cloth's highest particle at {top:.3} m");
+    assert!(top > 1.4 + RADIUS, "the cloth was not lifted with the arm (highest particle at {top} m)");
+    app.world_mut().resource_mut::<ClothSettings>().debug_view = true;
+    let top = check(&mut app, 90, &|t| (0.4 - 0.2 * t, 0.4));
+    eprintln!("lowered with the debug view on (CPU refit): highest particle at {top:.3} m");
+    assert!(top > 1.2 + RADIUS && top < 1.4 + RADIUS, "the cloth did not follow the arm down ({top} m)");
+    assert!(matches!(app.world().get::<ColliderStatus>(arm), Some(ColliderStatus::Ready { .. })));
 }
 
 /// On the GPU backend a row anchored to another entity rides it: after the target has swung

@@ -18,10 +18,12 @@ use bevy::tasks::{AsyncComputeTaskPool, Task, block_on, poll_once};
 use bvh_cloth_core::skinning::largest_scale;
 use bvh_cloth_core::{Affine3A, Collider, ColliderPose, SkinScratch, Voxels};
 
+use crate::backend::ActiveClothBackend;
 use crate::collider_mesh::{ColliderFailure, TriangleList};
 use crate::events::ColliderReady;
 use crate::messages::ClothMessage;
 use crate::primitive_collider::PrimitiveCollider;
+use crate::settings::ClothSettings;
 
 /// Meshes with at least this many vertices are voxelised on the async compute pool.
 pub const ASYNC_BUILD_MIN_VERTICES: usize = 20_000;
@@ -139,6 +141,9 @@ pub struct ClothCollider {
     skin_posed: bool,
     /// A skinned collider's pose problem, said once until it clears.
     skin_warning: Option<String>,
+    /// A skinned collider's last accepted joint matrices and the clearance they give, when the
+    /// render world refits it on the GPU instead of this copy being refitted.
+    gpu_skin_pose: Option<(Vec<Affine3A>, f32)>,
 }
 
 impl ClothCollider {
@@ -149,13 +154,24 @@ impl ClothCollider {
             skin_scratch: SkinScratch::default(),
             skin_posed: false,
             skin_warning: None,
+            gpu_skin_pose: None,
         }
     }
 
     /// The collider: its shape (a sphere tree in the mesh's local frame, or a primitive), its
     /// margin and its pose.
+    ///
+    /// A skinned collider's spheres follow its joints. On the GPU backend the render world
+    /// refits them on the GPU, and this copy is refitted as well only while
+    /// [`ClothSettings::debug_view`](crate::ClothSettings::debug_view) draws it; otherwise it
+    /// keeps the spheres of its bind pose (or of the last pose it was refitted to).
     pub fn collider(&self) -> &Collider {
         &self.collider
+    }
+
+    /// A skinned collider's joint matrices and clearance for a refit on the GPU.
+    pub(crate) fn gpu_skin_pose(&self) -> Option<&(Vec<Affine3A>, f32)> {
+        self.gpu_skin_pose.as_ref()
     }
 }
 
@@ -419,7 +435,12 @@ pub(crate) fn update_collider_poses(
     )>,
     skins: Skins,
     mut matrices: Local<Vec<Affine3A>>,
+    backend: Res<ActiveClothBackend>,
+    settings: Res<ClothSettings>,
 ) {
+    // On the GPU backend the render world refits skinned colliders; the copy here is refitted
+    // too only while the debug view draws it.
+    let refit_here = *backend != ActiveClothBackend::Gpu || settings.debug_view;
     for (entity, source, transform, skinned, mut built, mut status) in &mut colliders {
         let (margin, friction) = match source {
             (Some(auto), _) => (auto.margin, auto.friction),
@@ -433,7 +454,7 @@ pub(crate) fn update_collider_poses(
             let built = built.bypass_change_detection();
             built.collider.margin = margin;
             built.collider.friction = friction;
-            pose_skinned(entity, &pose, built, &mut matrices);
+            pose_skinned(entity, &pose, built, &mut matrices, refit_here);
             if built.skin_posed {
                 continue;
             }
@@ -460,12 +481,31 @@ pub(crate) fn update_collider_poses(
     }
 }
 
-/// Moves a skinned collider to its joints' pose; a pose that cannot be read (a despawned
+/// Moves a skinned collider to its joints' pose: refitted here when `refit_here`, otherwise
+/// accepted and kept for the render world's refit. A pose that cannot be read (a despawned
 /// joint, a non-finite matrix) keeps the last one and is said once.
-fn pose_skinned(entity: Entity, pose: &SkinPose<'_, '_, '_>, built: &mut ClothCollider, matrices: &mut Vec<Affine3A>) {
+fn pose_skinned(
+    entity: Entity,
+    pose: &SkinPose<'_, '_, '_>,
+    built: &mut ClothCollider,
+    matrices: &mut Vec<Affine3A>,
+    refit_here: bool,
+) {
     let outcome = match pose.matrices(matrices) {
         Err((k, joint)) => Err(format!("joint {k} ({joint}) has no GlobalTransform (was it despawned?)")),
-        Ok(()) => built.collider.pose_skin(matrices, &mut built.skin_scratch).map_err(|error| error.to_string()),
+        Ok(()) if refit_here => {
+            built.gpu_skin_pose = None;
+            built.collider.pose_skin(matrices, &mut built.skin_scratch).map_err(|error| error.to_string())
+        }
+        Ok(()) => match built.collider.accept_skin_pose(matrices) {
+            Ok(clearance) => {
+                let kept = built.gpu_skin_pose.get_or_insert_with(Default::default);
+                kept.0.clone_from(matrices);
+                kept.1 = clearance.unwrap_or_default();
+                Ok(())
+            }
+            Err(error) => Err(error.to_string()),
+        },
     };
     match outcome {
         Ok(()) => {

@@ -46,9 +46,10 @@ use bevy::render::renderer::{RenderContext, RenderDevice, RenderGraph, RenderQue
 use bevy::render::{Extract, ExtractSchedule, MainWorld, Render, RenderSystems};
 use bevy::shader::Shader;
 use bvh_cloth_core::gpu_layout::GpuMeshWriteback;
-use bvh_cloth_core::{Affine3A, ClothParams, ClothSim, Collider, Lbvh};
+use bvh_cloth_core::{Affine3A, ClothParams, ClothSim, Collider, Lbvh, SkinnedSpheres};
 use bvh_cloth_gpu::{
     ClothBatch, ClothId, ClothKernels, FaultReadback, GpuColliders, KERNEL_COUNT, ParticleReadback, SHADER_FILES,
+    SkinRefit, wgpu,
 };
 
 use crate::clock::ClothClock;
@@ -244,7 +245,26 @@ pub(crate) struct GpuClothWorld {
     extracted_colliders: Vec<Collider>,
     /// Their entities, in the same order.
     collider_entities: Vec<Entity>,
+    /// Each extracted collider's joint matrices and clearance, when it is skinned and refitted
+    /// here on the GPU.
+    extracted_skin_poses: Vec<Option<(Vec<Affine3A>, f32)>>,
+    /// The skinned colliders refitted on the GPU this frame, keyed by their (shared) skins.
+    skin_refits: Vec<GpuSkin>,
+    /// Skins whose refit the device refused, said once.
+    refused_skins: Vec<Arc<SkinnedSpheres>>,
 }
+
+/// A skinned collider refitted on the GPU: its skin, its refit, and where the refit was bound
+/// (the collider's index, its tree's offsets and its frame).
+struct GpuSkin {
+    skin: Arc<SkinnedSpheres>,
+    refit: SkinRefit,
+    bound: Option<SkinPlace>,
+}
+
+/// Where a skinned collider's refit is bound: the collider's index, its tree's node and sphere
+/// offsets, and its frame.
+type SkinPlace = (usize, Option<(u32, u32)>, Option<u32>);
 
 /// What [`extract_cloths`] reads of each cloth entity.
 type ClothToExtract = (Entity, &'static ClothSimulation, &'static GlobalTransform, &'static Mesh3d, Has<ClothReadback>);
@@ -256,6 +276,9 @@ fn extract_cloths(
     cloths: Extract<Query<ClothToExtract>>,
     colliders: Extract<Query<(Entity, &ClothCollider)>>,
 ) {
+    world.extracted_skin_poses.clear();
+    let poses = colliders.iter().map(|(_, c)| c.gpu_skin_pose().cloned());
+    world.extracted_skin_poses.extend(poses);
     world.ticks = render_ticks.ticks;
     world.total_ticks = clock.total_ticks;
     world.tick_seconds = clock.tick_seconds;
@@ -377,6 +400,7 @@ fn prepare_cloths(
             *slot = Some((trees, gpu));
         }
     }
+    prepare_skin_refits(world, device, &queue, !rewritten);
     let batch = world.batch.get_or_insert_with(|| ClothBatch::new(device, &queue));
 
     // Cloths that are gone leave the batch.
@@ -453,6 +477,52 @@ fn prepare_cloths(
     }
 }
 
+/// Makes a refit for every skinned collider the main world left to the GPU (reusing last
+/// frame's for the same skin), binds it where its tree now lies (again whenever the collider
+/// buffers were rebuilt, `rebuilt`, or it moved), and uploads its pose. Refits of skins no
+/// longer extracted are dropped.
+fn prepare_skin_refits(world: &mut GpuClothWorld, device: &wgpu::Device, queue: &wgpu::Queue, rebuilt: bool) {
+    let (Some(kernels), Some((_, colliders))) = (&world.kernels, &world.colliders) else { return };
+    let mut refits = Vec::with_capacity(world.skin_refits.len());
+    let mut previous = std::mem::take(&mut world.skin_refits);
+    for (k, pose) in world.extracted_skin_poses.iter().enumerate() {
+        let Some((matrices, clearance)) = pose else { continue };
+        let collider = &world.extracted_colliders[k];
+        let (Some(skin), Some(tree)) = (collider.skin(), collider.lbvh()) else { continue };
+        let mut entry = match previous.iter().position(|g| Arc::ptr_eq(&g.skin, skin)) {
+            Some(at) => previous.swap_remove(at),
+            None => {
+                if world.refused_skins.iter().any(|refused| Arc::ptr_eq(refused, skin)) {
+                    continue;
+                }
+                match SkinRefit::new(device, skin, tree) {
+                    Ok(refit) => GpuSkin { skin: skin.clone(), refit, bound: None },
+                    Err(error) => {
+                        error!(
+                            "Skinned collider on {}: it cannot be refitted on this device ({error}); cloths \
+                             on the GPU meet it in its bind pose",
+                            world.collider_entities[k]
+                        );
+                        world.refused_skins.push(skin.clone());
+                        continue;
+                    }
+                }
+            }
+        };
+        let place = Some((k, colliders.tree_offsets(k), colliders.frame_index(k)));
+        if rebuilt || entry.bound != place {
+            entry.refit.bind(device, kernels, colliders, k);
+            entry.bound = place;
+        }
+        entry.refit.write_pose(queue, matrices, *clearance);
+        refits.push(entry);
+    }
+    world
+        .refused_skins
+        .retain(|refused| world.extracted_colliders.iter().any(|c| c.skin().is_some_and(|s| Arc::ptr_eq(s, refused))));
+    world.skin_refits = refits;
+}
+
 /// Uploads the frame's constants and anchor targets and makes the bind groups that changed,
 /// once every buffer is (re)allocated for the frame.
 fn prepare_cloth_bind_groups(mut world: ResMut<GpuClothWorld>, device: Res<RenderDevice>, queue: Res<RenderQueue>) {
@@ -467,6 +537,16 @@ fn prepare_cloth_bind_groups(mut world: ResMut<GpuClothWorld>, device: Res<Rende
 fn simulate_cloths(mut render_context: RenderContext, world: Res<GpuClothWorld>) {
     let (Some(kernels), Some(batch)) = (&world.kernels, &world.batch) else { return };
     let encoder = render_context.command_encoder();
+    // Skinned colliders first: the ticks meet them in this frame's pose.
+    if world.skin_refits.iter().any(|g| g.refit.is_bound()) {
+        let mut pass = encoder.begin_compute_pass(&wgpu::ComputePassDescriptor {
+            label: Some("bvh_cloth_skin_refit"),
+            timestamp_writes: None,
+        });
+        for skin in &world.skin_refits {
+            skin.refit.encode(&mut pass, kernels);
+        }
+    }
     batch.encode_ticks(encoder, kernels, world.ticks);
     for render in world.cloths.values() {
         render.faults.record(encoder, batch, render.id);

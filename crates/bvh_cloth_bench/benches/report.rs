@@ -36,7 +36,7 @@ use bvh_cloth_core::{
     Affine3A, ClothGrid, ClothParams, ClothSim, ClothTopology, Collider, ColliderPose, Integrator, Primitive, Quat,
     UVec2, Vec2, Vec3,
 };
-use bvh_cloth_gpu::{ClothBatch, ClothKernels, GpuColliders, Kernel, headless, wgpu};
+use bvh_cloth_gpu::{ClothBatch, ClothKernels, GpuColliders, Kernel, SkinRefit, headless, wgpu};
 use parry3d::math::Vector;
 use parry3d::query::{PointQuery, Ray, RayCast};
 use parry3d::shape::{TriMesh, TriMeshFlags};
@@ -114,7 +114,7 @@ fn main() {
         primitives(&meshes[0], gpu.as_ref());
     }
     if run("skinned_refit") {
-        skinned_refit(&meshes, &single);
+        skinned_refit(&meshes, &single, gpu.as_ref());
     }
     println!("\nCSV written to docs/benchmarks/ (plot: python3 scripts/plot_benchmarks.py)");
 }
@@ -885,10 +885,15 @@ fn primitives(bunny: &ObjMesh, gpu: Option<&Gpu>) {
 /// frame's collider update (skin the vertices the points use, fit every sphere to its points,
 /// refit the tree) against skinning every vertex of the mesh alone (what a renderer or a CPU
 /// skinning pass does), both on one thread, best of 15.
-fn skinned_refit(meshes: &[ObjMesh], single: &rayon::ThreadPool) {
-    println!("\n## Skinned colliders: one frame's refit against skinning the vertices, one thread\n");
-    println!("| model | vertices | n | spheres | points | skin vertices ms | refit ms | refit / skin | build ms |");
-    println!("|---|---|---|---|---|---|---|---|---|");
+fn skinned_refit(meshes: &[ObjMesh], single: &rayon::ThreadPool, gpu: Option<&Gpu>) {
+    println!(
+        "\n## Skinned colliders: one frame's refit against skinning the vertices, one thread; and the refit on the \
+         GPU (median of 15, timestamp queries around its pass)\n"
+    );
+    println!(
+        "| model | vertices | n | spheres | points | skin vertices ms | refit ms | refit / skin | build ms | GPU refit ms | GPU dispatches |"
+    );
+    println!("|---|---|---|---|---|---|---|---|---|---|---|");
     for (name, mesh) in MODELS.iter().zip(meshes) {
         let (joints, weights) = bone_weights(mesh);
         let skin = SkinRef { joints: &joints, weights: &weights, joint_count: BONES };
@@ -919,8 +924,11 @@ fn skinned_refit(meshes: &[ObjMesh], single: &rayon::ThreadPool) {
                 let refit_s = best_of(15, || posed.pose_skin(&pose, &mut scratch).expect("a valid pose"));
                 (skin_s, refit_s)
             });
+            let (gpu_ms, dispatches) = gpu
+                .and_then(|gpu| gpu_refit_ms(gpu, &collider, &pose))
+                .map_or(("—".to_string(), "—".to_string()), |(ms, d)| (format!("{ms:.4}"), d.to_string()));
             println!(
-                "| {name} | {} | {n} | {} | {} | {:.3} | {:.3} | {:.2}x | {:.1} |",
+                "| {name} | {} | {n} | {} | {} | {:.3} | {:.3} | {:.2}x | {:.1} | {gpu_ms} | {dispatches} |",
                 mesh.positions.len(),
                 collider.sphere_count(),
                 skinned.points.len(),
@@ -931,6 +939,61 @@ fn skinned_refit(meshes: &[ObjMesh], single: &rayon::ThreadPool) {
             );
         }
     }
+    if gpu.is_some_and(|g| g.software) {
+        println!("\nThe GPU here is a software adapter on the same CPU cores: its column is not a GPU figure.");
+    }
+}
+
+/// GPU ms of one refit of `collider` (skinned) to `pose` on the GPU (`SkinRefit`): the median of
+/// 15, each timed with timestamp queries at the start and end of the refit's compute pass; and
+/// the dispatches a refit records. `None` without timestamp queries.
+fn gpu_refit_ms(gpu: &Gpu, collider: &Collider, pose: &[Affine3A]) -> Option<(f64, usize)> {
+    if !gpu.device.features().contains(wgpu::Features::TIMESTAMP_QUERY) {
+        return None;
+    }
+    let mut collider = collider.clone();
+    let clearance = collider.accept_skin_pose(pose).ok()??;
+    let colliders = GpuColliders::new(&gpu.device, std::slice::from_ref(&collider));
+    let mut refit = SkinRefit::new(&gpu.device, collider.skin()?, collider.lbvh()?).ok()?;
+    if !refit.bind(&gpu.device, &gpu.kernels, &colliders, 0) {
+        return None;
+    }
+    refit.write_pose(&gpu.queue, pose, clearance);
+    let queries = gpu.device.create_query_set(&wgpu::QuerySetDescriptor {
+        label: None,
+        ty: wgpu::QueryType::Timestamp,
+        count: 2,
+    });
+    let resolved = gpu.device.create_buffer(&wgpu::BufferDescriptor {
+        label: None,
+        size: 16,
+        usage: wgpu::BufferUsages::QUERY_RESOLVE | wgpu::BufferUsages::COPY_SRC,
+        mapped_at_creation: false,
+    });
+    let period_ns = f64::from(gpu.queue.get_timestamp_period());
+    let samples = (0..16)
+        .map(|_| {
+            let mut encoder = gpu.device.create_command_encoder(&Default::default());
+            {
+                let mut pass = encoder.begin_compute_pass(&wgpu::ComputePassDescriptor {
+                    label: Some("bvh_cloth_skin_refit_timed"),
+                    timestamp_writes: Some(wgpu::ComputePassTimestampWrites {
+                        query_set: &queries,
+                        beginning_of_pass_write_index: Some(0),
+                        end_of_pass_write_index: Some(1),
+                    }),
+                });
+                refit.encode(&mut pass, &gpu.kernels);
+            }
+            encoder.resolve_query_set(&queries, 0..2, &resolved, 0);
+            gpu.queue.submit([encoder.finish()]);
+            let stamps: Vec<u64> = headless::read(&gpu.device, &gpu.queue, &resolved);
+            stamps[1].saturating_sub(stamps[0]) as f64 * period_ns * 1e-6
+        })
+        // The first refit warms the pipelines' caches.
+        .skip(1)
+        .collect();
+    Some((median(samples), refit.dispatches()))
 }
 
 /// Bones of the skinned-collider scenes.
