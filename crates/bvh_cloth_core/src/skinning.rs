@@ -24,9 +24,9 @@
 //!
 //! # Cost
 //!
-//! One frame skins the vertices the points use (four joints each, as Bevy and glTF do), places
-//! every point once (a vertex is one read, a corner a blend of three), and fits each sphere
-//! from its points' contiguous run. A corner that two triangles share (where a grid plane cuts
+//! One frame skins the vertices the points use (four joints each, as Bevy and glTF do), then
+//! for each sphere places its points (a vertex is one read, a corner a blend of three) and fits
+//! the sphere to them while they are in cache. A corner that two triangles share (where a grid plane cuts
 //! their common edge) is stored once. The report measures a frame against skinning the
 //! vertices alone.
 
@@ -126,8 +126,8 @@ pub struct SkinnedSpheres {
     pub counts: UVec3,
 }
 
-/// Scratch memory a refit reuses from frame to frame: the skinned vertices, and every point
-/// placed among them.
+/// Scratch memory a refit reuses from frame to frame: the skinned vertices, and one leaf's
+/// points placed among them.
 #[derive(Clone, Debug, Default)]
 pub struct SkinScratch {
     skinned: Vec<Vec3A>,
@@ -196,26 +196,24 @@ impl SkinnedSpheres {
         let clearance = self.check_pose(joint_matrices, lbvh)?;
         let matrices = &joint_matrices[..self.joint_count];
         self.vertices.skin_into(matrices, &mut scratch.skinned);
-        // Every point is placed once, into an array in leaf order, so that fitting reads each
-        // leaf's points from one contiguous run.
-        let SkinScratch { skinned, placed } = scratch;
-        placed.resize(self.points.len(), Vec3A::ZERO);
-        let parallel = self.points.len() >= PARALLEL_MIN;
-        let place_all = |(point, out): (&SkinPoint, &mut Vec3A)| *out = place(point, skinned);
-        if parallel {
-            self.points.par_iter().zip(placed.par_iter_mut()).with_min_len(PARALLEL_MIN / 4).for_each(place_all);
-        } else {
-            self.points.iter().zip(placed.iter_mut()).for_each(place_all);
-        }
-        let placed = &*placed;
-        let fit = |(k, sphere): (usize, &mut Sphere)| {
-            let points = &placed[self.leaf_starts[k] as usize..self.leaf_starts[k + 1] as usize];
-            *sphere = fit_sphere(points, clearance);
+        // Each leaf's points are placed into a small buffer and the sphere fitted from it while
+        // it is still in cache (the fit reads them twice).
+        let skinned = &scratch.skinned;
+        let fit = |k: usize, placed: &mut Vec<Vec3A>| {
+            let points = &self.points[self.leaf_starts[k] as usize..self.leaf_starts[k + 1] as usize];
+            placed.clear();
+            placed.extend(points.iter().map(|point| place(point, skinned)));
+            fit_sphere(placed, clearance)
         };
-        if parallel {
-            lbvh.spheres.par_iter_mut().enumerate().with_min_len(64).for_each(fit);
+        if self.points.len() >= PARALLEL_MIN {
+            lbvh.spheres
+                .par_iter_mut()
+                .enumerate()
+                .with_min_len(16)
+                .for_each_init(Vec::new, |placed, (k, sphere)| *sphere = fit(k, placed));
         } else {
-            lbvh.spheres.iter_mut().enumerate().for_each(fit);
+            let placed = &mut scratch.placed;
+            lbvh.spheres.iter_mut().enumerate().for_each(|(k, sphere)| *sphere = fit(k, placed));
         }
         lbvh.refit();
         Ok(())
