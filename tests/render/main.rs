@@ -351,6 +351,20 @@ fn gpu_cloths_spawned_changed_and_despawned_leave_no_gpu_resource() {
     assert_eq!(after, before, "GPU resources grew over 300 rounds");
 }
 
+/// The largest distance between `got` and the core's 12 x 12 cloth (1 m, damping 0.5) after
+/// `ticks` 60 Hz ticks of falling from 10 m, with no pins and no colliders.
+fn gap_to_core_fall(ticks: u64, got: &[Vec3]) -> f32 {
+    let grid = bvh_cloth_core::ClothGrid::new(Vec2::ONE, UVec2::splat(12));
+    let topology = std::sync::Arc::new(bvh_cloth_core::ClothTopology::grid(grid).unwrap());
+    let params = bvh_cloth_core::ClothParams { damping: 0.5, ..Default::default() };
+    let start = bvh_cloth_core::Affine3A::from_translation(Vec3::new(0.0, 10.0, 0.0));
+    let mut core = bvh_cloth_core::ClothSim::new(params, topology, start, &[]).unwrap();
+    for _ in 0..ticks {
+        core.tick(1.0 / 60.0, &[]);
+    }
+    core.positions().iter().zip(got).map(|(a, b)| a.distance(*b)).fold(0.0f32, f32::max)
+}
+
 /// On the GPU backend a cloth with `ClothReadback` has its live state in `ClothSimulation`, a
 /// frame or two late and without a blocking read; a cloth without it keeps the state it was
 /// built with. A free fall (no pins, no colliders: the springs stay at rest) is compared with
@@ -378,21 +392,7 @@ fn the_gpu_backend_reads_a_cloth_back_when_asked() {
     let got = app.world().get::<ClothSimulation>(read).unwrap().sim().positions();
     let ticks = app.world().resource::<ClothClock>().total_ticks;
     assert!(ran + late <= ticks && ran > 30, "{ran} ticks run, {late} late, of {ticks}");
-    let topology = std::sync::Arc::new(
-        bvh_cloth_core::ClothTopology::grid(bvh_cloth_core::ClothGrid::new(Vec2::ONE, UVec2::splat(12))).unwrap(),
-    );
-    let params = bvh_cloth_core::ClothParams { damping: 0.5, ..Default::default() };
-    let mut core = bvh_cloth_core::ClothSim::new(
-        params,
-        topology,
-        bvh_cloth_core::Affine3A::from_translation(Vec3::new(0.0, 10.0, 0.0)),
-        &[],
-    )
-    .unwrap();
-    for _ in 0..ran {
-        core.tick(1.0 / 60.0, &[]);
-    }
-    let gap = core.positions().iter().zip(&got).map(|(a, b)| a.distance(*b)).fold(0.0f32, f32::max);
+    let gap = gap_to_core_fall(ran, &got);
     eprintln!("read back {late} ticks late, {ran} run (of {ticks}): within {gap:e} m of the core's state");
     assert!(gap < 1e-4, "the read-back state is not the core's after {ran} ticks ({gap} m)");
     assert!(got.iter().all(|p| p.y < 8.0), "the read-back cloth has fallen");
@@ -433,21 +433,7 @@ fn the_gpu_backend_runs_every_tick_of_a_fixed_schedule() {
     assert!(late <= 6, "the state is {late} ticks late (two ticks per frame at the end)");
     assert!(ran > 60, "{ran} ticks run");
     let got = app.world().get::<ClothSimulation>(cloth).unwrap().sim().positions();
-    let topology = std::sync::Arc::new(
-        bvh_cloth_core::ClothTopology::grid(bvh_cloth_core::ClothGrid::new(Vec2::ONE, UVec2::splat(12))).unwrap(),
-    );
-    let params = bvh_cloth_core::ClothParams { damping: 0.5, ..Default::default() };
-    let mut core = bvh_cloth_core::ClothSim::new(
-        params,
-        topology,
-        bvh_cloth_core::Affine3A::from_translation(Vec3::new(0.0, 10.0, 0.0)),
-        &[],
-    )
-    .unwrap();
-    for _ in 0..ran {
-        core.tick(1.0 / 60.0, &[]);
-    }
-    let gap = core.positions().iter().zip(&got).map(|(a, b)| a.distance(*b)).fold(0.0f32, f32::max);
+    let gap = gap_to_core_fall(ran, &got);
     eprintln!(
         "fixed schedule: {ran} ticks run + {late} late of {ticks} since it spawned; within {gap:e} m of the core's state"
     );

@@ -605,20 +605,22 @@ fn a_skinned_collider_rewritten_in_place_agrees_with_the_cpu() {
         cpu.tick(1.0 / 60.0, &colliders);
         rig.ticks(&mut gpu, &gpu_colliders, 1);
     }
-    let (c, g) = (cpu.positions(), gpu_positions(&rig, &gpu));
-    eprintln!(
-        "skinned bunny, tick 180: centroid gap {:e} m, lowest {} vs {}",
-        centroid(&c).distance(centroid(&g)),
-        lowest(&c),
-        lowest(&g)
-    );
-    assert!(centroid(&c).distance(centroid(&g)) < 0.02);
-    assert!((lowest(&c) - lowest(&g)).abs() < 0.03);
-    let inside = g.iter().filter(|&&p| colliders[0].contains(p)).count();
-    assert_eq!(inside, 0, "{inside} GPU particles inside the skinned collider");
-    // The leaning bunny holds the cloth up, and a different layout is refused.
-    assert!(centroid(&g).y > 0.3, "the cloth fell past the collider: centroid {}", centroid(&g));
+    let g = gpu_positions(&rig, &gpu);
+    assert_draped_alike("skinned bunny, tick 180", &cpu.positions(), &g, &colliders[0]);
+    // A different layout is refused.
     assert!(!gpu_colliders.rewrite_trees(&rig.queue, &[bunny(3)], &[0]));
+}
+
+/// A cloth draped on a skinned bunny by the CPU (`c`) and by the GPU (`g`) agrees with the
+/// bunny drop's tolerances (centroids within 2 cm, lowest points within 3 cm), no GPU particle
+/// is inside `collider`, and the bunny holds the cloth up (centroid above 0.3 m).
+fn assert_draped_alike(scene: &str, c: &[Vec3], g: &[Vec3], collider: &Collider) {
+    let gap = centroid(c).distance(centroid(g));
+    eprintln!("{scene}: centroid gap {gap:e} m, lowest {} vs {}", lowest(c), lowest(g));
+    assert!(gap < 0.02 && (lowest(c) - lowest(g)).abs() < 0.03, "{scene}: the GPU's drape is not the CPU's");
+    let inside = g.iter().filter(|&&p| collider.contains(p)).count();
+    assert_eq!(inside, 0, "{scene}: {inside} GPU particles inside the skinned collider");
+    assert!(centroid(g).y > 0.3, "{scene}: the cloth fell past the collider: centroid {}", centroid(g));
 }
 
 /// The low bunny's pose `k` of a sway: its upper half turned about z around a point at mid
@@ -731,18 +733,8 @@ fn a_skinned_collider_refitted_on_the_gpu_matches_the_cpu_refit() {
         cpu.tick(1.0 / 60.0, &cpu_colliders);
         rig.ticks(&mut cloth, &gpu, 1);
     }
-    let (c, g) = (cpu.positions(), gpu_positions(&rig, &cloth));
-    eprintln!(
-        "swaying skinned bunny refitted on the GPU, tick 150: centroid gap {:e} m, lowest {} vs {}",
-        centroid(&c).distance(centroid(&g)),
-        lowest(&c),
-        lowest(&g)
-    );
-    assert!(centroid(&c).distance(centroid(&g)) < 0.02);
-    assert!((lowest(&c) - lowest(&g)).abs() < 0.03);
-    let inside = g.iter().filter(|&&p| cpu_colliders[1].contains(p)).count();
-    assert_eq!(inside, 0, "{inside} GPU particles inside the skinned collider");
-    assert!(centroid(&g).y > 0.3, "the cloth fell past the collider: centroid {}", centroid(&g));
+    let g = gpu_positions(&rig, &cloth);
+    assert_draped_alike("swaying skinned bunny refitted on the GPU, tick 150", &cpu.positions(), &g, &cpu_colliders[1]);
     // A tree of another size is not bound.
     let other = GpuColliders::new(&rig.device, &[bunny(3), bunny(4)]);
     assert!(!refit.bind(&rig.device, &rig.kernels, &other, 1) && !refit.is_bound());
