@@ -7,6 +7,7 @@ use std::sync::Arc;
 use glam::{Affine3A, Quat, UVec3, Vec3};
 
 use crate::error::ColliderError;
+use crate::exact_contact::TriangleSurface;
 use crate::lbvh::Lbvh;
 use crate::primitives::Primitive;
 use crate::skinning::{SkinRef, SkinScratch, SkinnedSpheres};
@@ -61,6 +62,10 @@ pub enum ColliderShape {
         /// A skinned mesh's refit data: [`Collider::pose_skin`] moves the spheres with the
         /// joints. `None` for a rigid mesh.
         skin: Option<Arc<SkinnedSpheres>>,
+        /// The mesh's own triangles, for exact contact (see [`crate::exact_contact`]): when
+        /// present the cloth collides with them, held the margin off, and the spheres are only
+        /// the collider's outline. `None`: the paper's sphere contact.
+        surface: Option<Arc<TriangleSurface>>,
     },
     /// An exact convex shape.
     Primitive(Primitive),
@@ -95,7 +100,7 @@ impl Collider {
 
     /// A collider of a sphere tree built elsewhere (`counts`: the voxels it was built with).
     pub fn from_tree(lbvh: Lbvh, counts: UVec3) -> Self {
-        Self::with_shape(ColliderShape::Spheres { lbvh: Arc::new(lbvh), counts, skin: None })
+        Self::with_shape(ColliderShape::Spheres { lbvh: Arc::new(lbvh), counts, skin: None, surface: None })
     }
 
     /// A collider of a skinned mesh: voxelised in its bind pose as [`Self::from_mesh_in`] does,
@@ -105,7 +110,25 @@ impl Collider {
         let (lbvh, skinned) = SkinnedSpheres::build(mesh, skin, voxels)?;
         let counts = skinned.counts;
         let skin = Some(Arc::new(skinned));
-        Ok(Self::with_shape(ColliderShape::Spheres { lbvh: Arc::new(lbvh), counts, skin }))
+        Ok(Self::with_shape(ColliderShape::Spheres { lbvh: Arc::new(lbvh), counts, skin, surface: None }))
+    }
+
+    /// The same collider with exact contact against `mesh`'s triangles (the mesh it was built
+    /// from; see [`crate::exact_contact`]). A primitive is exact already and is returned as it
+    /// is; a skinned collider keeps sphere contact, since its triangles move with the joints.
+    pub fn with_exact_contact(mut self, mesh: MeshRef<'_>) -> Result<Self, ColliderError> {
+        if let ColliderShape::Spheres { surface, skin: None, .. } = &mut self.shape {
+            *surface = Some(Arc::new(TriangleSurface::build(mesh)?));
+        }
+        Ok(self)
+    }
+
+    /// The triangles of a collider with exact contact.
+    pub fn surface(&self) -> Option<&Arc<TriangleSurface>> {
+        match &self.shape {
+            ColliderShape::Spheres { surface, .. } => surface.as_ref(),
+            ColliderShape::Primitive(_) => None,
+        }
     }
 
     /// An exact primitive, checked by [`Primitive::validate`]. The pose starts at identity, the

@@ -44,6 +44,7 @@
 use glam::{Affine3A, Quat, Vec3};
 
 use crate::collider::{Collider, ColliderShape};
+use crate::exact_contact::TriangleSurface;
 use crate::lbvh::{Lbvh, Sphere};
 use crate::primitives::Primitive;
 use crate::traversal::sphere_contains;
@@ -61,6 +62,8 @@ pub const MAX_PASSES: usize = 4;
 pub enum FrameShape<'a> {
     /// A mesh collider's sphere tree.
     Spheres(&'a Lbvh),
+    /// A mesh collider's own triangles (exact contact, see [`crate::exact_contact`]).
+    Triangles(&'a TriangleSurface),
     /// An exact primitive (see [`crate::primitives`]).
     Primitive(Primitive),
 }
@@ -95,6 +98,7 @@ impl<'a> ColliderFrame<'a> {
         let margin_local = usable(collider.margin) / pose.scale;
         let (shape, contact_reach) = match &collider.shape {
             ColliderShape::Spheres { lbvh, .. } if lbvh.spheres.is_empty() => return None,
+            ColliderShape::Spheres { surface: Some(surface), .. } => (FrameShape::Triangles(surface), 0.0),
             ColliderShape::Spheres { lbvh, .. } => {
                 (FrameShape::Spheres(lbvh), contact_reach(lbvh.max_radius, margin_local))
             }
@@ -117,11 +121,13 @@ impl<'a> ColliderFrame<'a> {
         self.world_to_local.transform_point3(p)
     }
 
-    /// Whether the world-space point `p` is inside the shape grown by the margin.
+    /// Whether the world-space point `p` is inside the shape grown by the margin (for exact
+    /// contact: closer than the margin to a triangle).
     pub fn contains(&self, p: Vec3) -> bool {
         let local = self.to_local(p);
         match self.shape {
             FrameShape::Spheres(lbvh) => lbvh.any_containing(local, self.margin_local),
+            FrameShape::Triangles(surface) => surface.within(local, self.margin_local),
             FrameShape::Primitive(primitive) => primitive.contains(local, self.margin_local),
         }
     }
@@ -138,6 +144,7 @@ impl<'a> ColliderFrame<'a> {
         };
         let response = match self.shape {
             FrameShape::Spheres(lbvh) => respond(lbvh, prev_local, p, self.margin_local, self.contact_reach, touch),
+            FrameShape::Triangles(surface) => surface.respond(prev_local, p, self.margin_local, touch),
             FrameShape::Primitive(primitive) => primitive.respond(prev_local, p, self.margin_local, touch),
         };
         match response {

@@ -16,6 +16,7 @@
 //! | [`morton`], [`lbvh`] | 2.4.2 (Karras 2012) |
 //! | [`traversal`] | 2.4.3, Algorithm 2 |
 //! | [`collision`] | 2.4.4 |
+//! | [`exact_contact`], [`triangles`] | (contact with the mesh's own triangles; not in the paper) |
 //! | [`normals`] | Algorithm 3 |
 //! | [`gpu_layout`] | Table II: the buffer layouts of the GPU kernels |
 //! | [`obj`] | (a minimal OBJ reader for engine-free tools) |
@@ -52,6 +53,7 @@ pub mod collider;
 pub mod collision;
 pub mod colouring;
 pub mod error;
+pub mod exact_contact;
 pub mod forces;
 pub mod gpu_layout;
 pub mod grid;
@@ -66,6 +68,7 @@ pub mod sim;
 pub mod skinning;
 pub mod topology;
 pub mod traversal;
+pub mod triangles;
 mod voxel_grid;
 pub mod voxel_spheres;
 

@@ -63,6 +63,7 @@ pub fn sphere_collider(spheres: &[Sphere]) -> Collider {
         lbvh: Lbvh::build(spheres).into(),
         counts: bvh_cloth_core::UVec3::ONE,
         skin: None,
+        surface: None,
     };
     Collider { shape, margin: 0.0, friction: 0.0, pose: Default::default() }
 }

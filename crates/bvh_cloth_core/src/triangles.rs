@@ -1,0 +1,201 @@
+//! Point and segment queries against one triangle, the narrow phase of exact contact (see
+//! [`crate::exact_contact`]). Every query is total: a degenerate triangle (a sliver, a segment,
+//! a point) answers as the segment or point it is, never with a NaN.
+
+use glam::Vec3;
+
+/// The point of the triangle `[a, b, c]` closest to `p`.
+///
+/// The plane's Voronoi regions are tested in turn (the three vertices, the three edges, the
+/// face), each from the same six dot products, so the answer is exact up to rounding and the
+/// function has no division by a vanishing quantity: a degenerate triangle falls into a vertex
+/// or edge region.
+pub fn closest_point(p: Vec3, [a, b, c]: [Vec3; 3]) -> Vec3 {
+    let (ab, ac, ap) = (b - a, c - a, p - a);
+    let (d1, d2) = (ab.dot(ap), ac.dot(ap));
+    if d1 <= 0.0 && d2 <= 0.0 {
+        return a;
+    }
+    let bp = p - b;
+    let (d3, d4) = (ab.dot(bp), ac.dot(bp));
+    if d3 >= 0.0 && d4 <= d3 {
+        return b;
+    }
+    let cp = p - c;
+    let (d5, d6) = (ab.dot(cp), ac.dot(cp));
+    if d6 >= 0.0 && d5 <= d6 {
+        return c;
+    }
+    // Edge regions: the signed areas of the sub-triangles say which side of an edge `p` is.
+    let vc = d1 * d4 - d3 * d2;
+    if vc <= 0.0 && d1 >= 0.0 && d3 <= 0.0 {
+        return a + ab * (d1 / (d1 - d3));
+    }
+    let vb = d5 * d2 - d1 * d6;
+    if vb <= 0.0 && d2 >= 0.0 && d6 <= 0.0 {
+        return a + ac * (d2 / (d2 - d6));
+    }
+    let va = d3 * d6 - d5 * d4;
+    if va <= 0.0 && (d4 - d3) >= 0.0 && (d5 - d6) >= 0.0 {
+        return b + (c - b) * ((d4 - d3) / ((d4 - d3) + (d5 - d6)));
+    }
+    let sum = va + vb + vc;
+    if sum.is_nan() || sum <= 0.0 {
+        // Only a degenerate triangle gets here (all three areas vanish): its closest point is
+        // on its longest edge.
+        return closest_on_longest_edge(p, [a, b, c]);
+    }
+    a + ab * (vb / sum) + ac * (vc / sum)
+}
+
+/// The point of the triangle's longest edge closest to `p`.
+fn closest_on_longest_edge(p: Vec3, [a, b, c]: [Vec3; 3]) -> Vec3 {
+    let edges = [(a, b), (b, c), (c, a)];
+    let (s, e) = edges
+        .into_iter()
+        .max_by(|(s0, e0), (s1, e1)| s0.distance_squared(*e0).total_cmp(&s1.distance_squared(*e1)))
+        .unwrap_or((a, b));
+    let d = e - s;
+    let len = d.length_squared();
+    if len == 0.0 {
+        return s;
+    }
+    s + d * ((p - s).dot(d) / len).clamp(0.0, 1.0)
+}
+
+/// Barycentric slack allowed at a triangle's edges by [`segment_hit`], relative to the
+/// triangle: a segment through an edge two triangles share hits at least one of them.
+pub const EDGE_SLACK: f32 = 1.0e-5;
+
+/// Where the segment from `p` to `q` first meets the triangle `[a, b, c]` (either side), as
+/// the parameter `t` in `[0, 1]` along it; `None` if it misses, runs in the triangle's plane,
+/// or the triangle has no area.
+pub fn segment_hit(p: Vec3, q: Vec3, [a, b, c]: [Vec3; 3]) -> Option<f32> {
+    let d = q - p;
+    let (e1, e2) = (b - a, c - a);
+    let h = d.cross(e2);
+    let det = e1.dot(h);
+    // Parallel to the plane, or no area: relative to the sizes involved.
+    let scale = e1.length() * e2.length() * d.length();
+    if det.is_nan() || det.abs() <= 1.0e-7 * scale {
+        return None;
+    }
+    let inv = 1.0 / det;
+    let s = p - a;
+    let u = s.dot(h) * inv;
+    if !(-EDGE_SLACK..=1.0 + EDGE_SLACK).contains(&u) {
+        return None;
+    }
+    let r = s.cross(e1);
+    let v = d.dot(r) * inv;
+    if v < -EDGE_SLACK || u + v > 1.0 + EDGE_SLACK {
+        return None;
+    }
+    let t = e2.dot(r) * inv;
+    (0.0..=1.0).contains(&t).then_some(t)
+}
+
+/// The triangle's unit normal by its winding (`(b - a) x (c - a)`), or `None` when it has no
+/// area.
+pub fn face_normal([a, b, c]: [Vec3; 3]) -> Option<Vec3> {
+    (b - a).cross(c - a).try_normalize()
+}
+
+/// Whether the triangle has an area worth colliding with: finite corners, and a cross product
+/// not lost to rounding against its edges.
+pub fn has_area([a, b, c]: [Vec3; 3]) -> bool {
+    if !(a.is_finite() && b.is_finite() && c.is_finite()) {
+        return false;
+    }
+    let (e1, e2) = (b - a, c - a);
+    let cross = e1.cross(e2).length();
+    cross > 1.0e-12 * e1.length_squared().max(e2.length_squared()) && cross > 0.0
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    const T: [Vec3; 3] = [Vec3::ZERO, Vec3::X, Vec3::Y];
+
+    #[test]
+    fn closest_points_in_every_region() {
+        let cases = [
+            // Face: straight down onto the plane.
+            (Vec3::new(0.2, 0.3, 0.7), Vec3::new(0.2, 0.3, 0.0)),
+            (Vec3::new(0.2, 0.3, -2.0), Vec3::new(0.2, 0.3, 0.0)),
+            // Vertices.
+            (Vec3::new(-1.0, -1.0, 0.5), Vec3::ZERO),
+            (Vec3::new(2.0, -0.5, 0.0), Vec3::X),
+            (Vec3::new(-0.5, 3.0, 1.0), Vec3::Y),
+            // Edges.
+            (Vec3::new(0.5, -1.0, 0.3), Vec3::new(0.5, 0.0, 0.0)),
+            (Vec3::new(-1.0, 0.25, -0.3), Vec3::new(0.0, 0.25, 0.0)),
+            (Vec3::new(1.0, 1.0, 0.0), Vec3::new(0.5, 0.5, 0.0)),
+        ];
+        for (p, want) in cases {
+            let got = closest_point(p, T);
+            assert!(got.distance(want) < 1e-6, "closest to {p}: {got}, not {want}");
+        }
+    }
+
+    /// Against brute force: the closest of a dense sample of the triangle is never closer than
+    /// the answer, for random triangles and points.
+    #[test]
+    fn closest_point_beats_sampling() {
+        let mut seed = 17u32;
+        let mut next = || {
+            seed ^= seed << 13;
+            seed ^= seed >> 17;
+            seed ^= seed << 5;
+            seed as f32 / u32::MAX as f32 * 4.0 - 2.0
+        };
+        for _ in 0..300 {
+            let tri = [0; 3].map(|_| Vec3::new(next(), next(), next()));
+            let p = Vec3::new(next(), next(), next());
+            let got = closest_point(p, tri).distance(p);
+            let mut best = f32::INFINITY;
+            for i in 0..=40 {
+                for j in 0..=40 - i {
+                    let (u, v) = (i as f32 / 40.0, j as f32 / 40.0);
+                    let q = tri[0] + u * (tri[1] - tri[0]) + v * (tri[2] - tri[0]);
+                    best = best.min(q.distance(p));
+                }
+            }
+            assert!(got <= best + 1e-5, "answer {got} farther than a sample {best}");
+            assert!(got >= best - 0.2, "answer {got} far closer than any sample {best}");
+        }
+    }
+
+    #[test]
+    fn degenerate_triangles_answer_as_segments_and_points() {
+        let line = [Vec3::ZERO, Vec3::X, Vec3::new(2.0, 0.0, 0.0)];
+        let got = closest_point(Vec3::new(1.5, 1.0, 0.0), line);
+        assert!(got.distance(Vec3::new(1.5, 0.0, 0.0)) < 1e-6, "{got}");
+        let point = [Vec3::ONE; 3];
+        assert_eq!(closest_point(Vec3::ZERO, point), Vec3::ONE);
+        assert!(!has_area(line) && !has_area(point));
+        assert!(face_normal(point).is_none());
+        assert!(segment_hit(Vec3::new(1.0, 0.0, -1.0), Vec3::new(1.0, 0.0, 1.0), line).is_none());
+        let sliver = [Vec3::ZERO, Vec3::X, Vec3::new(0.5, 1.0e-4, 0.0)];
+        assert!(has_area(sliver));
+        assert!(closest_point(Vec3::new(0.5, 0.5, 0.5), sliver).is_finite());
+    }
+
+    #[test]
+    fn segments_hit_from_either_side_and_miss_outside() {
+        let down = segment_hit(Vec3::new(0.25, 0.25, 1.0), Vec3::new(0.25, 0.25, -1.0), T);
+        assert!((down.unwrap() - 0.5).abs() < 1e-6);
+        let up = segment_hit(Vec3::new(0.25, 0.25, -1.0), Vec3::new(0.25, 0.25, 3.0), T);
+        assert!((up.unwrap() - 0.25).abs() < 1e-6);
+        // Short of the plane, past the hypotenuse, in the plane.
+        assert!(segment_hit(Vec3::new(0.25, 0.25, 1.0), Vec3::new(0.25, 0.25, 0.5), T).is_none());
+        assert!(segment_hit(Vec3::new(0.6, 0.6, 1.0), Vec3::new(0.6, 0.6, -1.0), T).is_none());
+        assert!(segment_hit(Vec3::new(-1.0, 0.2, 0.0), Vec3::new(2.0, 0.2, 0.0), T).is_none());
+        // Through a shared edge: at least one of the two triangles is hit.
+        let other = [Vec3::X, Vec3::new(1.0, 1.0, 0.0), Vec3::Y];
+        let (p, q) = (Vec3::new(0.5, 0.5, 1.0), Vec3::new(0.5, 0.5, -1.0));
+        assert!(segment_hit(p, q, T).is_some() || segment_hit(p, q, other).is_some());
+        assert_eq!(face_normal(T), Some(Vec3::Z));
+    }
+}
