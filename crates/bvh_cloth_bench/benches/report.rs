@@ -19,7 +19,7 @@
 //! (without a GPU adapter the GPU columns say so and the rest still runs). Append `-- NAME` to
 //! run only the sections whose name contains NAME: `table_vii`, `queries`, `fidelity`,
 //! `step_scaling`, `topology`, `gpu_profile`, `many_cloths`, `build_scaling`, `far_from_origin`,
-//! `solver`, `primitives`, `skinned_refit`.
+//! `solver`, `primitives`, `skinned_refit`, `exact_contact`.
 
 use std::fmt::Write as _;
 use std::sync::Arc;
@@ -30,7 +30,7 @@ use bvh_cloth_bench::{
 };
 use bvh_cloth_core::obj::ObjMesh;
 
-use bvh_cloth_core::collision::ColliderFrame;
+use bvh_cloth_core::collision::{CONTACT_BAND, ColliderFrame};
 use bvh_cloth_core::skinning::{SkinRef, SkinScratch, SkinnedVertices};
 use bvh_cloth_core::{
     Affine3A, ClothGrid, ClothParams, ClothSim, ClothTopology, Collider, ColliderPose, Integrator, Primitive, Quat,
@@ -115,6 +115,9 @@ fn main() {
     }
     if run("skinned_refit") {
         skinned_refit(&meshes, &single, gpu.as_ref());
+    }
+    if run("exact_contact") {
+        exact_contact(&meshes, &parry, &single);
     }
     println!("\nCSV written to docs/benchmarks/ (plot: python3 scripts/plot_benchmarks.py)");
 }
@@ -998,6 +1001,146 @@ fn gpu_refit_ms(gpu: &Gpu, collider: &Collider, pose: &[Affine3A]) -> Option<(f6
         .skip(1)
         .collect();
     Some((median(samples), refit.dispatches()))
+}
+
+/// Exact contact against the paper's sphere contact, on the bundled models at n = 5 with a
+/// thickness (margin) of 5 mm: a 64 x 64 cloth falls onto each and rests 3 s (RK4, Looper 16),
+/// checked against the exact mesh (parry3d) every 20 ticks; then one thread's contact queries
+/// (the triangles within the thickness of a draped cloth's particles) against parry3d's exact
+/// projection of the same points, and the build with the triangle surface against without.
+fn exact_contact(meshes: &[ObjMesh], parry: &[TriMesh], single: &rayon::ThreadPool) {
+    const THICKNESS: f32 = 0.005;
+    /// A particle within this distance (m) of the true surface at the end rests on the model.
+    const ON_MODEL: f32 = 0.05;
+    /// A particle within this distance (m) beyond the thickness of the collider's own surface
+    /// at the end is in contact with it.
+    const TOUCH: f32 = 0.002;
+    const CHECK_TICKS: u32 = 20;
+    println!(
+        "\n## Exact contact: a 64 x 64 cloth resting 3 s at n = 5, thickness {} mm, against the exact mesh (parry3d)\n",
+        THICKNESS * 1e3
+    );
+    println!(
+        "In contact: at the end, within {} mm beyond the thickness of the collider's own surface (the spheres, or the triangles); their air gap is their distance to the true surface beyond the thickness. On the model: within {} mm of the true surface, sagging cloth included. Penetration: depth inside the true mesh, checked every {CHECK_TICKS} ticks.\n",
+        TOUCH * 1e3,
+        ON_MODEL * 1e3
+    );
+    println!(
+        "| model | contact | fell past | ever inside | deepest mm | inside at the end | in contact | contact air gap mm | on the model | its mean gap mm | closer than the thickness |"
+    );
+    println!("|---|---|---|---|---|---|---|---|---|---|---|");
+    for ((name, mesh), exact) in MODELS.iter().zip(meshes).zip(parry) {
+        let spheres = collider(mesh, 5).with_margin(THICKNESS);
+        let triangles = spheres.clone().with_exact_contact(mesh.as_mesh_ref()).expect("the bundled models have area");
+        for (contact, c) in [("spheres", &spheres), ("exact", &triangles)] {
+            let mut sim = cloth_above(c, 64, Integrator::Rk4);
+            let colliders = std::slice::from_ref(c);
+            let depth = |p: Vec3| {
+                inside(exact, p).then(|| exact.distance_to_local_point(Vector::from(p.to_array()), false).abs() * 1e3)
+            };
+            let mut ever = vec![false; sim.len()];
+            let (mut deepest, mut inside_at_end) = (0.0f32, 0usize);
+            let ticks = (3.0 / TICK).round() as u32;
+            for tick in 1..=ticks {
+                sim.tick(TICK, colliders);
+                if tick % CHECK_TICKS != 0 && tick != ticks {
+                    continue;
+                }
+                let depths: Vec<Option<f32>> = sim.positions().into_iter().map(depth).collect();
+                for (seen, d) in ever.iter_mut().zip(&depths) {
+                    if let Some(d) = *d {
+                        *seen = true;
+                        deepest = deepest.max(d);
+                    }
+                }
+                inside_at_end = depths.iter().flatten().count();
+            }
+            let positions = sim.positions();
+            let fell = positions.iter().filter(|p| p.y < 0.0).count();
+            let gaps: Vec<f32> = positions
+                .iter()
+                .filter(|&&p| !inside(exact, p))
+                .map(|&p| exact.distance_to_local_point(Vector::from(p.to_array()), false).abs())
+                .filter(|&d| d < ON_MODEL)
+                .collect();
+            let mean_gap = gaps.iter().map(|d| d - THICKNESS).sum::<f32>() / gaps.len().max(1) as f32;
+            let close = gaps.iter().filter(|&&d| d < 0.9 * THICKNESS).count();
+            // In contact with the collider's own surface.
+            let touching = |p: Vec3| match c.surface() {
+                Some(surface) => surface.closest_within(p, THICKNESS + TOUCH).is_some(),
+                None => c
+                    .lbvh()
+                    .expect("a mesh collider")
+                    .spheres
+                    .iter()
+                    .any(|s| (p.distance(s.centre()) - s.radius - THICKNESS).abs() <= TOUCH && !c.contains(p)),
+            };
+            let contact_gaps: Vec<f32> = positions
+                .iter()
+                .filter(|&&p| touching(p) && !inside(exact, p))
+                .map(|&p| exact.distance_to_local_point(Vector::from(p.to_array()), false).abs() - THICKNESS)
+                .collect();
+            let contact_gap = contact_gaps.iter().sum::<f32>() / contact_gaps.len().max(1) as f32;
+            println!(
+                "| {name} | {contact} | {fell} | {} | {deepest:.2} | {inside_at_end} | {} | {:.2} | {} | {:.2} | {close} |",
+                ever.iter().filter(|&&e| e).count(),
+                contact_gaps.len(),
+                contact_gap * 1e3,
+                gaps.len(),
+                mean_gap * 1e3,
+            );
+        }
+    }
+
+    println!("\n### Queries (one thread) and build\n");
+    println!(
+        "Queries: the 4,096 positions of a cloth draped 2 s on the exact collider at n = 5; exact contact finds the closest point within the thickness (`TriangleSurface::closest_within`, what a contact asks), parry3d projects each point on its `TriMesh` (unbounded). Build: `Collider::from_mesh` at n = 16, and the same with `with_exact_contact`, on the whole pool ({} threads), alternating, best of 5 each.\n",
+        rayon::current_num_threads()
+    );
+    println!(
+        "| model | triangles | exact M/s | parry3d M/s | exact / parry3d | build ms | build with surface ms | ratio |"
+    );
+    println!("|---|---|---|---|---|---|---|---|");
+    for ((name, mesh), exact) in MODELS.iter().zip(meshes).zip(parry) {
+        let c = collider(mesh, 5).with_margin(THICKNESS).with_exact_contact(mesh.as_mesh_ref()).expect("area");
+        let surface = c.surface().expect("exact contact").clone();
+        let points = drape(&c, 2.0).positions();
+        let rate = |seconds: f64| points.len() as f64 / seconds;
+        let (exact_qps, parry_qps) = single.install(|| {
+            let exact_qps = rate(best_of(7, || {
+                for &p in &points {
+                    std::hint::black_box(surface.closest_within(p, THICKNESS * (1.0 + CONTACT_BAND)));
+                }
+            }));
+            let parry_qps = rate(best_of(7, || {
+                for &p in &points {
+                    std::hint::black_box(exact.project_local_point(Vector::from(p.to_array()), true));
+                }
+            }));
+            (exact_qps, parry_qps)
+        });
+        // The builds on the whole pool, as a game's loading does, alternating; best of 5 each.
+        let (build_s, with_s) = (0..5).fold((f64::INFINITY, f64::INFINITY), |(plain, with), _| {
+            let p = best_of(1, || {
+                std::hint::black_box(Collider::from_mesh(mesh.as_mesh_ref(), 16).expect("valid"));
+            });
+            let w = best_of(1, || {
+                let built = Collider::from_mesh(mesh.as_mesh_ref(), 16).expect("valid");
+                std::hint::black_box(built.with_exact_contact(mesh.as_mesh_ref()).expect("area"));
+            });
+            (plain.min(p), with.min(w))
+        });
+        println!(
+            "| {name} | {} | {:.2} | {:.3} | {:.0}x | {:.1} | {:.1} | {:.2}x |",
+            surface.triangles.len(),
+            exact_qps / 1e6,
+            parry_qps / 1e6,
+            exact_qps / parry_qps,
+            build_s * 1e3,
+            with_s * 1e3,
+            with_s / build_s,
+        );
+    }
 }
 
 /// Bones of the skinned-collider scenes.

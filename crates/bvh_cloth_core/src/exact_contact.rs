@@ -4,7 +4,8 @@
 //! # Broad phase
 //!
 //! The triangles are arranged in the same Morton-code LBVH as the voxel spheres ([`Lbvh`]), one
-//! leaf per triangle, each leaf the triangle's bounding sphere. A voxel would hold hundreds of
+//! leaf per triangle, each leaf the triangle's bounding sphere; the inner boxes are fitted to
+//! the triangles themselves. A voxel would hold hundreds of
 //! triangles at the paper's `n = 5` (about 900 on the 70,000-triangle bunny), so a tree whose
 //! leaves are single triangles keeps the narrow phase to the few triangles within a thickness
 //! of the particle whatever `n` the voxel spheres were built with, and the same traversal
@@ -93,20 +94,39 @@ impl TriangleSurface {
         if kept.is_empty() {
             return Err(ColliderError::NoTriangles);
         }
-        let spheres: Vec<Sphere> = kept.iter().map(bounding_sphere).collect();
-        let (lbvh, order) = Lbvh::build_with_order(&spheres);
-        let triangles: Vec<[Vec3; 3]> = order.iter().map(|&k| kept[k as usize]).collect();
-        let (lo, hi) = triangles
-            .iter()
-            .flatten()
-            .fold((Vec3::INFINITY, Vec3::NEG_INFINITY), |(lo, hi), &p| (lo.min(p), hi.max(p)));
-        Ok(Self { lbvh, triangles, dropped: count - kept.len(), min_thickness: 1.0e-6 * lo.distance(hi) })
+        let parallel = kept.len() >= PARALLEL_MIN;
+        let spheres: Vec<Sphere> = if parallel {
+            kept.par_iter().map(bounding_sphere).collect()
+        } else {
+            kept.iter().map(bounding_sphere).collect()
+        };
+        // The inner boxes are fitted to the triangles themselves, not to their spheres' boxes
+        // (up to twice as wide): a query descends only where a triangle may be. The leaves keep
+        // their spheres, which each query tests before the triangle.
+        let (lbvh, order) = Lbvh::build_fitted(&spheres, |k, _| {
+            let [a, b, c] = kept[k as usize];
+            (a.min(b).min(c), a.max(b).max(c))
+        });
+        let triangles: Vec<[Vec3; 3]> = if parallel {
+            order.par_iter().map(|&k| kept[k as usize]).collect()
+        } else {
+            order.iter().map(|&k| kept[k as usize]).collect()
+        };
+        let diagonal = match (lbvh.nodes.first(), triangles.first()) {
+            (Some(root), _) => Vec3::from(root.aabb_min).distance(Vec3::from(root.aabb_max)),
+            (None, Some([a, b, c])) => a.min(b.min(*c)).distance(a.max(b.max(*c))),
+            (None, None) => 0.0,
+        };
+        Ok(Self { lbvh, triangles, dropped: count - kept.len(), min_thickness: 1.0e-6 * diagonal })
     }
 
     /// The point of the surface closest to `p` within `reach`, if any is.
     pub fn closest_within(&self, p: Vec3, reach: f32) -> Option<Vec3> {
         let mut best: Option<(f32, Vec3)> = None;
-        self.lbvh.for_each_overlapping(p, p, reach, |k, _| {
+        self.lbvh.for_each_overlapping(p, p, reach, |k, s| {
+            if !sphere_reaches(s, p, reach) {
+                return;
+            }
             let q = closest_point(p, self.triangles[k as usize]);
             let d = q.distance_squared(p);
             if d < reach * reach && best.is_none_or(|(b, _)| d < b) {
@@ -146,7 +166,10 @@ impl TriangleSurface {
         let mut touched = false;
 
         // 1. Contacts at the previous position.
-        self.lbvh.for_each_overlapping(prev, prev, band, |k, _| {
+        self.lbvh.for_each_overlapping(prev, prev, band, |k, s| {
+            if !sphere_reaches(s, prev, band) {
+                return;
+            }
             let tri = self.triangles[k as usize];
             let q = closest_point(prev, tri);
             let away = prev - q;
@@ -195,6 +218,13 @@ impl TriangleSurface {
 fn facing(tri: [Vec3; 3], towards: Vec3) -> Vec3 {
     let n = face_normal(tri).unwrap_or(Vec3::Y);
     if n.dot(towards) < 0.0 { -n } else { n }
+}
+
+/// Whether `p` is within `reach` of the sphere (so possibly of its triangle).
+#[inline]
+fn sphere_reaches(s: &Sphere, p: Vec3, reach: f32) -> bool {
+    let r = s.radius + reach;
+    s.centre().distance_squared(p) <= r * r
 }
 
 /// A sphere around the triangle: centred on its box, through its farthest corner.

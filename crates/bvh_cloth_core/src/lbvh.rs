@@ -127,16 +127,33 @@ impl Lbvh {
 
     /// As [`Self::build`], and the input index of every leaf: leaf `k` is `spheres[order[k]]`.
     pub fn build_with_order(spheres: &[Sphere]) -> (Self, Vec<u32>) {
+        Self::build_fitted(spheres, |_, s| (s.centre() - s.radius, s.centre() + s.radius))
+    }
+
+    /// As [`Self::build_with_order`], with the inner boxes fitted to `leaf_box(input index,
+    /// sphere)` instead of the spheres' boxes: for leaves that stand for something tighter than
+    /// their sphere (a triangle).
+    pub(crate) fn build_fitted(
+        spheres: &[Sphere],
+        leaf_box: impl Fn(u32, &Sphere) -> (Vec3, Vec3),
+    ) -> (Self, Vec<u32>) {
         if spheres.is_empty() {
             return (Self::default(), Vec::new());
         }
         let (lo, hi) = spheres
             .iter()
             .fold((Vec3::INFINITY, Vec3::NEG_INFINITY), |(lo, hi), s| (lo.min(s.centre()), hi.max(s.centre())));
-        let mut keyed: Vec<(u32, u32)> =
-            spheres.iter().enumerate().map(|(i, s)| (morton_code(s.centre(), lo, hi), i as u32)).collect();
+        let key = |(i, s): (usize, &Sphere)| (morton_code(s.centre(), lo, hi), i as u32);
         // Sorting the (code, index) pairs orders equal codes by input index.
-        keyed.sort_unstable();
+        let keyed: Vec<(u32, u32)> = if spheres.len() >= PARALLEL_BUILD_MIN_LEAVES {
+            let mut keyed: Vec<(u32, u32)> = spheres.par_iter().enumerate().map(key).collect();
+            keyed.par_sort_unstable();
+            keyed
+        } else {
+            let mut keyed: Vec<(u32, u32)> = spheres.iter().enumerate().map(key).collect();
+            keyed.sort_unstable();
+            keyed
+        };
         let codes: Vec<u32> = keyed.iter().map(|&(c, _)| c).collect();
         let sorted: Vec<Sphere> = keyed.iter().map(|&(_, i)| spheres[i as usize]).collect();
 
@@ -146,7 +163,7 @@ impl Lbvh {
         } else {
             (0..inner).map(|i| build_inner_node(&codes, i)).collect()
         };
-        let depth = fit_bounds(&mut nodes, &sorted);
+        let depth = fit_bounds_by(&mut nodes, |k| leaf_box(keyed[k as usize].1, &sorted[k as usize]));
         let max_radius = sorted.iter().fold(0.0f32, |r, s| r.max(s.radius));
         let order = keyed.into_iter().map(|(_, i)| i).collect();
         (Self { nodes, spheres: sorted, depth, max_radius }, order)
@@ -214,13 +231,20 @@ impl Lbvh {
 /// Fits every inner node's AABB to the spheres below it, bottom-up, and returns the depth.
 /// A post-order walk with an explicit stack: O(N), no recursion, far cheaper than the build.
 fn fit_bounds(nodes: &mut [BvhNode], spheres: &[Sphere]) -> u32 {
+    fit_bounds_by(nodes, |k| {
+        let s = spheres[k as usize];
+        (s.centre() - s.radius, s.centre() + s.radius)
+    })
+}
+
+/// As [`fit_bounds`], with leaf `k`'s box given by `leaf_box(k)`.
+fn fit_bounds_by(nodes: &mut [BvhNode], leaf_box: impl Fn(u32) -> (Vec3, Vec3)) -> u32 {
     if nodes.is_empty() {
         return 0;
     }
     let child_box = |nodes: &[BvhNode], child: u32| -> (Vec3, Vec3) {
         if child & LEAF_BIT != 0 {
-            let s = spheres[(child & !LEAF_BIT) as usize];
-            (s.centre() - s.radius, s.centre() + s.radius)
+            leaf_box(child & !LEAF_BIT)
         } else {
             let n = &nodes[child as usize];
             (Vec3::from(n.aabb_min), Vec3::from(n.aabb_max))
