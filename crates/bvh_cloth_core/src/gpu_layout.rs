@@ -8,6 +8,7 @@ use glam::{Affine3A, Mat4, Vec3};
 use crate::collider::{Collider, ColliderShape};
 use crate::collision::ColliderFrame;
 use crate::forces::ForceModel;
+use crate::lbvh::Lbvh;
 use crate::params::{ClothParams, Integrator};
 use crate::sim::ClothSim;
 use crate::skinning::SkinnedVertices;
@@ -205,12 +206,54 @@ pub struct GpuCollider {
     pub contact_reach: f32,
     /// [`SHAPE_SPHERES`] for a sphere tree, else [`Primitive::kind`](crate::primitives::Primitive::kind).
     pub shape: u32,
-    /// A primitive's sizes in local units ([`Primitive::size`](crate::primitives::Primitive::size)); zero for a sphere tree.
+    /// A primitive's sizes in local units ([`Primitive::size`](crate::primitives::Primitive::size)); zero for a sphere tree;
+    /// for exact contact ([`SHAPE_TRIANGLES`]) `x` is the surface's least thickness.
     pub size: [f32; 4],
 }
 
 /// [`GpuCollider::shape`] of a mesh collider's sphere tree.
 pub const SHAPE_SPHERES: u32 = 0;
+
+/// [`GpuCollider::shape`] of a mesh collider with exact contact: its tree is the triangle
+/// surface's ([`crate::exact_contact::TriangleSurface`]), and right after its `sphere_count`
+/// spheres come the triangles in leaf order, three `vec4`s each (the corners, `w` unused).
+pub const SHAPE_TRIANGLES: u32 = 5;
+
+/// The tree a collider's frame points at on the GPU: a collider with exact contact uploads its
+/// triangle surface's (with the triangles after the spheres), any other mesh collider its
+/// sphere tree; `None` for a primitive.
+pub fn gpu_tree(collider: &Collider) -> Option<&Lbvh> {
+    match &collider.shape {
+        ColliderShape::Spheres { surface: Some(surface), .. } => Some(&surface.lbvh),
+        ColliderShape::Spheres { lbvh, .. } => Some(lbvh),
+        ColliderShape::Primitive(_) => None,
+    }
+}
+
+/// The `vec4`s of the tree buffer's sphere region a collider takes: its spheres, and for exact
+/// contact its triangles after them ([`gpu_sphere_region`]).
+pub fn gpu_sphere_words(collider: &Collider) -> usize {
+    match &collider.shape {
+        ColliderShape::Spheres { surface: Some(surface), .. } => {
+            surface.lbvh.spheres.len() + 3 * surface.triangles.len()
+        }
+        ColliderShape::Spheres { lbvh, .. } => lbvh.spheres.len(),
+        ColliderShape::Primitive(_) => 0,
+    }
+}
+
+/// A collider's part of the tree buffer's sphere region, as `vec4`s: its tree's spheres, then
+/// for exact contact its triangles' corners.
+pub fn gpu_sphere_region(collider: &Collider) -> Vec<[f32; 4]> {
+    let mut words: Vec<[f32; 4]> = Vec::with_capacity(gpu_sphere_words(collider));
+    if let Some(tree) = gpu_tree(collider) {
+        words.extend(tree.spheres.iter().map(|s| [s.center[0], s.center[1], s.center[2], s.radius]));
+    }
+    if let Some(surface) = collider.surface() {
+        words.extend(surface.triangles.iter().flatten().map(|p| p.extend(0.0).to_array()));
+    }
+    words
+}
 
 impl GpuCollider {
     /// The frame of `collider`, whose tree starts at the given offsets; `None` when the collider
@@ -219,6 +262,11 @@ impl GpuCollider {
         let frame = ColliderFrame::new(collider)?;
         let world_from_local = collider.pose.to_affine();
         let (node_count, sphere_count, shape, size) = match &collider.shape {
+            ColliderShape::Spheres { surface: Some(surface), .. } => {
+                let tree = &surface.lbvh;
+                let size = [surface.min_thickness, 0.0, 0.0, 0.0];
+                (tree.nodes.len() as u32, tree.spheres.len() as u32, SHAPE_TRIANGLES, size)
+            }
             ColliderShape::Spheres { lbvh, .. } => {
                 (lbvh.nodes.len() as u32, lbvh.spheres.len() as u32, SHAPE_SPHERES, [0.0; 4])
             }

@@ -1,8 +1,8 @@
 //! Every collider of a scene on the GPU: frames (a primitive's whole shape), and the mesh
 //! colliders' trees concatenated.
 
-use bvh_cloth_core::gpu_layout::GpuCollider;
-use bvh_cloth_core::{BvhNode, Collider, Sphere};
+use bvh_cloth_core::gpu_layout::{GpuCollider, gpu_sphere_region, gpu_sphere_words, gpu_tree};
+use bvh_cloth_core::{BvhNode, Collider};
 use wgpu::util::DeviceExt;
 use wgpu::{Buffer, BufferUsages, Device, Queue};
 
@@ -50,33 +50,32 @@ impl GpuColliders {
     /// fit the device's storage bindings; the others are left out.
     pub fn new(device: &Device, colliders: &[Collider]) -> Self {
         let max = storage_binding_limit(device);
-        let fits =
-            |nodes: usize, spheres: usize| (nodes * size_of::<BvhNode>() + spheres * size_of::<Sphere>()) as u64 <= max;
+        let fits = |nodes: usize, words: usize| (nodes * size_of::<BvhNode>() + words * 16) as u64 <= max;
         let mut nodes: Vec<BvhNode> = Vec::new();
-        let mut spheres: Vec<Sphere> = Vec::new();
+        let mut spheres: Vec<[f32; 4]> = Vec::new();
         let mut offsets = Vec::with_capacity(colliders.len());
         let mut left_out = Vec::new();
         let sizes = colliders.iter().map(tree_size).collect();
         for (k, collider) in colliders.iter().enumerate() {
-            let Some(tree) = collider.lbvh() else {
+            let Some(tree) = gpu_tree(collider) else {
                 // A primitive has no tree: its frame holds its whole shape.
                 offsets.push(Some((nodes.len() as u32, spheres.len() as u32)));
                 continue;
             };
-            if !fits(nodes.len() + tree.nodes.len(), spheres.len() + tree.spheres.len()) {
+            if !fits(nodes.len() + tree.nodes.len(), spheres.len() + gpu_sphere_words(collider)) {
                 offsets.push(None);
                 left_out.push(k);
                 continue;
             }
             offsets.push(Some((nodes.len() as u32, spheres.len() as u32)));
             nodes.extend_from_slice(&tree.nodes);
-            spheres.extend_from_slice(&tree.spheres);
+            spheres.extend(gpu_sphere_region(collider));
         }
         let node_count = nodes.len() as u32;
         let (frames, frame_indices) = Self::frames_of(colliders, &offsets, node_count);
         let mut tree: Vec<[f32; 4]> = Vec::with_capacity(2 * nodes.len() + spheres.len());
         tree.extend_from_slice(bytemuck::cast_slice(&nodes));
-        tree.extend_from_slice(bytemuck::cast_slice(&spheres));
+        tree.extend_from_slice(&spheres);
         Self {
             count: frames.len() as u32,
             frames: storage_buffer(device, "bvh_cloth_collider_frames", &pad_frames(frames, colliders.len())),
@@ -99,17 +98,17 @@ impl GpuColliders {
             return false;
         }
         for &k in changed {
-            let (Some((node, sphere)), Some(tree)) = (self.offsets[k], colliders[k].lbvh()) else {
+            let (Some((node, sphere)), Some(tree)) = (self.offsets[k], gpu_tree(&colliders[k])) else {
                 continue;
             };
             let node_bytes = u64::from(node) * size_of::<BvhNode>() as u64;
-            let sphere_bytes =
-                u64::from(self.nodes) * size_of::<BvhNode>() as u64 + u64::from(sphere) * size_of::<Sphere>() as u64;
+            let sphere_bytes = u64::from(self.nodes) * size_of::<BvhNode>() as u64 + u64::from(sphere) * 16;
             if !tree.nodes.is_empty() {
                 queue.write_buffer(&self.tree, node_bytes, bytemuck::cast_slice(&tree.nodes));
             }
-            if !tree.spheres.is_empty() {
-                queue.write_buffer(&self.tree, sphere_bytes, bytemuck::cast_slice(&tree.spheres));
+            let region = gpu_sphere_region(&colliders[k]);
+            if !region.is_empty() {
+                queue.write_buffer(&self.tree, sphere_bytes, bytemuck::cast_slice(&region));
             }
         }
         self.update_frames(queue, colliders);
@@ -160,7 +159,8 @@ impl GpuColliders {
         *self.frame_indices.get(k)?
     }
 
-    /// Spheres in input collider `k`'s tree.
+    /// `vec4`s of input collider `k`'s sphere region: its spheres (and for exact contact its
+    /// triangles after them).
     pub fn spheres_of(&self, k: usize) -> u32 {
         self.sizes.get(k).map_or(0, |&(_, spheres)| spheres as u32)
     }
@@ -188,9 +188,9 @@ impl GpuColliders {
     }
 }
 
-/// The node and sphere counts of a collider's tree.
+/// The node count of a collider's tree on the GPU, and the `vec4`s of its sphere region.
 fn tree_size(collider: &Collider) -> (usize, usize) {
-    collider.lbvh().map_or((0, 0), |tree| (tree.nodes.len(), tree.spheres.len()))
+    gpu_tree(collider).map_or((0, 0), |tree| (tree.nodes.len(), gpu_sphere_words(collider)))
 }
 
 /// The frame buffer is sized for every input collider, so that a collider whose pose becomes

@@ -196,6 +196,8 @@ fn shared_constants_match_the_core() {
     assert_eq!(constant("CONTACT_BAND").parse::<f32>().unwrap(), bvh_cloth_core::collision::CONTACT_BAND);
     assert_eq!(constant("NO_CLOTH"), format!("{:#x}u", bvh_cloth_core::gpu_layout::NO_CLOTH));
     assert_eq!(constant("SHAPE_SPHERES"), format!("{}u", bvh_cloth_core::gpu_layout::SHAPE_SPHERES));
+    assert_eq!(constant("SHAPE_TRIANGLES"), format!("{}u", bvh_cloth_core::gpu_layout::SHAPE_TRIANGLES));
+    assert_eq!(constant("EDGE_SLACK").parse::<f32>().unwrap(), bvh_cloth_core::triangles::EDGE_SLACK);
     use bvh_cloth_core::Primitive;
     let shapes = [
         ("SHAPE_SPHERE", Primitive::Sphere { radius: 1.0 }),

@@ -1,9 +1,10 @@
 // CollisionDetectionWithBVH: stack traversal (Algorithm 2) and the response of section 2.4.4,
 // as a function the final integrator stage calls for each free particle; primitives answer in
-// primitives.wgsl.
+// primitives.wgsl. A collider with exact contact (SHAPE_TRIANGLES) answers from its triangles
+// (bvh_cloth_core::exact_contact), through the same traversal of its tree.
 
 #define_import_path bvh_cloth::collision
-#import bvh_cloth::types::{GpuParticle, GpuCollider, LEAF_BIT, STACK_SIZE, SURFACE_TOLERANCE, CONTACT_BAND, MAX_PASSES, SHAPE_SPHERES, frame}
+#import bvh_cloth::types::{GpuParticle, GpuCollider, LEAF_BIT, STACK_SIZE, SURFACE_TOLERANCE, CONTACT_BAND, MAX_PASSES, SHAPE_SPHERES, SHAPE_TRIANGLES, frame}
 #import bvh_cloth::primitives::respond_primitive
 
 @group(0) @binding(11) var<storage, read> colliders: array<GpuCollider>;
@@ -282,6 +283,16 @@ fn collide(prev_world: vec3<f32>, moved: GpuParticle) -> GpuParticle {
         let col = colliders[c];
         let prev = (col.local_from_world * vec4(prev_world, 1.0)).xyz;
         let p = (col.local_from_world * vec4(position, 1.0)).xyz;
+        if (col.shape == SHAPE_TRIANGLES) {
+            let response = respond_triangles(col, prev, p, velocity);
+            velocity = response.velocity;
+            if (response.kind == 1u) {
+                position = (col.world_from_local * vec4(response.position, 1.0)).xyz;
+            } else if (response.kind == 2u) {
+                position = prev_world;
+            }
+            continue;
+        }
         if (col.shape != SHAPE_SPHERES) {
             let contact = respond_primitive(col, prev, p);
             if (contact.moved) {
@@ -299,4 +310,270 @@ fn collide(prev_world: vec3<f32>, moved: GpuParticle) -> GpuParticle {
         }
     }
     return GpuParticle(vec4(position, moved.position.w), vec4(velocity, 0.0));
+}
+
+// ---- Exact contact (bvh_cloth_core::exact_contact and triangles), in the same order of
+// operations. A collider's triangles follow its spheres in `tree`, three vec4s each.
+
+fn triangle_corner(col: GpuCollider, k: u32, corner: u32) -> vec3<f32> {
+    return tree[col.sphere_offset + col.sphere_count + 3u * k + corner].xyz;
+}
+
+// bvh_cloth_core::triangles::closest_point: the Voronoi regions in turn.
+fn closest_on_triangle(p: vec3<f32>, a: vec3<f32>, b: vec3<f32>, c: vec3<f32>) -> vec3<f32> {
+    let ab = b - a;
+    let ac = c - a;
+    let ap = p - a;
+    let d1 = dot(ab, ap);
+    let d2 = dot(ac, ap);
+    if (d1 <= 0.0 && d2 <= 0.0) {
+        return a;
+    }
+    let bp = p - b;
+    let d3 = dot(ab, bp);
+    let d4 = dot(ac, bp);
+    if (d3 >= 0.0 && d4 <= d3) {
+        return b;
+    }
+    let cp = p - c;
+    let d5 = dot(ab, cp);
+    let d6 = dot(ac, cp);
+    if (d6 >= 0.0 && d5 <= d6) {
+        return c;
+    }
+    let vc = d1 * d4 - d3 * d2;
+    if (vc <= 0.0 && d1 >= 0.0 && d3 <= 0.0) {
+        return a + ab * (d1 / (d1 - d3));
+    }
+    let vb = d5 * d2 - d1 * d6;
+    if (vb <= 0.0 && d2 >= 0.0 && d6 <= 0.0) {
+        return a + ac * (d2 / (d2 - d6));
+    }
+    let va = d3 * d6 - d5 * d4;
+    if (va <= 0.0 && (d4 - d3) >= 0.0 && (d5 - d6) >= 0.0) {
+        return b + (c - b) * ((d4 - d3) / ((d4 - d3) + (d5 - d6)));
+    }
+    let sum = va + vb + vc;
+    if (!(sum > 0.0)) {
+        // Only a degenerate triangle gets here; the build leaves those out.
+        return a;
+    }
+    return a + ab * (vb / sum) + ac * (vc / sum);
+}
+
+const EDGE_SLACK: f32 = 1.0e-5;            // bvh_cloth_core::triangles::EDGE_SLACK
+
+// bvh_cloth_core::triangles::segment_hit: the parameter along p..q, or -1 for a miss.
+fn segment_hit(p: vec3<f32>, q: vec3<f32>, a: vec3<f32>, b: vec3<f32>, c: vec3<f32>) -> f32 {
+    let d = q - p;
+    let e1 = b - a;
+    let e2 = c - a;
+    let h = cross(d, e2);
+    let det = dot(e1, h);
+    let scale = length(e1) * length(e2) * length(d);
+    if (!(abs(det) > 1.0e-7 * scale)) {
+        return -1.0;
+    }
+    let inv = 1.0 / det;
+    let s = p - a;
+    let u = dot(s, h) * inv;
+    if (u < -EDGE_SLACK || u > 1.0 + EDGE_SLACK) {
+        return -1.0;
+    }
+    let r = cross(s, e1);
+    let v = dot(d, r) * inv;
+    if (v < -EDGE_SLACK || u + v > 1.0 + EDGE_SLACK) {
+        return -1.0;
+    }
+    let t = dot(e2, r) * inv;
+    if (t >= 0.0 && t <= 1.0) {
+        return t;
+    }
+    return -1.0;
+}
+
+// The triangle's unit normal turned to the side `towards` points to (+Y without one).
+fn facing(a: vec3<f32>, b: vec3<f32>, c: vec3<f32>, towards: vec3<f32>) -> vec3<f32> {
+    let m = cross(b - a, c - a);
+    var n = vec3<f32>(0.0, 1.0, 0.0);
+    if (dot(m, m) > 0.0) {
+        n = normalize(m);
+    }
+    if (dot(n, towards) < 0.0) {
+        return -n;
+    }
+    return n;
+}
+
+// What one query over the triangles does with each triangle whose sphere it reaches:
+// TRI_CONTACTS holds the end point off the triangles near `prev`, TRI_SWEEP finds the first
+// triangle the path crosses, TRI_CLOSEST the closest point within `reach`.
+const TRI_CONTACTS: u32 = 0u;
+const TRI_SWEEP: u32 = 1u;
+const TRI_CLOSEST: u32 = 2u;
+
+struct TriQuery {
+    kind: u32,
+    prev: vec3<f32>,
+    start_end: vec3<f32>,
+    end_point: vec3<f32>,
+    thickness: f32,
+    reach: f32,
+    found: u32,
+    value: f32,
+    point: vec3<f32>,
+    triangle: u32,
+    touched: bool,
+    velocity: vec3<f32>,
+}
+
+fn sphere_reaches(sphere: vec4<f32>, p: vec3<f32>, reach: f32) -> bool {
+    let r = sphere.w + reach;
+    let d = p - sphere.xyz;
+    return dot(d, d) <= r * r;
+}
+
+fn consider_triangle(q: ptr<function, TriQuery>, col: GpuCollider, k: u32, sphere: vec4<f32>) {
+    let a = triangle_corner(col, k, 0u);
+    let b = triangle_corner(col, k, 1u);
+    let c = triangle_corner(col, k, 2u);
+    switch (*q).kind {
+        case TRI_CONTACTS: {
+            if (!sphere_reaches(sphere, (*q).prev, (*q).reach)) {
+                return;
+            }
+            let closest = closest_on_triangle((*q).prev, a, b, c);
+            let away = (*q).prev - closest;
+            let dist = length(away);
+            if (dist >= (*q).reach) {
+                return;
+            }
+            var n = facing(a, b, c, (*q).prev - (*q).start_end);
+            if (dist > 1.0e-3 * (*q).thickness) {
+                n = away / dist;
+            }
+            let below = dot((*q).end_point - closest, n) - (*q).thickness;
+            if (below < 0.0) {
+                (*q).end_point = (*q).end_point - below * n;
+                (*q).touched = true;
+                (*q).velocity = contact_velocity((*q).velocity, rotate(col.rotation, n), col.friction);
+            }
+        }
+        case TRI_SWEEP: {
+            let t = segment_hit((*q).prev, (*q).end_point, a, b, c);
+            if (t >= 0.0 && ((*q).found == 0u || t < (*q).value)) {
+                (*q).found = 1u;
+                (*q).value = t;
+                (*q).triangle = k;
+            }
+        }
+        default: {
+            if (!sphere_reaches(sphere, (*q).end_point, (*q).reach)) {
+                return;
+            }
+            let closest = closest_on_triangle((*q).end_point, a, b, c);
+            let d = closest - (*q).end_point;
+            let d2 = dot(d, d);
+            if (d2 < (*q).reach * (*q).reach && ((*q).found == 0u || d2 < (*q).value)) {
+                (*q).found = 1u;
+                (*q).value = d2;
+                (*q).point = closest;
+            }
+        }
+    }
+}
+
+// As run_query, over the triangle surface's tree, with the boxes grown by `margin`.
+fn run_triangle_query(q: ptr<function, TriQuery>, col: GpuCollider, lo: vec3<f32>, hi: vec3<f32>, margin: f32) {
+    if (col.node_count == 0u) {
+        let s = tree[col.sphere_offset];
+        if (sphere_box_overlaps(s, lo, hi, margin)) {
+            consider_triangle(q, col, 0u, s);
+        }
+        return;
+    }
+    let root = tree_node(col, 0u);
+    if (!boxes_overlap(root.aabb_min, root.aabb_max, lo, hi, margin)) {
+        return;
+    }
+    var stack: array<u32, STACK_SIZE>;
+    var top = 1u;
+    stack[0] = 0u;
+    while (top > 0u) {
+        top -= 1u;
+        let node = tree_node(col, stack[top]);
+        var children = array<u32, 2>(node.right, node.left);
+        for (var k = 0; k < 2; k++) {
+            let child = children[k];
+            if ((child & LEAF_BIT) != 0u) {
+                let leaf = child & ~LEAF_BIT;
+                let s = tree[col.sphere_offset + leaf];
+                if (sphere_box_overlaps(s, lo, hi, margin)) {
+                    consider_triangle(q, col, leaf, s);
+                }
+            } else if (top < STACK_SIZE) {
+                let inner = tree_node(col, child);
+                if (boxes_overlap(inner.aabb_min, inner.aabb_max, lo, hi, margin)) {
+                    stack[top] = child;
+                    top += 1u;
+                }
+            }
+        }
+    }
+}
+
+fn triangle_query(kind: u32, prev: vec3<f32>, end_point: vec3<f32>, thickness: f32, reach: f32, v: vec3<f32>) -> TriQuery {
+    return TriQuery(kind, prev, end_point, end_point, thickness, reach, 0u, 0.0, vec3<f32>(0.0), 0u, false, v);
+}
+
+// bvh_cloth_core::exact_contact::TriangleSurface::respond.
+fn respond_triangles(col: GpuCollider, prev: vec3<f32>, p: vec3<f32>, velocity: vec3<f32>) -> Response {
+    let h = max(col.margin_local, col.size.x);
+    let band = h * (1.0 + CONTACT_BAND);
+    // 1. Contacts at the previous position.
+    var q = triangle_query(TRI_CONTACTS, prev, p, h, band, velocity);
+    run_triangle_query(&q, col, prev, prev, band);
+    var target_point = q.end_point;
+    var v = q.velocity;
+    var touched = q.touched;
+    // 2. Sweep.
+    var sweep = triangle_query(TRI_SWEEP, prev, target_point, h, 0.0, v);
+    run_triangle_query(&sweep, col, min(prev, target_point), max(prev, target_point), 0.0);
+    if (sweep.found != 0u) {
+        let k = sweep.triangle;
+        let hit = mix(prev, target_point, sweep.value);
+        let n = facing(triangle_corner(col, k, 0u), triangle_corner(col, k, 1u), triangle_corner(col, k, 2u), prev - hit);
+        target_point = hit + n * h;
+        touched = true;
+        v = contact_velocity(v, rotate(col.rotation, n), col.friction);
+    }
+    // 3. Clearance.
+    let clear = h * (1.0 - CONTACT_BAND);
+    for (var round = 0u; round < MAX_PASSES; round++) {
+        var near = triangle_query(TRI_CLOSEST, prev, target_point, h, clear, v);
+        run_triangle_query(&near, col, target_point, target_point, clear);
+        if (near.found == 0u) {
+            break;
+        }
+        let away = target_point - near.point;
+        var n = vec3<f32>(0.0, 1.0, 0.0);
+        if (dot(away, away) > 0.0) {
+            n = normalize(away);
+        } else if (dot(prev - target_point, prev - target_point) > 0.0) {
+            n = normalize(prev - target_point);
+        }
+        target_point = near.point + n * h;
+        touched = true;
+        v = contact_velocity(v, rotate(col.rotation, n), col.friction);
+    }
+    // 4. Guard.
+    if (!touched) {
+        return Response(0u, p, v);
+    }
+    var guard = triangle_query(TRI_SWEEP, prev, target_point, h, 0.0, v);
+    run_triangle_query(&guard, col, min(prev, target_point), max(prev, target_point), 0.0);
+    if (guard.found != 0u) {
+        return Response(2u, target_point, v);
+    }
+    return Response(1u, target_point, v);
 }

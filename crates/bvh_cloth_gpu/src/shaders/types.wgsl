@@ -108,6 +108,7 @@ const NO_CLOTH: u32 = 0xffffffffu;         // bvh_cloth_core::gpu_layout::NO_CLO
 const INTEGRATOR_EULER: u32 = 1u;          // bvh_cloth_core::gpu_layout::INTEGRATOR_EULER
 const INTEGRATOR_BLOCK_DESCENT: u32 = 2u;  // bvh_cloth_core::gpu_layout::INTEGRATOR_BLOCK_DESCENT
 const SHAPE_SPHERES: u32 = 0u;            // bvh_cloth_core::gpu_layout::SHAPE_SPHERES
+const SHAPE_TRIANGLES: u32 = 5u;          // bvh_cloth_core::gpu_layout::SHAPE_TRIANGLES
 const LEAF_BIT: u32 = 0x80000000u;
 const STACK_SIZE: u32 = 64u;               // bvh_cloth_core::traversal::STACK_SIZE
 const SURFACE_TOLERANCE: f32 = 1.0e-3;     // bvh_cloth_core::traversal::SURFACE_TOLERANCE
