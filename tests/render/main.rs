@@ -99,7 +99,7 @@ fn adapter_present() -> bool {
 /// A render app on the GPU backend whose kernels are compiled, or `None` (with a note) where
 /// there is no adapter. The pipeline cache compiles the kernels in the background, and cloths
 /// wait at rest until they are ready: a probe cloth is read back until it has run a tick (at
-/// most 600 frames), then despawned.
+/// most five minutes), then despawned.
 fn gpu_backend_app() -> Option<App> {
     gpu_backend_app_with(BvhClothPlugins::new(FixedPostUpdate))
 }
@@ -113,11 +113,12 @@ fn gpu_backend_app_with(plugins: BvhClothPlugins) -> Option<App> {
     assert_eq!(*app.world().resource::<ActiveClothBackend>(), ActiveClothBackend::Gpu);
     let probe = app.world_mut().spawn((Cloth::grid(Vec2::ONE, UVec2::splat(4)), ClothReadback::default())).id();
     let ran = |app: &App| app.world().get::<ClothReadback>(probe).unwrap().ticks_run.is_some_and(|t| t > 0);
-    for _ in 0..600 {
-        if ran(&app) {
-            break;
-        }
+    // Compiling the kernels takes lavapipe tens of seconds, longer with other tests compiling
+    // beside it: wait on the clock, not on a count of frames.
+    let start = std::time::Instant::now();
+    while !ran(&app) && start.elapsed() < Duration::from_secs(300) {
         app.update();
+        std::thread::sleep(Duration::from_millis(5));
     }
     assert!(ran(&app), "the GPU kernels never became ready");
     app.world_mut().despawn(probe);
@@ -226,8 +227,10 @@ fn assert_draped(image: &Image, name: &str) {
     let ((cloth_top, cloth_bottom), (bunny_top, bunny_bottom)) = (rows(&cloth), rows(&bunny_px));
     eprintln!("rows: cloth {cloth_top}..{cloth_bottom}, bunny {bunny_top}..{bunny_bottom}");
     // Draped: the cloth covers the top of the bunny and hangs down past it, well above the
-    // bunny's bottom (it has not fallen through).
-    assert!(cloth_top <= bunny_top, "the cloth is not on top of the bunny");
+    // bunny's bottom (it has not fallen through). The cloth rests a centimetre off the true
+    // surface (exact contact), and between its particles, 4 cm apart, its flat triangles may
+    // cut under a sharp feature: the bunny's highest point may show a pixel or two above it.
+    assert!(cloth_top <= bunny_top + 2, "the cloth is not on top of the bunny");
     let bunny_height = bunny_bottom - bunny_top;
     assert!(cloth_bottom > bunny_top + bunny_height / 4, "the cloth does not hang down the bunny's sides");
     assert!(cloth_top < bunny_top + bunny_height / 2, "the cloth fell through the bunny");

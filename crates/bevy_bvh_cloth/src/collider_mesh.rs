@@ -125,9 +125,11 @@ impl TriangleList {
     }
 
     /// Voxelises the triangles into `voxels` and builds a collider: a skinned one when the list
-    /// has a skin.
-    pub fn build(&self, voxels: Voxels) -> Result<Collider, ColliderFailure> {
+    /// has a skin; otherwise, when `exact`, with exact contact against the triangles.
+    pub fn build(&self, voxels: Voxels, exact: bool) -> Result<Collider, ColliderFailure> {
         let built = match &self.skin {
+            None if exact => Collider::from_mesh_in(self.as_mesh_ref(), voxels)
+                .and_then(|collider| collider.with_exact_contact(self.as_mesh_ref())),
             None => Collider::from_mesh_in(self.as_mesh_ref(), voxels),
             Some(skin) => {
                 let skin = SkinRef { joints: &skin.joints, weights: &skin.weights, joint_count: skin.joint_count };
@@ -138,13 +140,13 @@ impl TriangleList {
     }
 }
 
-/// Builds a collider from a Bevy mesh at resolution `n`, the way [`AutoCollider`] does: for
-/// tools, tests, or colliders a game builds itself. Never panics; a mesh that cannot become a
-/// collider gives the reason.
+/// Builds a collider from a Bevy mesh at resolution `n` with exact contact, the way a default
+/// [`AutoCollider`] does: for tools, tests, or colliders a game builds itself. Never panics; a
+/// mesh that cannot become a collider gives the reason.
 ///
 /// [`AutoCollider`]: crate::AutoCollider
 pub fn collider_from_mesh(mesh: &Mesh, n: u32) -> Result<Collider, ColliderFailure> {
-    TriangleList::from_mesh(mesh)?.build(Voxels::PerAxis(n))
+    TriangleList::from_mesh(mesh)?.build(Voxels::PerAxis(n), true)
 }
 
 #[cfg(test)]

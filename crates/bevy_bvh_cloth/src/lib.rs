@@ -122,7 +122,7 @@ pub use bvh_cloth_core;
 pub use bvh_cloth_core::{ClothParams, ClothPins, ColorChannel, Integrator, SpringStiffness};
 pub use clock::ClothClock;
 pub use cloth::{Cloth, ClothAnchor, ClothShape};
-pub use collider::{ASYNC_BUILD_MIN_VERTICES, AutoCollider, ClothCollider, ColliderStatus};
+pub use collider::{ASYNC_BUILD_MIN_VERTICES, AutoCollider, ClothCollider, ColliderContact, ColliderStatus};
 pub use collider_hierarchy::{ColliderHierarchy, ColliderPart};
 pub use collider_mesh::{ColliderFailure, collider_from_mesh};
 pub use events::{AnchorLost, ClothDiverged, ClothRejected, ColliderFailed, ColliderReady};
@@ -141,8 +141,8 @@ pub mod prelude {
         ActiveClothBackend, AnchorLost, AutoCollider, BvhClothPlugin, BvhClothPlugins, Cloth, ClothAnchor,
         ClothBackend, ClothClock, ClothDebugViewPlugin, ClothDiverged, ClothMessage, ClothParams, ClothPins,
         ClothReadback, ClothRejected, ClothSettings, ClothShape, ClothSimulation, ClothStats, ClothSystems,
-        ColliderFailed, ColliderHierarchy, ColliderReady, ColliderStatus, ColorChannel, Integrator, PrimitiveCollider,
-        PrimitiveShape, ResetCloth, SpringStiffness,
+        ColliderContact, ColliderFailed, ColliderHierarchy, ColliderReady, ColliderStatus, ColorChannel, Integrator,
+        PrimitiveCollider, PrimitiveShape, ResetCloth, SpringStiffness,
     };
 }
 
@@ -241,6 +241,7 @@ impl Plugin for BvhClothPlugin {
         let schedule = self.schedule;
         app.register_type::<Cloth>()
             .register_type::<AutoCollider>()
+            .register_type::<ColliderContact>()
             .register_type::<PrimitiveCollider>()
             .register_type::<ColliderHierarchy>()
             .register_type::<ColliderPart>()

@@ -1,5 +1,5 @@
 //! The live parameter panel (feature `egui`): the paper's Looper, SpringK, Damping and
-//! External Force, plus pause, reset, the collider resolution (or voxel size), the debug view
+//! External Force, plus pause, reset, the collider resolution (or voxel size) and contact, the debug view
 //! and live figures.
 
 use core::ops::DerefMut;
@@ -8,7 +8,9 @@ use bevy::prelude::*;
 use bevy_egui::{EguiContexts, EguiPlugin, EguiPrimaryContextPass, egui};
 use bvh_cloth_core::params::MAX_ITERATIONS;
 
-use crate::{AutoCollider, Cloth, ClothSettings, ClothShape, ClothStats, ColliderStatus, Integrator, ResetCloth};
+use crate::{
+    AutoCollider, Cloth, ClothSettings, ClothShape, ClothStats, ColliderContact, ColliderStatus, Integrator, ResetCloth,
+};
 
 /// Adds the panel (and [`EguiPlugin`] if the app has none).
 pub struct ClothPanelPlugin;
@@ -113,6 +115,10 @@ fn cloth_panel(
                     Some(size) => ui.add(egui::Slider::new(size, 0.01..=0.2).text("Voxel size (m)")),
                     None => ui.add(egui::Slider::new(&mut c.resolution, 1..=32).text("Voxels per axis (n)")),
                 };
+                let mut exact = c.contact == ColliderContact::Exact;
+                if ui.checkbox(&mut exact, "Exact contact (triangles, not spheres)").changed() {
+                    c.contact = if exact { ColliderContact::Exact } else { ColliderContact::Spheres };
+                }
                 ui.add(egui::Slider::new(&mut c.friction, 0.0..=1.5).text("Friction"));
             });
         }

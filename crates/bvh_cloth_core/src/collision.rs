@@ -122,12 +122,17 @@ impl<'a> ColliderFrame<'a> {
     }
 
     /// Whether the world-space point `p` is inside the shape grown by the margin (for exact
-    /// contact: closer than the margin to a triangle).
+    /// contact: closer to a triangle than the margin, less the contact band).
     pub fn contains(&self, p: Vec3) -> bool {
         let local = self.to_local(p);
         match self.shape {
             FrameShape::Spheres(lbvh) => lbvh.any_containing(local, self.margin_local),
-            FrameShape::Triangles(surface) => surface.within(local, self.margin_local),
+            // The response holds a particle at the margin, and lets it rest within the contact
+            // band below it where a neighbouring triangle's plane put it (see
+            // `exact_contact`): closer than that is inside.
+            FrameShape::Triangles(surface) => {
+                surface.within(local, self.margin_local.max(surface.min_thickness) * (1.0 - CONTACT_BAND))
+            }
             FrameShape::Primitive(primitive) => primitive.contains(local, self.margin_local),
         }
     }
