@@ -32,12 +32,15 @@ pub const ASYNC_BUILD_MIN_VERTICES: usize = 20_000;
 /// (a glTF scene root, a character), every mesh under it, each with its own collider (see
 /// [`ColliderHierarchy`](crate::ColliderHierarchy) for exclusions and overrides by name).
 ///
-/// The mesh is cut into `resolution³` voxels over its bounding box; every voxel the surface
-/// passes through gets a sphere around the part of the surface in it, and the spheres are
-/// arranged in a Morton-code LBVH. Every sphere reaches a little past the surface part it
-/// holds, so the spheres form a closed shell, and the collision response tests each particle's
-/// whole path: a cloth that starts outside a still collider never crosses its surface, at any
-/// resolution (see `bvh_cloth_core::collision`). The collider follows the entity's transform
+/// By default the cloth collides with the mesh's own triangles ([`ColliderContact::Exact`]),
+/// held [`Self::margin`] off them, and no particle's path crosses a triangle (see
+/// `bvh_cloth_core::exact_contact`). The mesh is also cut into `resolution³` voxels over its
+/// bounding box; every voxel the surface passes through gets a sphere around the part of the
+/// surface in it, and the spheres are arranged in a Morton-code LBVH. With
+/// [`ColliderContact::Spheres`] (the paper's method) the cloth collides with those spheres:
+/// every sphere reaches a little past the surface part it holds, so they form a closed shell,
+/// and the response tests each particle's whole path, so a cloth that starts outside a still
+/// collider never crosses it, at any resolution (see `bvh_cloth_core::collision`). The collider follows the entity's transform
 /// (rotation, translation and uniform scale; with a non-uniform scale the largest axis is used,
 /// and a warning says so).
 ///
@@ -62,8 +65,9 @@ pub struct AutoCollider {
     /// entity's scale when the collider is built converts it to the mesh's units; a size that
     /// would make more than `128³` voxels fails the collider with a clear error.
     pub voxel_size: Option<f32>,
-    /// Extra thickness in world units added to every sphere, so that the cloth rests a little
-    /// above the surface instead of on it.
+    /// The cloth's thickness against this collider, in world units: how far off the triangles
+    /// (or beyond the spheres) it is held, so that it rests a little above the surface instead
+    /// of on it.
     pub margin: f32,
     /// Coulomb friction coefficient of the surface. The default, 1.0 (a rough surface), holds a
     /// resting cloth on slopes up to 45°, which keeps a cloth dropped on the bunny or the dragon
