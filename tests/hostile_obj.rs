@@ -1,9 +1,11 @@
 //! The plugin's OBJ-to-collider path under hostile files: bevy_obj's loader (what an
 //! `AutoCollider` on a loaded `.obj` goes through), then the mesh reader and the collider
-//! builder. Whatever the text, nothing panics, and the result is a typed error or a collider
-//! whose every vertex lies inside its voxel's sphere.
+//! builder (with exact contact, as an `AutoCollider` builds by default). Whatever the text,
+//! nothing panics, and the result is a typed error or a collider whose every vertex lies inside
+//! its voxel's sphere.
 
 use bevy::mesh::{PrimitiveTopology, VertexAttributeValues};
+use bevy_bvh_cloth::bvh_cloth_core::exact_contact::TriangleSurface;
 use bevy_bvh_cloth::bvh_cloth_core::voxel_spheres::{MeshRef, voxel_spheres};
 use bevy_bvh_cloth::{ColliderFailure, collider_from_mesh};
 use bevy_obj::ObjSettings;
@@ -94,7 +96,9 @@ proptest! {
                             return Err(TestCaseError::fail("a builder error needs Float32x3 positions"));
                         };
                         let indices: Option<Vec<u32>> = mesh.indices().map(|i| i.iter().map(|i| i as u32).collect());
-                        let core = voxel_spheres(MeshRef { positions, indices: indices.as_deref() }, n);
+                        // The voxel spheres first, then the triangle surface of exact contact.
+                        let mesh = MeshRef { positions, indices: indices.as_deref() };
+                        let core = voxel_spheres(mesh, n).map(drop).and_then(|()| TriangleSurface::build(mesh).map(drop));
                         prop_assert_eq!(core.err(), Some(error));
                     }
                     other => prop_assert!(false, "{:?} cannot happen to a loaded mesh on an unscaled entity", other),

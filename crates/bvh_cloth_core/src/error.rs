@@ -292,6 +292,8 @@ pub enum ColliderError {
         /// The joint.
         joint: usize,
     },
+    /// No triangle of the mesh has an area: exact contact has no surface to hold the cloth off.
+    NoArea,
     /// A skinned collider's refit data and tree do not belong together.
     SkinTreeMismatch {
         /// Leaves of the tree.
@@ -358,6 +360,11 @@ impl fmt::Display for ColliderError {
             Self::NonFiniteJoint { joint } => {
                 write!(f, "skinned collider joint {joint} has a NaN or infinite transform")
             }
+            Self::NoArea => write!(
+                f,
+                "collider mesh has no triangle with an area, so exact contact has no surface (sphere contact \
+                 collides with its voxel spheres)"
+            ),
             Self::SkinTreeMismatch { leaves, expected } => {
                 write!(f, "skinned collider refit data holds {expected} spheres but its tree has {leaves}")
             }

@@ -73,8 +73,8 @@ const PARALLEL_MIN: usize = 16_384;
 
 impl TriangleSurface {
     /// The triangles of `mesh` with an area, in an LBVH of their bounding spheres. Fails with
-    /// [`ColliderError::NoTriangles`] when none has an area; indices out of range are skipped
-    /// (a collider's mesh is checked before it gets here).
+    /// [`ColliderError::NoArea`] when none has an area; indices out of range are skipped (a
+    /// collider's mesh is checked before it gets here).
     pub fn build(mesh: MeshRef<'_>) -> Result<Self, ColliderError> {
         let corner = |i: u32| mesh.positions.get(i as usize).map(|&p| Vec3::from(p));
         let count = mesh.indices.map_or(mesh.positions.len() / 3, |i| i.len() / 3);
@@ -92,7 +92,7 @@ impl TriangleSurface {
             (0..count).filter_map(triangle).collect()
         };
         if kept.is_empty() {
-            return Err(ColliderError::NoTriangles);
+            return Err(ColliderError::NoArea);
         }
         let parallel = kept.len() >= PARALLEL_MIN;
         let spheres: Vec<Sphere> = if parallel {
