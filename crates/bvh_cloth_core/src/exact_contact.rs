@@ -103,15 +103,16 @@ impl TriangleSurface {
         // The inner boxes are fitted to the triangles themselves, not to their spheres' boxes
         // (up to twice as wide): a query descends only where a triangle may be. The leaves keep
         // their spheres, which each query tests before the triangle.
-        let (lbvh, order) = Lbvh::build_fitted(&spheres, |k, _| {
-            let [a, b, c] = kept[k as usize];
-            (a.min(b).min(c), a.max(b).max(c))
-        });
+        let (mut lbvh, order) = Lbvh::build_unfitted(&spheres);
         let triangles: Vec<[Vec3; 3]> = if parallel {
             order.par_iter().map(|&k| kept[k as usize]).collect()
         } else {
             order.iter().map(|&k| kept[k as usize]).collect()
         };
+        lbvh.fit_boxes_by(|k| {
+            let [a, b, c] = triangles[k as usize];
+            (a.min(b).min(c), a.max(b).max(c))
+        });
         let diagonal = match (lbvh.nodes.first(), triangles.first()) {
             (Some(root), _) => Vec3::from(root.aabb_min).distance(Vec3::from(root.aabb_max)),
             (None, Some([a, b, c])) => a.min(b.min(*c)).distance(a.max(b.max(*c))),

@@ -127,16 +127,14 @@ impl Lbvh {
 
     /// As [`Self::build`], and the input index of every leaf: leaf `k` is `spheres[order[k]]`.
     pub fn build_with_order(spheres: &[Sphere]) -> (Self, Vec<u32>) {
-        Self::build_fitted(spheres, |_, s| (s.centre() - s.radius, s.centre() + s.radius))
+        let (mut lbvh, order) = Self::build_unfitted(spheres);
+        lbvh.depth = fit_bounds(&mut lbvh.nodes, &lbvh.spheres);
+        (lbvh, order)
     }
 
-    /// As [`Self::build_with_order`], with the inner boxes fitted to `leaf_box(input index,
-    /// sphere)` instead of the spheres' boxes: for leaves that stand for something tighter than
-    /// their sphere (a triangle).
-    pub(crate) fn build_fitted(
-        spheres: &[Sphere],
-        leaf_box: impl Fn(u32, &Sphere) -> (Vec3, Vec3),
-    ) -> (Self, Vec<u32>) {
+    /// As [`Self::build_with_order`], with the inner boxes not fitted yet: the caller fits them
+    /// with [`Self::fit_boxes_by`] to what its leaves stand for.
+    pub(crate) fn build_unfitted(spheres: &[Sphere]) -> (Self, Vec<u32>) {
         if spheres.is_empty() {
             return (Self::default(), Vec::new());
         }
@@ -158,15 +156,20 @@ impl Lbvh {
         let sorted: Vec<Sphere> = keyed.iter().map(|&(_, i)| spheres[i as usize]).collect();
 
         let inner = sorted.len() - 1;
-        let mut nodes: Vec<BvhNode> = if sorted.len() >= PARALLEL_BUILD_MIN_LEAVES {
+        let nodes: Vec<BvhNode> = if sorted.len() >= PARALLEL_BUILD_MIN_LEAVES {
             (0..inner).into_par_iter().map(|i| build_inner_node(&codes, i)).collect()
         } else {
             (0..inner).map(|i| build_inner_node(&codes, i)).collect()
         };
-        let depth = fit_bounds_by(&mut nodes, |k| leaf_box(keyed[k as usize].1, &sorted[k as usize]));
         let max_radius = sorted.iter().fold(0.0f32, |r, s| r.max(s.radius));
         let order = keyed.into_iter().map(|(_, i)| i).collect();
-        (Self { nodes, spheres: sorted, depth, max_radius }, order)
+        (Self { nodes, spheres: sorted, depth: 0, max_radius }, order)
+    }
+
+    /// Fits every inner node's box to `leaf_box(k)` for leaf `k` instead of its sphere's box:
+    /// for leaves that stand for something tighter than their sphere (a triangle).
+    pub(crate) fn fit_boxes_by(&mut self, leaf_box: impl Fn(u32) -> (Vec3, Vec3)) {
+        self.depth = fit_bounds_by(&mut self.nodes, leaf_box);
     }
 
     /// Fits every inner node's box to the spheres as they are now, keeping the tree's topology
