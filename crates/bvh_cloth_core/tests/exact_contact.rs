@@ -235,26 +235,10 @@ fn a_bowl_holds_the_cloth_on_its_inner_side() {
 fn a_box_edge_with_duplicated_degenerate_and_intersecting_triangles() {
     let mut positions: Vec<[f32; 3]> = Vec::new();
     let mut indices: Vec<u32> = Vec::new();
-    let mut add_box = |lo: Vec3, hi: Vec3| {
-        let base = positions.len() as u32;
-        for i in 0..8u32 {
-            let pick = |bit: u32, axis: usize| if i & bit != 0 { hi[axis] } else { lo[axis] };
-            positions.push([pick(1, 0), pick(2, 1), pick(4, 2)]);
-        }
-        let faces = [
-            [0, 1, 3, 0, 3, 2],
-            [4, 6, 7, 4, 7, 5],
-            [0, 4, 5, 0, 5, 1],
-            [2, 3, 7, 2, 7, 6],
-            [0, 2, 6, 0, 6, 4],
-            [1, 5, 7, 1, 7, 3],
-        ];
-        indices.extend(faces.iter().flatten().map(|&k| base + k));
-    };
     let (a_lo, a_hi) = (Vec3::new(-0.3, -0.6, -0.3), Vec3::new(0.3, 0.0, 0.3));
     let (b_lo, b_hi) = (Vec3::new(0.1, -0.8, -0.2), Vec3::new(0.5, -0.2, 0.2));
-    add_box(a_lo, a_hi);
-    add_box(b_lo, b_hi);
+    common::box_mesh(a_lo, a_hi, &mut positions, &mut indices);
+    common::box_mesh(b_lo, b_hi, &mut positions, &mut indices);
     let whole = indices.clone();
     indices.extend_from_slice(&whole[..36]);
     let point = positions.len() as u32;

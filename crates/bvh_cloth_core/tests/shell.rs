@@ -124,24 +124,6 @@ fn the_cloth_never_crosses_the_dragon_shell() {
     assert_model_shell_holds("dragon");
 }
 
-/// A closed box `[lo, hi]` as twelve triangles.
-fn box_mesh(lo: Vec3, hi: Vec3, positions: &mut Vec<[f32; 3]>, indices: &mut Vec<u32>) {
-    let base = positions.len() as u32;
-    for i in 0..8u32 {
-        let pick = |bit: u32, axis: usize| if i & bit != 0 { hi[axis] } else { lo[axis] };
-        positions.push([pick(1, 0), pick(2, 1), pick(4, 2)]);
-    }
-    let faces = [
-        [0, 1, 3, 0, 3, 2],
-        [4, 6, 7, 4, 7, 5],
-        [0, 4, 5, 0, 5, 1],
-        [2, 3, 7, 2, 7, 6],
-        [0, 2, 6, 0, 6, 4],
-        [1, 5, 7, 1, 7, 3],
-    ];
-    indices.extend(faces.iter().flatten().map(|&k| base + k));
-}
-
 /// A 1 m plate exactly one voxel thick at n = 64: the mesh's box is a 1 m cube (two specks at
 /// opposite corners fix it), so each voxel is 1/64 m tall and the plate is that thick. Its six
 /// faces are single big triangles pairs, so every sphere comes from clipped pieces.
@@ -151,10 +133,10 @@ fn the_cloth_never_crosses_a_plate_one_voxel_thick() {
     let thickness = 1.0 / n as f32;
     let (lo, hi) = (Vec3::new(-0.5, 0.5, -0.5), Vec3::new(0.5, 0.5 + thickness, 0.5));
     let (mut positions, mut indices) = (Vec::new(), Vec::new());
-    box_mesh(lo, hi, &mut positions, &mut indices);
+    common::box_mesh(lo, hi, &mut positions, &mut indices);
     let speck = 1.0e-4;
-    box_mesh(Vec3::new(-0.5, 0.0, -0.5), Vec3::new(-0.5, 0.0, -0.5) + speck, &mut positions, &mut indices);
-    box_mesh(Vec3::new(0.5, 1.0, 0.5) - speck, Vec3::new(0.5, 1.0, 0.5), &mut positions, &mut indices);
+    common::box_mesh(Vec3::new(-0.5, 0.0, -0.5), Vec3::new(-0.5, 0.0, -0.5) + speck, &mut positions, &mut indices);
+    common::box_mesh(Vec3::new(0.5, 1.0, 0.5) - speck, Vec3::new(0.5, 1.0, 0.5), &mut positions, &mut indices);
     let collider = Collider::from_mesh(MeshRef { positions: &positions, indices: Some(&indices) }, n).unwrap();
     let inside = move |p: Vec3| p.cmpgt(lo).all() && p.cmplt(hi).all();
     let drop = drop_on(&collider, 4.0, Some(&inside));

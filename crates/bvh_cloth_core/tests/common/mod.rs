@@ -78,3 +78,21 @@ pub fn square_grid(size: f32, cols: u32, rows: u32) -> ClothGrid {
 pub fn grid_topology(size: f32, cols: u32, rows: u32) -> Arc<ClothTopology> {
     Arc::new(ClothTopology::grid(square_grid(size, cols, rows)).unwrap())
 }
+
+/// A closed box `[lo, hi]` as twelve triangles.
+pub fn box_mesh(lo: Vec3, hi: Vec3, positions: &mut Vec<[f32; 3]>, indices: &mut Vec<u32>) {
+    let base = positions.len() as u32;
+    for i in 0..8u32 {
+        let pick = |bit: u32, axis: usize| if i & bit != 0 { hi[axis] } else { lo[axis] };
+        positions.push([pick(1, 0), pick(2, 1), pick(4, 2)]);
+    }
+    let faces = [
+        [0, 1, 3, 0, 3, 2],
+        [4, 6, 7, 4, 7, 5],
+        [0, 4, 5, 0, 5, 1],
+        [2, 3, 7, 2, 7, 6],
+        [0, 2, 6, 0, 6, 4],
+        [1, 5, 7, 1, 7, 3],
+    ];
+    indices.extend(faces.iter().flatten().map(|&k| base + k));
+}
