@@ -22,8 +22,9 @@
 //!    runs its particle simulation too).
 //! 3. [`simulate_cloths`] (`RenderGraph`, before the camera driver) records the refit of every
 //!    skinned collider the main world left to the GPU (prepared with its joint matrices by
-//!    `prepare_skin_refits`), then the ticks of the whole batch, a copy of each cloth's fault count and, for cloths with [`ClothReadback`], a
-//!    copy of its particles, then the writeback of all cloths (one dispatch per mesh slab); [`request_fault_reads`] (`Cleanup`, after the
+//!    `prepare_skin_refits`), then the ticks of the whole batch, a copy of each cloth's fault
+//!    count and, for cloths with [`ClothReadback`], a copy of its particles, then the writeback
+//!    of all cloths (one dispatch per mesh slab); [`request_fault_reads`] (`Cleanup`, after the
 //!    submit) asks for those copies to be mapped.
 //! 4. A later frame's [`report_faults`] (`ExtractSchedule`) sends the counts and states that
 //!    have arrived to the main world, as [`GpuClothDiverged`] and [`GpuClothState`];
