@@ -216,7 +216,8 @@ impl BvhClothPlugin {
     /// The clock ([`ClothClock`]) advances by that schedule's [`Time`], so in a fixed-timestep
     /// schedule it advances by [`Time<Fixed>`]'s step on each run, and a schedule that runs
     /// twice in a frame runs the ticks of both (on the GPU backend, all in that frame's render
-    /// pass, against the colliders' poses of the last run). Outside [`PostUpdate`] the plugin
+    /// pass, against the colliders' poses of the last run; a cloth reset or rebuilt in the
+    /// second run also runs the first run's ticks there). Outside [`PostUpdate`] the plugin
     /// propagates transforms at the start of that schedule (Bevy's own propagation systems, in
     /// [`TransformSystems::Propagate`]), so cloths, colliders, anchors and joints are where
     /// their [`Transform`]s say when the cloth runs.
