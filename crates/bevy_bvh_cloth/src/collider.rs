@@ -40,9 +40,9 @@ pub const ASYNC_BUILD_MIN_VERTICES: usize = 20_000;
 /// [`ColliderContact::Spheres`] (the paper's method) the cloth collides with those spheres:
 /// every sphere reaches a little past the surface part it holds, so they form a closed shell,
 /// and the response tests each particle's whole path, so a cloth that starts outside a still
-/// collider never crosses it, at any resolution (see `bvh_cloth_core::collision`). The collider follows the entity's transform
-/// (rotation, translation and uniform scale; with a non-uniform scale the largest axis is used,
-/// and a warning says so).
+/// collider never crosses it, at any resolution (see `bvh_cloth_core::collision`). The
+/// collider follows the entity's transform (rotation, translation and uniform scale; with a
+/// non-uniform scale the largest axis is used, and a warning says so).
 ///
 /// On an entity with a [`SkinnedMesh`] (an animated character's body, as glTF loads it) the
 /// collider follows the joints instead: every frame each sphere is fitted again around its part
@@ -92,7 +92,7 @@ impl Default for AutoCollider {
 /// the model, not on a shell of spheres that stands off it (at the paper's `n = 5` the spheres
 /// hold a resting cloth 80 to 96 mm off the bundled models; exact contact holds it at the
 /// margin, 0.3 mm beyond it on average; see BENCHMARKS.md). It costs a second tree, over the
-/// mesh's triangles, built with the collider (about 1.6x to 2.6x the build time on the bundled
+/// mesh's triangles, built with the collider (about 1.4x to 2.1x the build time on the bundled
 /// models), and on the GPU a collision stage that walks triangles instead of spheres.
 /// [`Self::Spheres`] is the paper's method: cheaper to build and to query at low `n`, and
 /// looser.
