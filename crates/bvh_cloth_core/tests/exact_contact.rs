@@ -169,24 +169,7 @@ fn a_plate_of_zero_thickness_holds_a_fast_cloth() {
 /// read the winding.
 #[test]
 fn a_torus_holds_the_cloth_whatever_its_winding() {
-    let (major, minor, rings, sides) = (0.35f32, 0.08f32, 64u32, 20u32);
-    let mut positions = Vec::new();
-    for i in 0..rings {
-        let u = std::f32::consts::TAU * i as f32 / rings as f32;
-        for j in 0..sides {
-            let v = std::f32::consts::TAU * j as f32 / sides as f32;
-            let r = major + minor * v.cos();
-            positions.push([r * u.cos(), minor * v.sin(), r * u.sin()]);
-        }
-    }
-    let mut indices = Vec::new();
-    for i in 0..rings {
-        for j in 0..sides {
-            let at = |a: u32, b: u32| (a % rings) * sides + b % sides;
-            let (a, b, c, d) = (at(i, j), at(i + 1, j), at(i, j + 1), at(i + 1, j + 1));
-            indices.extend_from_slice(&[a, b, c, c, b, d]);
-        }
-    }
+    let (positions, indices) = common::torus(0.35, 0.08, 64, 20);
     let inverted: Vec<u32> = indices.chunks_exact(3).flat_map(|t| [t[0], t[2], t[1]]).collect();
     for (name, indices) in [("torus", &indices), ("inverted torus", &inverted)] {
         let mesh = MeshRef { positions: &positions, indices: Some(indices) };

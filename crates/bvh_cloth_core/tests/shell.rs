@@ -147,24 +147,8 @@ fn the_cloth_never_crosses_a_plate_one_voxel_thick() {
 /// drapes over the ring and sags through its hole.
 #[test]
 fn the_cloth_never_crosses_a_torus() {
-    let (major, minor, rings, sides) = (0.35f32, 0.06f32, 96u32, 24u32);
-    let mut positions = Vec::new();
-    for i in 0..rings {
-        let u = std::f32::consts::TAU * i as f32 / rings as f32;
-        for j in 0..sides {
-            let v = std::f32::consts::TAU * j as f32 / sides as f32;
-            let r = major + minor * v.cos();
-            positions.push([r * u.cos(), minor * v.sin(), r * u.sin()]);
-        }
-    }
-    let mut indices = Vec::new();
-    for i in 0..rings {
-        for j in 0..sides {
-            let at = |a: u32, b: u32| (a % rings) * sides + b % sides;
-            let (a, b, c, d) = (at(i, j), at(i + 1, j), at(i, j + 1), at(i + 1, j + 1));
-            indices.extend_from_slice(&[a, b, c, c, b, d]);
-        }
-    }
+    let (major, minor, sides) = (0.35f32, 0.06f32, 24u32);
+    let (positions, indices) = common::torus(major, minor, 96, sides);
     let collider = Collider::from_mesh(MeshRef { positions: &positions, indices: Some(&indices) }, 128).unwrap();
     // The polygonal tube lies inside the round one; count only particles inside the polygon's
     // inscribed tube.

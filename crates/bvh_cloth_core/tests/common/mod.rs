@@ -96,3 +96,26 @@ pub fn box_mesh(lo: Vec3, hi: Vec3, positions: &mut Vec<[f32; 3]>, indices: &mut
     ];
     indices.extend(faces.iter().flatten().map(|&k| base + k));
 }
+
+/// A torus lying flat in the XZ plane around the origin: major radius `major`, tube radius
+/// `minor`, `rings` rings of `sides` vertices.
+pub fn torus(major: f32, minor: f32, rings: u32, sides: u32) -> (Vec<[f32; 3]>, Vec<u32>) {
+    let mut positions = Vec::new();
+    for i in 0..rings {
+        let u = core::f32::consts::TAU * i as f32 / rings as f32;
+        for j in 0..sides {
+            let v = core::f32::consts::TAU * j as f32 / sides as f32;
+            let r = major + minor * v.cos();
+            positions.push([r * u.cos(), minor * v.sin(), r * u.sin()]);
+        }
+    }
+    let mut indices = Vec::new();
+    for i in 0..rings {
+        for j in 0..sides {
+            let at = |a: u32, b: u32| (a % rings) * sides + b % sides;
+            let (a, b, c, d) = (at(i, j), at(i + 1, j), at(i, j + 1), at(i + 1, j + 1));
+            indices.extend_from_slice(&[a, b, c, c, b, d]);
+        }
+    }
+    (positions, indices)
+}
