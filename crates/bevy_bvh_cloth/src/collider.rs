@@ -92,7 +92,7 @@ impl Default for AutoCollider {
 /// the model, not on a shell of spheres that stands off it (at the paper's `n = 5` the spheres
 /// hold a resting cloth 80 to 96 mm off the bundled models; exact contact holds it at the
 /// margin, 0.3 mm beyond it on average; see BENCHMARKS.md). It costs a second tree, over the
-/// mesh's triangles, built with the collider (about 1.4x to 2.1x the build time on the bundled
+/// mesh's triangles, built with the collider (about 1.5x to 1.9x the build time on the bundled
 /// models), and on the GPU a collision stage that walks triangles instead of spheres.
 /// [`Self::Spheres`] is the paper's method: cheaper to build and to query at low `n`, and
 /// looser.

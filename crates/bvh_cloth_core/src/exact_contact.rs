@@ -50,7 +50,8 @@ use rayon::prelude::*;
 
 use crate::collision::{CONTACT_BAND, MAX_PASSES, Response};
 use crate::error::ColliderError;
-use crate::lbvh::{Lbvh, Sphere};
+use crate::lbvh::{BvhNode, LEAF_BIT, Lbvh, Sphere};
+use crate::traversal::STACK_SIZE;
 use crate::triangles::{closest_point, face_normal, has_area, segment_hit};
 use crate::voxel_spheres::MeshRef;
 
@@ -122,19 +123,73 @@ impl TriangleSurface {
     }
 
     /// The point of the surface closest to `p` within `reach`, if any is.
+    ///
+    /// A nearest-first descent: the reach shrinks to the closest triangle found so far, the
+    /// nearer child is visited first, and a node is skipped when its box (or a leaf when its
+    /// sphere) lies farther than that.
     pub fn closest_within(&self, p: Vec3, reach: f32) -> Option<Vec3> {
-        let mut best: Option<(f32, Vec3)> = None;
-        self.lbvh.for_each_overlapping(p, p, reach, |k, s| {
-            if !sphere_reaches(s, p, reach) {
+        let tree = &self.lbvh;
+        let mut best = Nearest { d2: reach * reach, d: reach, point: None };
+        let leaf = |k: u32, best: &mut Nearest| {
+            let s = &tree.spheres[k as usize];
+            // The sphere, so its triangle, is no nearer than the best so far.
+            let beyond = s.radius + best.d;
+            if s.centre().distance_squared(p) >= beyond * beyond {
                 return;
             }
             let q = closest_point(p, self.triangles[k as usize]);
-            let d = q.distance_squared(p);
-            if d < reach * reach && best.is_none_or(|(b, _)| d < b) {
-                best = Some((d, q));
+            let d2 = q.distance_squared(p);
+            if d2 < best.d2 {
+                *best = Nearest { d2, d: d2.sqrt(), point: Some(q) };
             }
-        });
-        best.map(|(_, q)| q)
+        };
+        if tree.nodes.is_empty() {
+            if !tree.spheres.is_empty() {
+                leaf(0, &mut best);
+            }
+            return best.point;
+        }
+        let box_d2 = |node: u32| {
+            let n = &tree.nodes[node as usize];
+            let nearest = p.clamp(Vec3::from(n.aabb_min), Vec3::from(n.aabb_max));
+            nearest.distance_squared(p)
+        };
+        // Each entry keeps its box's distance, checked again against the shrunk reach when it
+        // is popped.
+        let mut stack = [(0u32, 0.0f32); STACK_SIZE];
+        let mut top = 0usize;
+        let root_d2 = box_d2(0);
+        if root_d2 < best.d2 {
+            stack[0] = (0, root_d2);
+            top = 1;
+        }
+        while top > 0 {
+            top -= 1;
+            let (node, d2) = stack[top];
+            if d2 >= best.d2 {
+                continue;
+            }
+            let BvhNode { left, right, .. } = tree.nodes[node as usize];
+            let mut inner: [(u32, f32); 2] = [(0, f32::INFINITY); 2];
+            for (slot, child) in inner.iter_mut().zip([left, right]) {
+                if child & LEAF_BIT != 0 {
+                    leaf(child & !LEAF_BIT, &mut best);
+                } else {
+                    *slot = (child, box_d2(child));
+                }
+            }
+            // The farther child goes on the stack first, so the nearer one is popped first.
+            if inner[1].1 > inner[0].1 {
+                inner.swap(0, 1);
+            }
+            for (child, d2) in inner {
+                if d2 < best.d2 && top < STACK_SIZE {
+                    stack[top] = (child, d2);
+                    top += 1;
+                }
+            }
+        }
+        best.point
     }
 
     /// Whether `p` is closer than `thickness` to the surface.
@@ -212,6 +267,14 @@ impl TriangleSurface {
         }
         if self.first_crossing(prev, target).is_some() { Response::Stay } else { Response::Moved(target) }
     }
+}
+
+/// The closest point a query has found so far, at squared distance `d2` and distance `d`
+/// (the reach, until one is found).
+struct Nearest {
+    d2: f32,
+    d: f32,
+    point: Option<Vec3>,
 }
 
 /// The triangle's unit normal turned to the side `towards` points to (the face normal by

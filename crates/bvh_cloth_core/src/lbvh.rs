@@ -11,7 +11,7 @@ use bytemuck::{Pod, Zeroable};
 use glam::Vec3;
 use rayon::prelude::*;
 
-use crate::morton::morton_code;
+use crate::morton::{morton_code, sort_by_code};
 
 /// A child reference with this bit set names a leaf (a sphere index); without it, an inner node.
 pub const LEAF_BIT: u32 = 1 << 31;
@@ -141,22 +141,18 @@ impl Lbvh {
         let (lo, hi) = spheres
             .iter()
             .fold((Vec3::INFINITY, Vec3::NEG_INFINITY), |(lo, hi), s| (lo.min(s.centre()), hi.max(s.centre())));
-        let key = |(i, s): (usize, &Sphere)| (morton_code(s.centre(), lo, hi), i as u32);
-        // Sorting the (code, index) pairs orders equal codes by input index.
-        let keyed: Vec<(u32, u32)> = if spheres.len() >= PARALLEL_BUILD_MIN_LEAVES {
-            let mut keyed: Vec<(u32, u32)> = spheres.par_iter().enumerate().map(key).collect();
-            keyed.par_sort_unstable();
-            keyed
+        let code = |s: &Sphere| morton_code(s.centre(), lo, hi);
+        let parallel = spheres.len() >= PARALLEL_BUILD_MIN_LEAVES;
+        let codes: Vec<u32> =
+            if parallel { spheres.par_iter().map(code).collect() } else { spheres.iter().map(code).collect() };
+        let keyed = sort_by_code(codes.into_iter());
+        let (codes, sorted): (Vec<u32>, Vec<Sphere>) = if parallel {
+            keyed.par_iter().map(|&(c, i)| (c, spheres[i as usize])).unzip()
         } else {
-            let mut keyed: Vec<(u32, u32)> = spheres.iter().enumerate().map(key).collect();
-            keyed.sort_unstable();
-            keyed
+            keyed.iter().map(|&(c, i)| (c, spheres[i as usize])).unzip()
         };
-        let codes: Vec<u32> = keyed.iter().map(|&(c, _)| c).collect();
-        let sorted: Vec<Sphere> = keyed.iter().map(|&(_, i)| spheres[i as usize]).collect();
-
         let inner = sorted.len() - 1;
-        let nodes: Vec<BvhNode> = if sorted.len() >= PARALLEL_BUILD_MIN_LEAVES {
+        let nodes: Vec<BvhNode> = if parallel {
             (0..inner).into_par_iter().map(|i| build_inner_node(&codes, i)).collect()
         } else {
             (0..inner).map(|i| build_inner_node(&codes, i)).collect()
@@ -168,7 +164,7 @@ impl Lbvh {
 
     /// Fits every inner node's box to `leaf_box(k)` for leaf `k` instead of its sphere's box:
     /// for leaves that stand for something tighter than their sphere (a triangle).
-    pub(crate) fn fit_boxes_by(&mut self, leaf_box: impl Fn(u32) -> (Vec3, Vec3)) {
+    pub(crate) fn fit_boxes_by(&mut self, leaf_box: impl Fn(u32) -> (Vec3, Vec3) + Sync) {
         self.depth = fit_bounds_by(&mut self.nodes, leaf_box);
     }
 
@@ -241,38 +237,56 @@ fn fit_bounds(nodes: &mut [BvhNode], spheres: &[Sphere]) -> u32 {
 }
 
 /// As [`fit_bounds`], with leaf `k`'s box given by `leaf_box(k)`.
-fn fit_bounds_by(nodes: &mut [BvhNode], leaf_box: impl Fn(u32) -> (Vec3, Vec3)) -> u32 {
+///
+/// A Karras tree's subtree over the leaves `[a, b]` holds the inner nodes of one contiguous
+/// range of indices (its root is `a` or `b`, its left child's subtree lies in `[a, γ]` and its
+/// right child's in `[γ + 1, b]`), so the two subtrees of a node are disjoint slices and are
+/// fitted in parallel when they are large.
+fn fit_bounds_by(nodes: &mut [BvhNode], leaf_box: impl Fn(u32) -> (Vec3, Vec3) + Sync) -> u32 {
     if nodes.is_empty() {
         return 0;
     }
-    let child_box = |nodes: &[BvhNode], child: u32| -> (Vec3, Vec3) {
+    fit_subtree(nodes, 0, 0, &leaf_box).2
+}
+
+/// Subtrees with fewer inner nodes than this are fitted on one thread.
+const PARALLEL_FIT_MIN_NODES: usize = 4096;
+
+/// Fits the subtree rooted at inner node `root`, whose inner nodes are `nodes` (global indices
+/// from `base`; the root is the first or the last of them). Returns its box and its depth.
+fn fit_subtree<F>(nodes: &mut [BvhNode], base: usize, root: usize, leaf_box: &F) -> (Vec3, Vec3, u32)
+where
+    F: Fn(u32) -> (Vec3, Vec3) + Sync,
+{
+    let (node, rest, rest_base) = if root == base {
+        let (node, rest) = nodes.split_first_mut().expect("a subtree has its root");
+        (node, rest, base + 1)
+    } else {
+        debug_assert_eq!(root, base + nodes.len() - 1, "a subtree's root is its first or last node");
+        let (node, rest) = nodes.split_last_mut().expect("a subtree has its root");
+        (node, rest, base)
+    };
+    let (left, right) = (node.left, node.right);
+    // The left child's subtree ends at the split γ, its index; the right one starts after it.
+    let split = ((left & !LEAF_BIT) as usize + 1).saturating_sub(rest_base).min(rest.len());
+    let parallel = rest.len() >= PARALLEL_FIT_MIN_NODES;
+    let (left_nodes, right_nodes) = rest.split_at_mut(split);
+    let right_base = rest_base + split;
+    let fit_child = |child: u32, slice: &mut [BvhNode], slice_base: usize| {
         if child & LEAF_BIT != 0 {
-            leaf_box(child & !LEAF_BIT)
+            let (lo, hi) = leaf_box(child & !LEAF_BIT);
+            (lo, hi, 0)
         } else {
-            let n = &nodes[child as usize];
-            (Vec3::from(n.aabb_min), Vec3::from(n.aabb_max))
+            fit_subtree(slice, slice_base, child as usize, leaf_box)
         }
     };
-    let mut max_depth = 0u32;
-    // (node, depth, children done?)
-    let mut stack: Vec<(u32, u32, bool)> = vec![(0, 1, false)];
-    while let Some((node, depth, done)) = stack.pop() {
-        let BvhNode { left, right, .. } = nodes[node as usize];
-        if done {
-            let (lmin, lmax) = child_box(nodes, left);
-            let (rmin, rmax) = child_box(nodes, right);
-            let n = &mut nodes[node as usize];
-            n.aabb_min = lmin.min(rmin).to_array();
-            n.aabb_max = lmax.max(rmax).to_array();
-            continue;
-        }
-        max_depth = max_depth.max(depth);
-        stack.push((node, depth, true));
-        for child in [left, right] {
-            if child & LEAF_BIT == 0 {
-                stack.push((child, depth + 1, false));
-            }
-        }
-    }
-    max_depth
+    let ((lmin, lmax, ldepth), (rmin, rmax, rdepth)) = if parallel {
+        rayon::join(|| fit_child(left, left_nodes, rest_base), || fit_child(right, right_nodes, right_base))
+    } else {
+        (fit_child(left, left_nodes, rest_base), fit_child(right, right_nodes, right_base))
+    };
+    let (lo, hi) = (lmin.min(rmin), lmax.max(rmax));
+    node.aabb_min = lo.to_array();
+    node.aabb_max = hi.to_array();
+    (lo, hi, 1 + ldepth.max(rdepth))
 }
