@@ -118,6 +118,13 @@ pub enum ClothError {
         /// Largest particle count accepted.
         max: u32,
     },
+    /// The self-contact thickness is larger than the cloth's particle spacing.
+    ThicknessAboveSpacing {
+        /// The thickness given, in metres.
+        thickness: f32,
+        /// The cloth's particle spacing (the mean rest length of its structural springs).
+        spacing: f32,
+    },
 }
 
 impl fmt::Display for ClothError {
@@ -180,6 +187,11 @@ impl fmt::Display for ClothError {
             Self::TooManyParticles { particles, max } => {
                 write!(f, "cloth has {particles} particles; at most {max} are supported")
             }
+            Self::ThicknessAboveSpacing { thickness, spacing } => write!(
+                f,
+                "cloth parameter `self_contact.thickness` is {thickness} m, more than the cloth's particle spacing of \
+                 {spacing} m: particles a few edges apart on the flat cloth would push each other"
+            ),
         }
     }
 }

@@ -6,6 +6,7 @@ use glam::Vec3;
 
 pub use crate::block_descent::MAX_ITERATIONS;
 use crate::error::ClothError;
+use crate::self_contact::SelfContact;
 use crate::topology::ClothTopology;
 
 /// Most substeps one tick may take when the stability guard raises `looper` (see
@@ -110,6 +111,10 @@ pub struct ClothParams {
     pub stiffness: SpringStiffness,
     /// The time integrator.
     pub integrator: Integrator,
+    /// Self-contact ([`crate::self_contact`]): `None`, the default, lets the cloth pass
+    /// through itself. Off by default because it costs a neighbour search every substep, and
+    /// a flag or a banner never folds onto itself; a cape, a skirt or a dropped towel needs it.
+    pub self_contact: Option<SelfContact>,
 }
 
 impl Default for ClothParams {
@@ -123,6 +128,7 @@ impl Default for ClothParams {
             gravity: Vec3::new(0.0, -9.81, 0.0),
             stiffness: SpringStiffness::default(),
             integrator: Integrator::default(),
+            self_contact: None,
         }
     }
 }
@@ -195,6 +201,9 @@ impl ClothParams {
         non_negative("stiffness.bending", self.stiffness.bending)?;
         finite("external_force", self.external_force)?;
         finite("gravity", self.gravity)?;
+        if let Some(contact) = &self.self_contact {
+            contact.validate()?;
+        }
         Ok(())
     }
 
@@ -204,6 +213,9 @@ impl ClothParams {
         self.validate()?;
         if !self.integrator.is_explicit() {
             topology.colouring()?;
+        }
+        if let Some(contact) = &self.self_contact {
+            contact.validate_for(topology)?;
         }
         Ok(())
     }

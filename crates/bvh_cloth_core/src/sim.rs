@@ -18,6 +18,7 @@ use crate::collision::ColliderFrame;
 use crate::error::ClothError;
 use crate::forces::{ForceModel, LANES, SpringScratch};
 use crate::params::{ClothParams, Integrator};
+use crate::self_contact::{ContactBody, ContactSolver, ContactStats};
 use crate::topology::ClothTopology;
 
 /// Rows per band: the unit of parallel work, and of spring reuse (see
@@ -46,6 +47,10 @@ pub struct ClothSim {
     pins: Vec<u32>,
     /// Working state of block descent, which keeps positions by particle during a tick.
     descent: BlockDescent,
+    /// Self-contact's grid and scratch, and the positions and velocities it works on.
+    contact: ContactSolver,
+    contact_x: Vec<Vec3>,
+    contact_v: Vec<Vec3>,
 }
 
 /// What one stage of the integrator does with the slope `k = f(src)` of each particle.
@@ -103,6 +108,9 @@ impl ClothSim {
             free,
             pins,
             descent: BlockDescent::default(),
+            contact: ContactSolver::default(),
+            contact_x: Vec::new(),
+            contact_v: Vec::new(),
         };
         sim.reset(pose);
         Ok(sim)
@@ -305,6 +313,23 @@ impl ClothSim {
         }
         for _ in 0..substeps {
             descent.substep(&self.topology, &model, &self.free[..n], h, iterations, &frames);
+            if let Some(contact) = self.params.self_contact {
+                self.contact_x.clear();
+                self.contact_x.extend(descent.x.iter().map(|&p| Vec3::from(p)));
+                self.contact_v.clear();
+                self.contact_v.extend(descent.v.iter().map(|&p| Vec3::from(p)));
+                let mut body = [ContactBody {
+                    topology: &self.topology,
+                    contact,
+                    free: &self.free[..n],
+                    x: &mut self.contact_x,
+                    v: &mut self.contact_v,
+                }];
+                self.contact.resolve(&mut body, &frames);
+                for (k, (p, v)) in self.contact_x.iter().zip(&self.contact_v).enumerate() {
+                    (descent.x[k], descent.v[k]) = (Vec3A::from(*p), Vec3A::from(*v));
+                }
+            }
         }
         for (r, row) in self.state.chunks_exact_mut(LANES * w).enumerate() {
             for c in 0..w.min(n.saturating_sub(r * w)) {
@@ -317,12 +342,95 @@ impl ClothSim {
         self.descent = descent;
     }
 
-    /// Advances one substep of `h` seconds (integration, then collision).
+    /// Advances one substep of `h` seconds (integration, then collision, then self-contact).
     pub fn substep(&mut self, h: f32, colliders: &[Collider]) {
         if let Integrator::BlockDescent { iterations } = self.params.integrator {
             self.descend(h, 1, iterations, colliders);
             return;
         }
+        self.integrate(h, colliders);
+        if let Some(contact) = self.params.self_contact {
+            let frames: Vec<ColliderFrame<'_>> = colliders.iter().filter_map(ColliderFrame::new).collect();
+            let (mut x, mut v) = (core::mem::take(&mut self.contact_x), core::mem::take(&mut self.contact_v));
+            self.read_state(&mut x, &mut v);
+            let free = &self.free[..self.len()];
+            let mut body = [ContactBody { topology: &self.topology, contact, free, x: &mut x, v: &mut v }];
+            self.contact.resolve(&mut body, &frames);
+            self.write_state(&x, &v);
+            (self.contact_x, self.contact_v) = (x, v);
+        }
+    }
+
+    /// Steps several cloths together for a tick of `dt` seconds, so that the ones with
+    /// self-contact also keep off each other ([`crate::self_contact`]): every cloth takes the
+    /// largest substep count among them, and after each substep the contacts of all of them
+    /// are resolved at once by `solver`. Returns the substeps run and the last substep's
+    /// contact figures.
+    pub fn tick_together(
+        sims: &mut [&mut ClothSim],
+        dt: f32,
+        colliders: &[Collider],
+        solver: &mut ContactSolver,
+    ) -> (u32, ContactStats) {
+        if !(dt.is_finite() && dt > 0.0) || sims.is_empty() {
+            return (0, ContactStats::default());
+        }
+        let substeps = sims.iter().map(|s| s.substeps(dt)).max().unwrap_or(1);
+        let h = dt / substeps as f32;
+        let frames: Vec<ColliderFrame<'_>> = colliders.iter().filter_map(ColliderFrame::new).collect();
+        let mut stats = ContactStats::default();
+        let mut states: Vec<(Vec<Vec3>, Vec<Vec3>)> = sims.iter().map(|_| (Vec::new(), Vec::new())).collect();
+        for _ in 0..substeps {
+            for sim in sims.iter_mut() {
+                match sim.params.integrator {
+                    Integrator::BlockDescent { iterations } => {
+                        // One substep, its contact left to the joint pass below.
+                        let contact = sim.params.self_contact.take();
+                        sim.descend(h, 1, iterations, colliders);
+                        sim.params.self_contact = contact;
+                    }
+                    _ => sim.integrate(h, colliders),
+                }
+            }
+            let mut bodies = Vec::with_capacity(sims.len());
+            for (sim, (x, v)) in sims.iter().zip(states.iter_mut()) {
+                let Some(contact) = sim.params.self_contact else { continue };
+                sim.read_state(x, v);
+                bodies.push(ContactBody { topology: &sim.topology, contact, free: &sim.free[..sim.len()], x, v });
+            }
+            if bodies.is_empty() {
+                continue;
+            }
+            stats = solver.resolve(&mut bodies, &frames);
+            drop(bodies);
+            for (sim, (x, v)) in sims.iter_mut().zip(&states) {
+                if sim.params.self_contact.is_some() {
+                    sim.write_state(x, v);
+                }
+            }
+        }
+        (substeps, stats)
+    }
+
+    /// Every particle's position and velocity, into `x` and `v`.
+    fn read_state(&self, x: &mut Vec<Vec3>, v: &mut Vec<Vec3>) {
+        x.clear();
+        v.clear();
+        x.extend((0..self.len()).map(|i| self.position(i)));
+        v.extend((0..self.len()).map(|i| self.velocity(i)));
+    }
+
+    /// Sets every particle's position and velocity from `x` and `v`.
+    fn write_state(&mut self, x: &[Vec3], v: &[Vec3]) {
+        for (i, (&p, &vel)) in x.iter().zip(v).enumerate() {
+            self.set_position(i, p);
+            self.set_velocity(i, vel);
+        }
+    }
+
+    /// One substep of an explicit integrator: integration with collision fused into its last
+    /// stage.
+    fn integrate(&mut self, h: f32, colliders: &[Collider]) {
         let frames: Vec<ColliderFrame<'_>> = colliders.iter().filter_map(ColliderFrame::new).collect();
         let model = ForceModel::new(&self.params);
         match self.params.integrator {

@@ -95,6 +95,15 @@ pub fn segment_hit(p: Vec3, q: Vec3, [a, b, c]: [Vec3; 3]) -> Option<f32> {
     (0.0..=1.0).contains(&t).then_some(t)
 }
 
+/// Whether two triangles intersect: an edge of either crosses the other ([`segment_hit`], so
+/// with its slack at the edges). Coplanar overlapping triangles do not count.
+pub fn triangles_intersect(a: [Vec3; 3], b: [Vec3; 3]) -> bool {
+    let crosses = |s: [Vec3; 3], t: [Vec3; 3]| {
+        [(s[0], s[1]), (s[1], s[2]), (s[2], s[0])].into_iter().any(|(p, q)| segment_hit(p, q, t).is_some())
+    };
+    crosses(a, b) || crosses(b, a)
+}
+
 /// The triangle's unit normal by its winding (`(b - a) x (c - a)`), or `None` when it has no
 /// area.
 pub fn face_normal([a, b, c]: [Vec3; 3]) -> Option<Vec3> {
@@ -197,5 +206,21 @@ mod tests {
         let (p, q) = (Vec3::new(0.5, 0.5, 1.0), Vec3::new(0.5, 0.5, -1.0));
         assert!(segment_hit(p, q, T).is_some() || segment_hit(p, q, other).is_some());
         assert_eq!(face_normal(T), Some(Vec3::Z));
+    }
+
+    #[test]
+    fn triangles_intersect_when_one_pierces_the_other() {
+        // Standing through the middle of T, touching it along no edge of T.
+        let through = [Vec3::new(0.2, 0.2, -1.0), Vec3::new(0.3, 0.2, 1.0), Vec3::new(0.2, 0.3, 1.0)];
+        assert!(triangles_intersect(T, through) && triangles_intersect(through, T));
+        // The same lifted clear of T's plane, and beside it.
+        let above = through.map(|p| p + Vec3::Z * 1.5);
+        let beside = through.map(|p| p + Vec3::X * 2.0);
+        assert!(!triangles_intersect(T, above) && !triangles_intersect(T, beside));
+        // A large triangle through which a small one's edge passes, neither edge of the large
+        // one touching the small one.
+        let big = [Vec3::new(-5.0, -5.0, 0.5), Vec3::new(5.0, -5.0, 0.5), Vec3::new(0.0, 5.0, 0.5)];
+        let small = [Vec3::new(0.0, 0.0, 0.0), Vec3::new(0.1, 0.0, 1.0), Vec3::new(0.0, 0.1, 0.0)];
+        assert!(triangles_intersect(big, small) && triangles_intersect(small, big));
     }
 }

@@ -1,0 +1,210 @@
+//! Self-contact (`bvh_cloth_core::self_contact`): a cloth folding over a thin bar, two cloths
+//! dropped on each other onto a ball, and bad input. Each scene is run with contact and, as its
+//! control, without: the control shows the scene makes the layers meet, and contact keeps them
+//! apart. "Apart" is checked two ways: no particle closer than half the thickness to one it
+//! shares no spring with, and no two triangles (sharing no corner) that intersect, by an exact
+//! segment–triangle test of every edge against every triangle.
+
+mod common;
+
+use std::sync::Arc;
+
+use bvh_cloth_core::self_contact::{ContactBody, ContactSolver, MAX_CANDIDATES, particle_spacing};
+use bvh_cloth_core::triangles::triangles_intersect;
+use bvh_cloth_core::{
+    Affine3A, ClothError, ClothParams, ClothSim, ClothTopology, Collider, ColliderPose, Integrator, Primitive, Quat,
+    SelfContact, Vec3,
+};
+
+/// The contact thickness, in metres (the 48 x 48 cloth of 1 m has a spacing of 21 mm).
+const THICKNESS: f32 = 0.01;
+
+fn params(contact: bool, integrator: Integrator) -> ClothParams {
+    ClothParams {
+        self_contact: contact.then_some(SelfContact { thickness: THICKNESS, friction: 0.3 }),
+        integrator,
+        ..ClothParams::default()
+    }
+}
+
+/// Pairs of particles of one cloth closer than `limit` that share no spring and lie farther
+/// apart than the thickness in the rest shape.
+fn close_pairs(topology: &ClothTopology, x: &[Vec3], limit: f32) -> usize {
+    let rest = topology.rest_positions();
+    let mut count = 0;
+    for i in 0..x.len() {
+        for j in i + 1..x.len() {
+            if x[i].distance(x[j]) < limit
+                && rest[i].distance(rest[j]) >= THICKNESS
+                && !topology.springs_of(i).iter().any(|e| e.other as usize == j)
+            {
+                count += 1;
+            }
+        }
+    }
+    count
+}
+
+/// Pairs of particles of two cloths closer than `limit`.
+fn close_between(a: &[Vec3], b: &[Vec3], limit: f32) -> usize {
+    a.iter().map(|p| b.iter().filter(|q| p.distance(**q) < limit).count()).sum()
+}
+
+/// Intersecting pairs among the triangles of `x` (indices into `x`), skipping pairs that share
+/// a corner, or all pairs across when `other` is given.
+fn crossing_triangles(tris: &[[u32; 3]], x: &[Vec3], other: Option<(&[[u32; 3]], &[Vec3])>) -> usize {
+    let corners = |t: &[u32; 3], x: &[Vec3]| t.map(|k| x[k as usize]);
+    let bounds = |t: [Vec3; 3]| (t[0].min(t[1]).min(t[2]), t[0].max(t[1]).max(t[2]));
+    let overlap = |a: (Vec3, Vec3), b: (Vec3, Vec3)| a.1.cmpge(b.0).all() && b.1.cmpge(a.0).all();
+    let mut count = 0;
+    match other {
+        None => {
+            for (i, ti) in tris.iter().enumerate() {
+                let a = corners(ti, x);
+                for tj in &tris[i + 1..] {
+                    if ti.iter().any(|k| tj.contains(k)) {
+                        continue;
+                    }
+                    let b = corners(tj, x);
+                    if overlap(bounds(a), bounds(b)) && triangles_intersect(a, b) {
+                        count += 1;
+                    }
+                }
+            }
+        }
+        Some((other_tris, y)) => {
+            for ti in tris {
+                let a = corners(ti, x);
+                for tj in other_tris {
+                    let b = corners(tj, y);
+                    if overlap(bounds(a), bounds(b)) && triangles_intersect(a, b) {
+                        count += 1;
+                    }
+                }
+            }
+        }
+    }
+    count
+}
+
+/// A 48 x 48 cloth of 1 m dropped from 0.3 m onto a bar of radius 3 cm (a capsule along Z), off
+/// its centre line so that one side is longer: it folds over the bar and its two sides swing
+/// down and into each other under it. After 3 s: no close pair, no crossing triangle; without
+/// contact the two sides swing through each other (over a thousand crossing triangles). A
+/// thinner bar than the particle spacing would let the cloth slip through between particles.
+#[test]
+fn a_cloth_folding_over_a_thin_bar_keeps_off_itself() {
+    let bar = Collider::primitive(Primitive::Capsule { radius: 0.03, half_length: 1.0 })
+        .unwrap()
+        .with_pose(ColliderPose { rotation: Quat::from_rotation_x(core::f32::consts::FRAC_PI_2), ..Default::default() })
+        .with_friction(0.5);
+    let colliders = [bar];
+    let mut results = Vec::new();
+    for (contact, integrator) in [(true, Integrator::BLOCK_DESCENT), (false, Integrator::BLOCK_DESCENT)] {
+        let topology = common::grid_topology(1.0, 48, 48);
+        let pose = Affine3A::from_translation(Vec3::new(0.12, 0.3, 0.0));
+        let mut sim = ClothSim::new(params(contact, integrator), Arc::clone(&topology), pose, &[]).unwrap();
+        for _ in 0..180 {
+            sim.tick(1.0 / 60.0, &colliders);
+        }
+        assert!(sim.is_finite(), "contact {contact}: the cloth went non-finite");
+        let x = sim.positions();
+        let close = close_pairs(&topology, &x, 0.5 * THICKNESS);
+        let crossing = crossing_triangles(topology.triangles(), &x, None);
+        // Hanging over the bar: a side below it, and the fold still on it.
+        let on_bar = x.iter().filter(|p| p.truncate().length() < 0.1).count();
+        let folded = if on_bar > 200 { x.iter().filter(|p| p.y < -0.2).count() } else { 0 };
+        eprintln!(
+            "{integrator:?}, contact {contact}: {close} close pairs, {crossing} crossing triangles, {folded} particles hanging"
+        );
+        results.push((close, crossing, folded));
+    }
+    let [(close, crossing, folded), (_, control_crossing, _)] = results[..] else { unreachable!() };
+    assert!(folded > 800, "{folded} particles hang below the bar: the cloth did not fold over it");
+    assert!(control_crossing > 100, "without contact only {control_crossing} triangles cross: the scene tests nothing");
+    assert_eq!(close, 0, "particles closer than half the thickness to a non-neighbour");
+    assert_eq!(crossing, 0, "the cloth's triangles intersect");
+}
+
+/// Two 32 x 32 cloths of 0.8 m dropped 0.1 m apart onto a ball of radius 0.25 m, the upper
+/// turned and stepped by RK4, the lower by block descent, together: after 3 s the upper one rests on the lower, none of their
+/// particles closer than half the thickness and none of their triangles crossing; stepped
+/// together without contact, the upper falls through the lower.
+#[test]
+fn two_cloths_dropped_on_a_ball_keep_apart() {
+    let ball = Collider::primitive(Primitive::Sphere { radius: 0.25 }).unwrap().with_friction(0.5);
+    let colliders = [ball];
+    let topology = common::grid_topology(0.8, 32, 32);
+    let mut results = Vec::new();
+    for contact in [true, false] {
+        let thickness = SelfContact { thickness: THICKNESS, friction: 0.3 };
+        let p = ClothParams { self_contact: contact.then_some(thickness), ..ClothParams::default() };
+        let place = |y: f32, turn: f32| Affine3A::from_rotation_translation(Quat::from_rotation_y(turn), Vec3::Y * y);
+        let mut lower = ClothSim::new(p.clone(), Arc::clone(&topology), place(0.35, 0.0), &[]).unwrap();
+        // The upper cloth is RK4: cloths of either integrator step together.
+        let rk4 = ClothParams { integrator: Integrator::Rk4, damping: 1.0, ..p.clone() };
+        let mut upper = ClothSim::new(rk4, Arc::clone(&topology), place(0.45, 0.4), &[]).unwrap();
+        let mut solver = ContactSolver::default();
+        for _ in 0..180 {
+            ClothSim::tick_together(&mut [&mut lower, &mut upper], 1.0 / 60.0, &colliders, &mut solver);
+        }
+        let (a, b) = (lower.positions(), upper.positions());
+        assert!(lower.is_finite() && upper.is_finite());
+        let close = close_between(&a, &b, 0.5 * THICKNESS);
+        let crossing = crossing_triangles(topology.triangles(), &a, Some((topology.triangles(), &b)));
+        let own = close_pairs(&topology, &a, 0.5 * THICKNESS) + close_pairs(&topology, &b, 0.5 * THICKNESS);
+        eprintln!("contact {contact}: {close} close pairs between, {crossing} crossing triangles, {own} close within");
+        results.push((close, crossing, own));
+    }
+    let [(close, crossing, own), (_, control_crossing, _)] = results[..] else { unreachable!() };
+    assert!(control_crossing > 100, "without contact only {control_crossing} triangles cross: the cloths never met");
+    assert_eq!(close, 0, "particles of the two cloths closer than half the thickness");
+    assert_eq!(crossing, 0, "triangles of the two cloths intersect");
+    assert_eq!(own, 0, "a cloth's particles closer than half the thickness to each other");
+}
+
+/// Thicknesses of zero, below zero, NaN and above the particle spacing are refused, naming the
+/// field; so is a negative friction.
+#[test]
+fn bad_thickness_and_friction_are_refused() {
+    let topology = common::grid_topology(1.0, 48, 48);
+    let spacing = particle_spacing(&topology);
+    assert!((spacing - 1.0 / 47.0).abs() < 1e-6, "spacing {spacing}");
+    for thickness in [0.0, -0.01, f32::NAN, f32::INFINITY] {
+        let contact = SelfContact { thickness, friction: 0.0 };
+        let err = contact.validate_for(&topology).unwrap_err();
+        assert!(err.to_string().contains("self_contact.thickness"), "{err}");
+        let p = ClothParams { self_contact: Some(contact), ..ClothParams::default() };
+        assert!(ClothSim::new(p, Arc::clone(&topology), Affine3A::IDENTITY, &[]).is_err());
+    }
+    let thick = SelfContact { thickness: 0.05, friction: 0.0 };
+    let err = thick.validate_for(&topology).unwrap_err();
+    assert!(matches!(err, ClothError::ThicknessAboveSpacing { .. }), "{err}");
+    assert!(err.to_string().contains("self_contact.thickness"), "{err}");
+    let err = SelfContact { thickness: 0.01, friction: -1.0 }.validate().unwrap_err();
+    assert!(err.to_string().contains("self_contact.friction"), "{err}");
+}
+
+/// Every particle of a 64 x 64 cloth at one point: each examines at most `MAX_CANDIDATES`
+/// others (all 4,096 are reported clamped), the pass ends, nothing goes non-finite, and the
+/// particles move apart.
+#[test]
+fn everything_at_one_point_is_bounded() {
+    let topology = common::grid_topology(1.0, 64, 64);
+    let n = topology.len();
+    let mut x = vec![Vec3::splat(0.5); n];
+    let mut v = vec![Vec3::ZERO; n];
+    let free = vec![1.0; n];
+    let contact = SelfContact { thickness: THICKNESS, friction: 0.3 };
+    let mut solver = ContactSolver::default();
+    let stats =
+        solver.resolve(&mut [ContactBody { topology: &topology, contact, free: &free, x: &mut x, v: &mut v }], &[]);
+    assert_eq!(stats.clamped, n, "every particle had more than {MAX_CANDIDATES} candidates");
+    // Each candidate brings at most the triangles it is the first corner of and the
+    // particle's own triangles.
+    let valence = (0..n).map(|i| topology.triangles_of(i).len()).max().unwrap();
+    assert!(stats.contacts <= n * MAX_CANDIDATES * 2 * valence, "{} contacts", stats.contacts);
+    assert!(x.iter().chain(&v).all(|p| p.is_finite()), "a particle went non-finite");
+    let spread = x.iter().map(|p| p.distance(Vec3::splat(0.5))).fold(0.0f32, f32::max);
+    assert!(spread > 0.1 * THICKNESS, "the particles did not move apart ({spread} m)");
+}
