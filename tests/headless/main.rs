@@ -12,6 +12,7 @@ mod lifecycle;
 mod parameters;
 mod primitives;
 mod schedule;
+mod self_contact;
 mod skinned;
 #[path = "../common/skinned_arm.rs"]
 mod skinned_arm;

@@ -5,7 +5,8 @@ use std::time::Instant;
 
 use bevy::camera::primitives::Aabb;
 use bevy::prelude::*;
-use bvh_cloth_core::Collider;
+use bvh_cloth_core::self_contact::ContactSolver;
+use bvh_cloth_core::{ClothSim, Collider};
 
 use crate::clock::ClothClock;
 use crate::cloth_mesh::write_cloth_mesh;
@@ -15,36 +16,70 @@ use crate::simulation::{ClothSimulation, rigid_pose};
 use crate::stats::ClothStats;
 
 /// Runs this frame's ticks for every cloth, each tick after moving the pins where
-/// [`plan_anchors`](crate::simulation::plan_anchors) put them for it.
+/// [`plan_anchors`](crate::simulation::plan_anchors) put them for it. The cloths with
+/// self-contact are stepped together ([`ClothSim::tick_together`]), so that they also keep off
+/// each other.
 pub(crate) fn step_cloths(
     clock: Res<ClothClock>,
     colliders: Query<&ClothCollider>,
     mut cloths: Query<(Entity, &mut ClothSimulation, &GlobalTransform)>,
     mut stats: ResMut<ClothStats>,
     mut messages: MessageWriter<ClothMessage>,
+    mut contact: Local<ContactSolver>,
 ) {
     let start = Instant::now();
+    let ticks = clock.ticks as usize;
     // Cheap copies: the sphere trees are shared, only the poses are per frame.
     let colliders: Vec<Collider> = colliders.iter().map(|c| c.collider().clone()).collect();
-    let ticks = clock.ticks;
+    let mut together = Vec::new();
     for (entity, mut state, transform) in &mut cloths {
         if ticks == 0 {
             continue;
         }
+        if state.sim.params().self_contact.is_some() {
+            together.push((entity, state, transform));
+            continue;
+        }
         let state = &mut *state;
-        for k in 0..ticks as usize {
+        for k in 0..ticks {
             if let Some(targets) = state.anchor_targets.get(k) {
                 state.sim.move_pins(targets);
             }
             state.sim.tick(clock.tick_seconds, &colliders);
         }
-        state.dirty = true;
-        if !state.sim.is_finite() {
-            let particles = u32::try_from(state.sim.non_finite_particles()).unwrap_or(u32::MAX);
-            state.diverged(entity, particles, rigid_pose(transform), &mut messages);
+        finish_ticks(entity, state, transform, &mut messages);
+    }
+    if !together.is_empty() {
+        for k in 0..ticks {
+            let mut sims: Vec<&mut ClothSim> = Vec::with_capacity(together.len());
+            for (_, state, _) in &mut together {
+                let state: &mut ClothSimulation = state;
+                if let Some(targets) = state.anchor_targets.get(k) {
+                    state.sim.move_pins(targets);
+                }
+                sims.push(&mut state.sim);
+            }
+            ClothSim::tick_together(&mut sims, clock.tick_seconds, &colliders, &mut contact);
+        }
+        for (entity, mut state, transform) in together {
+            finish_ticks(entity, &mut state, transform, &mut messages);
         }
     }
     stats.step_time = start.elapsed();
+}
+
+/// Marks a stepped cloth for write-back, and resets it if it diverged.
+fn finish_ticks(
+    entity: Entity,
+    state: &mut ClothSimulation,
+    transform: &GlobalTransform,
+    messages: &mut MessageWriter<ClothMessage>,
+) {
+    state.dirty = true;
+    if !state.sim.is_finite() {
+        let particles = u32::try_from(state.sim.non_finite_particles()).unwrap_or(u32::MAX);
+        state.diverged(entity, particles, rigid_pose(transform), messages);
+    }
 }
 
 /// Writes every cloth that moved into its mesh, and sets its bounds for frustum culling.

@@ -119,7 +119,7 @@ use bevy::transform::systems::{mark_dirty_trees, propagate_parent_transforms, sy
 
 pub use backend::{ActiveClothBackend, ClothBackend};
 pub use bvh_cloth_core;
-pub use bvh_cloth_core::{ClothParams, ClothPins, ColorChannel, Integrator, SpringStiffness};
+pub use bvh_cloth_core::{ClothParams, ClothPins, ColorChannel, Integrator, SelfContact, SpringStiffness};
 pub use clock::ClothClock;
 pub use cloth::{Cloth, ClothAnchor, ClothShape};
 pub use collider::{ASYNC_BUILD_MIN_VERTICES, AutoCollider, ClothCollider, ColliderContact, ColliderStatus};
@@ -142,7 +142,7 @@ pub mod prelude {
         ClothBackend, ClothClock, ClothDebugViewPlugin, ClothDiverged, ClothMessage, ClothParams, ClothPins,
         ClothReadback, ClothRejected, ClothSettings, ClothShape, ClothSimulation, ClothStats, ClothSystems,
         ColliderContact, ColliderFailed, ColliderHierarchy, ColliderReady, ColliderStatus, ColorChannel, Integrator,
-        PrimitiveCollider, PrimitiveShape, ResetCloth, SpringStiffness,
+        PrimitiveCollider, PrimitiveShape, ResetCloth, SelfContact, SpringStiffness,
     };
 }
 
@@ -284,7 +284,11 @@ impl Plugin for BvhClothPlugin {
                     (
                         clock::advance_clock,
                         simulation::sync_cloths,
-                        (gpu_backend::reset_diverged_cloths, readback::apply_gpu_readbacks)
+                        (
+                            gpu_backend::reset_diverged_cloths,
+                            readback::apply_gpu_readbacks,
+                            simulation::warn_self_contact_on_gpu,
+                        )
                             .run_if(not(backend::cpu_backend_active)),
                         simulation::warn_stiff_cloths,
                     )

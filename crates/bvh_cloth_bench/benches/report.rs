@@ -14,12 +14,15 @@
 //!    on the GPU.
 //! 8. Exact primitives against voxelised meshes: collision cost per particle.
 //! 9. Skinned colliders: one frame's refit against skinning the mesh's vertices.
+//! 10. Exact contact against sphere contact: the resting air gap, queries and build.
+//! 11. Self-contact: a cloth folding over a bar and two cloths on the bunny, checked with an
+//!     exact triangle–triangle test, and its cost.
 //!
 //! `WGPU_BACKEND=vulkan cargo bench -p bvh_cloth_bench --bench report`
 //! (without a GPU adapter the GPU columns say so and the rest still runs). Append `-- NAME` to
 //! run only the sections whose name contains NAME: `table_vii`, `queries`, `fidelity`,
 //! `step_scaling`, `topology`, `gpu_profile`, `many_cloths`, `build_scaling`, `far_from_origin`,
-//! `solver`, `primitives`, `skinned_refit`, `exact_contact`.
+//! `solver`, `primitives`, `skinned_refit`, `exact_contact`, `self_contact`.
 
 use std::fmt::Write as _;
 use std::sync::Arc;
@@ -31,7 +34,9 @@ use bvh_cloth_bench::{
 use bvh_cloth_core::obj::ObjMesh;
 
 use bvh_cloth_core::collision::{CONTACT_BAND, ColliderFrame};
+use bvh_cloth_core::self_contact::{ContactSolver, SelfContact};
 use bvh_cloth_core::skinning::{SkinRef, SkinScratch, SkinnedVertices};
+use bvh_cloth_core::triangles::triangles_intersect;
 use bvh_cloth_core::{
     Affine3A, ClothGrid, ClothParams, ClothSim, ClothTopology, Collider, ColliderPose, Integrator, Primitive, Quat,
     UVec2, Vec2, Vec3,
@@ -40,6 +45,7 @@ use bvh_cloth_gpu::{ClothBatch, ClothKernels, GpuColliders, Kernel, SkinRefit, h
 use parry3d::math::Vector;
 use parry3d::query::{PointQuery, Ray, RayCast};
 use parry3d::shape::{TriMesh, TriMeshFlags};
+use rayon::prelude::*;
 
 /// The paper's Table VII (GTX 1650, quoted, not rerun): its method's ms per frame at n = 1, 3, 5.
 const PAPER_MS: [[f64; 3]; 2] = [[8.0, 12.0, 12.0], [13.0, 13.0, 15.0]];
@@ -118,6 +124,9 @@ fn main() {
     }
     if run("exact_contact") {
         exact_contact(&meshes, &parry, &single, gpu.as_ref());
+    }
+    if run("self_contact") {
+        self_contact(&meshes[0], &single, threads);
     }
     println!("\nCSV written to docs/benchmarks/ (plot: python3 scripts/plot_benchmarks.py)");
 }
@@ -1202,6 +1211,160 @@ fn exact_contact(meshes: &[ObjMesh], parry: &[TriMesh], single: &rayon::ThreadPo
     if gpu.software {
         println!("\nThe GPU here is a software adapter on the same CPU cores: its times are not GPU figures.");
     }
+}
+
+/// Self-contact on the CPU: the two scenes, each with and without contact, checked at
+/// the end by an exact triangle–triangle test between every two triangles sharing no corner
+/// and by the least distance between particles sharing no spring; then the cost of contact in
+/// a tick of a 128 x 128 cloth.
+fn self_contact(bunny: &ObjMesh, single: &rayon::ThreadPool, threads: usize) {
+    const THICKNESS: f32 = 0.008;
+    const SECONDS: f32 = 3.0;
+    let contact = SelfContact { thickness: THICKNESS, friction: 0.3 };
+    println!("\n## Self-contact: a cloth folding over a bar, two cloths on the bunny (CPU, {threads} threads)\n");
+    println!(
+        "Thickness {} mm, friction 0.3, block descent at Looper 16, {SECONDS} s of 60 Hz ticks. Crossing triangles: pairs of triangles sharing no corner (within a cloth) or of two cloths that intersect, by an exact segment–triangle test of each edge. Close pairs: particles sharing no spring, lying farther apart than the thickness in the rest shape, closer than half the thickness at the end.\n",
+        THICKNESS * 1e3
+    );
+    println!(
+        "| scene | contact | crossing triangles within a cloth | between the cloths | close pairs | ms per tick |"
+    );
+    println!("|---|---|---|---|---|---|");
+    let bar = Collider::primitive(Primitive::Capsule { radius: 0.03, half_length: 1.0 })
+        .expect("a valid capsule")
+        .with_pose(ColliderPose { rotation: Quat::from_rotation_x(std::f32::consts::FRAC_PI_2), ..Default::default() })
+        .with_friction(0.5);
+    let fold = Arc::new(ClothTopology::grid(ClothGrid::new(Vec2::ONE, UVec2::splat(64))).expect("a valid grid"));
+    for on in [true, false] {
+        let params = ClothParams { self_contact: on.then_some(contact), ..Default::default() };
+        let pose = Affine3A::from_translation(Vec3::new(0.12, 0.3, 0.0));
+        let mut sim = ClothSim::new(params, Arc::clone(&fold), pose, &[]).expect("a valid cloth");
+        let ticks = (SECONDS / TICK).round() as u32;
+        let seconds = time(|| {
+            for _ in 0..ticks {
+                sim.tick(TICK, std::slice::from_ref(&bar));
+            }
+        });
+        let x = sim.positions();
+        println!(
+            "| 64 x 64 (1 m) over a bar of radius 3 cm | {} | {} | — | {} | {:.2} |",
+            if on { "on" } else { "off" },
+            crossing_triangles(&fold, &x, None),
+            close_pairs(&fold, &x, None, 0.5 * THICKNESS),
+            seconds * 1e3 / ticks as f64
+        );
+    }
+    let surface = collider(bunny, 5).with_exact_contact(bunny.as_mesh_ref()).expect("the bunny has area");
+    let two = Arc::new(ClothTopology::grid(square_grid(64)).expect("a valid grid"));
+    let top = bvh_cloth_bench::top_of(&surface);
+    for on in [true, false] {
+        let params = ClothParams { self_contact: on.then_some(contact), ..Default::default() };
+        let place = |lift: f32, turn: f32| {
+            Affine3A::from_rotation_translation(Quat::from_rotation_y(turn), Vec3::new(-0.1, top + lift, 0.0))
+        };
+        let mut lower = ClothSim::new(params.clone(), Arc::clone(&two), place(0.2, 0.0), &[]).expect("a valid cloth");
+        let mut upper = ClothSim::new(params, Arc::clone(&two), place(0.35, 0.5), &[]).expect("a valid cloth");
+        let mut solver = ContactSolver::default();
+        let ticks = (SECONDS / TICK).round() as u32;
+        let seconds = time(|| {
+            for _ in 0..ticks {
+                ClothSim::tick_together(
+                    &mut [&mut lower, &mut upper],
+                    TICK,
+                    std::slice::from_ref(&surface),
+                    &mut solver,
+                );
+            }
+        });
+        let (a, b) = (lower.positions(), upper.positions());
+        let within = crossing_triangles(&two, &a, None) + crossing_triangles(&two, &b, None);
+        let between = crossing_triangles(&two, &a, Some((&two, &b)));
+        let close = close_pairs(&two, &a, None, 0.5 * THICKNESS)
+            + close_pairs(&two, &b, None, 0.5 * THICKNESS)
+            + close_pairs(&two, &a, Some(&b), 0.5 * THICKNESS);
+        println!(
+            "| two 64 x 64 (1.4 m) dropped on each other onto the bunny (exact contact) | {} | {within} | {between} | {close} | {:.2} |",
+            if on { "on" } else { "off" },
+            seconds * 1e3 / ticks as f64
+        );
+    }
+
+    println!("\n### Cost: a 128 x 128 cloth (1.4 m) resting on the bunny\n");
+    println!(
+        "The cloth falls 1 s with self-contact, then the same state ticks with and without it, alternating, best of 5 each (ms per 60 Hz tick, Looper 16).\n"
+    );
+    println!("| threads | tick without contact ms | tick with contact ms | contact / rest of the tick |");
+    println!("|---|---|---|---|");
+    let big = Arc::new(ClothTopology::grid(square_grid(128)).expect("a valid grid"));
+    let colliders = std::slice::from_ref(&surface);
+    let params = ClothParams { self_contact: Some(contact), ..Default::default() };
+    let mut with = ClothSim::new(params, big, Affine3A::from_translation(Vec3::new(-0.1, top + 0.2, 0.0)), &[])
+        .expect("a valid cloth");
+    for _ in 0..(1.0 / TICK).round() as u32 {
+        with.tick(TICK, colliders);
+    }
+    let mut without = with.clone();
+    without.set_params(ClothParams { self_contact: None, ..with.params().clone() }).expect("valid parameters");
+    let measure = || {
+        (0..5).fold((f64::INFINITY, f64::INFINITY), |(off, on), _| {
+            let mut a = without.clone();
+            let mut b = with.clone();
+            let t_off = time(|| _ = a.tick(TICK, colliders));
+            let t_on = time(|| _ = b.tick(TICK, colliders));
+            (off.min(t_off), on.min(t_on))
+        })
+    };
+    for (label, (off, on)) in [("1", single.install(measure)), (&*threads.to_string(), measure())] {
+        println!("| {label} | {:.2} | {:.2} | {:.0}% |", off * 1e3, on * 1e3, (on - off) / off * 100.0);
+    }
+}
+
+/// Pairs of intersecting triangles: within `topology`'s cloth at `x` (pairs sharing no corner),
+/// or between it and `other`'s cloth.
+fn crossing_triangles(topology: &ClothTopology, x: &[Vec3], other: Option<(&ClothTopology, &[Vec3])>) -> usize {
+    let corners = |t: &[u32; 3], x: &[Vec3]| t.map(|k| x[k as usize]);
+    let bounds = |t: [Vec3; 3]| (t[0].min(t[1]).min(t[2]), t[0].max(t[1]).max(t[2]));
+    let overlap = |a: (Vec3, Vec3), b: (Vec3, Vec3)| a.1.cmpge(b.0).all() && b.1.cmpge(a.0).all();
+    let mine = topology.triangles();
+    let (theirs, y) = match other {
+        Some((t, y)) => (t.triangles(), y),
+        None => (mine, x),
+    };
+    (0..mine.len())
+        .into_par_iter()
+        .map(|i| {
+            let a = corners(&mine[i], x);
+            let first = if other.is_some() { 0 } else { i + 1 };
+            theirs[first..]
+                .iter()
+                .filter(|tj| other.is_some() || !mine[i].iter().any(|k| tj.contains(k)))
+                .filter(|tj| {
+                    let b = corners(tj, y);
+                    overlap(bounds(a), bounds(b)) && triangles_intersect(a, b)
+                })
+                .count()
+        })
+        .sum()
+}
+
+/// Pairs of particles closer than `limit`: within `topology`'s cloth at `x` (sharing no spring
+/// and lying farther apart than the limit's double in the rest shape), or between it and
+/// `other` (a cloth of the same topology).
+fn close_pairs(topology: &ClothTopology, x: &[Vec3], other: Option<&[Vec3]>, limit: f32) -> usize {
+    let rest = topology.rest_positions();
+    (0..x.len())
+        .into_par_iter()
+        .map(|i| match other {
+            Some(y) => y.iter().filter(|q| x[i].distance(**q) < limit).count(),
+            None => (i + 1..x.len())
+                .filter(|&j| {
+                    x[i].distance(x[j]) < limit
+                        && rest[i].distance(rest[j]) >= 2.0 * limit
+                        && !topology.springs_of(i).iter().any(|e| e.other as usize == j)
+                })
+                .count(),
+        })
+        .sum()
 }
 
 /// Bones of the skinned-collider scenes.

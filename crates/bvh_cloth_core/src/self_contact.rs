@@ -9,27 +9,27 @@
 //!
 //! # Finding the pairs
 //!
-//! A hashed grid, rebuilt each substep, of cells as wide as the reach: the largest thickness
-//! plus the longest edge of any triangle as the particles stand, so that every corner of a
-//! triangle within the thickness of a particle lies within the reach of it, in its cell or the
-//! 26 around it. Each particle's cell is hashed into a table of about twice as many buckets as
-//! particles, and a counting sort lays the particles out bucket by bucket: one pass to count, a
-//! prefix sum, one pass to place. The same layout is what a GPU builds with atomics; it needs
-//! no pointers and no allocation per cell. Two cells that hash to one bucket only add
-//! candidates, which the distance test drops.
+//! A hashed grid of the triangles, rebuilt each substep (Teschner et al. 2003, "Optimized
+//! spatial hashing for collision detection of deformable objects"): cells twice as wide as the
+//! largest thickness plus the mean edge, and every triangle entered in each cell its box, grown
+//! by the thickness, overlaps (one to eight cells for most). A point within the thickness of a triangle lies in that grown
+//! box, so the triangle is in the bucket of the point's own cell: one bucket per point. Each
+//! cell is hashed into a table of about twice as many buckets as triangles, and a counting sort
+//! lays the entries out bucket by bucket: one pass to count, a prefix sum, one pass to place.
+//! The same layout is what a GPU builds with atomics; it needs no pointers and no allocation
+//! per cell. Two cells that hash to one bucket only add candidates, which the box test drops.
 //!
-//! Each particle `k` then gathers, from every particle `j` within the reach: its contacts as a
-//! point with the triangles `j` is the first corner of (so each triangle once), and as a corner
-//! of its own triangles with the point `j`. Within a cloth a point and a triangle are skipped
-//! when the point is a corner of the triangle or lies closer to it than the thickness in the
-//! rest shape: the cloth's own shape never fights the contact.
+//! Within a cloth a point and a triangle are skipped when the point is a corner of the
+//! triangle, or lies within the thickness of the triangle's box in the rest shape (the
+//! triangle is its neighbour on the cloth, not another layer): the cloth's own shape never
+//! fights the contact.
 //!
 //! # Bounds
 //!
-//! A particle examines at most [`MAX_CANDIDATES`] others. Everything at one point (a cloth
-//! collapsed by an absurd force) costs a bounded amount per particle, not the square of the
-//! count; the particles that met the bound are counted in [`ContactStats::clamped`], never
-//! silently.
+//! A point examines at most [`MAX_CANDIDATES`] triangles, and a triangle covers at most
+//! [`MAX_SPAN`] cells along an axis. Everything at one point (a cloth collapsed by an absurd
+//! force) costs a bounded amount per particle, not the square of the count; what met a bound is
+//! counted in [`ContactStats::clamped`], never silently.
 //!
 //! # Response
 //!
@@ -38,11 +38,12 @@
 //! unit direction `n` from `q` to `p`: the constraint `(x_p - q)·n >= h` is projected with the
 //! particles' weights (1 free, 0 pinned), so `p` moves `w_p λ n` and each corner `-w_c b_c λ n`,
 //! with `λ = (h - d) / (w_p + Σ w_c b_c²)`. If they approach, the normal part of their relative
-//! velocity is taken off the same way, and the tangential part slowed by Coulomb friction. A
-//! particle in several contacts moves by the mean of its corrections (Jacobi with averaging),
-//! so the result depends neither on the order nor on the thread count. A particle that moved
-//! is then checked against the colliders from where it was, so that contact never pushes
-//! cloth through a collider.
+//! velocity is taken off the same way, and the tangential part slowed by Coulomb friction. The
+//! contacts are found in parallel, point by point, and summed in point order; a particle in
+//! several contacts moves by the mean of its corrections (Jacobi with averaging), so the result
+//! depends neither on the thread count nor on the order. A particle that moved is then checked
+//! against the colliders from where it was, so that contact never pushes cloth through a
+//! collider.
 //!
 //! # Limits
 //!
@@ -50,7 +51,7 @@
 //! above the thickness per substep, 10 mm in 1 ms is 10 m/s at Looper 16) is not caught, and
 //! layers that already cross are not untangled.
 
-use glam::{IVec3, Vec3};
+use glam::{IVec3, Vec3, Vec3A};
 use rayon::prelude::*;
 
 use crate::collision::ColliderFrame;
@@ -58,8 +59,12 @@ use crate::error::ClothError;
 use crate::topology::ClothTopology;
 use crate::triangles::{closest_point, face_normal};
 
-/// Most particles one particle examines for contact in a substep.
+/// Most triangles one particle examines for contact in a substep.
 pub const MAX_CANDIDATES: usize = 256;
+
+/// Most grid cells a triangle covers along an axis; a wider one (stretched far beyond the
+/// others) is entered in the first `MAX_SPAN³` of its cells and counted as clamped.
+pub const MAX_SPAN: i32 = 4;
 
 /// Above this many particles the pairs are found and resolved on the rayon pool.
 const PARALLEL_MIN: usize = 2048;
@@ -131,7 +136,8 @@ pub struct ContactStats {
     /// Point–triangle contacts, counted once by each particle taking part (the point and each
     /// free corner).
     pub contacts: usize,
-    /// Particles that had more than [`MAX_CANDIDATES`] candidates, some left unexamined.
+    /// Points that had more than [`MAX_CANDIDATES`] candidate triangles (some left
+    /// unexamined), and triangles wider than [`MAX_SPAN`] cells.
     pub clamped: usize,
 }
 
@@ -143,27 +149,27 @@ pub struct ContactSolver {
     free: Vec<f32>,
     /// For each particle, its body and its index in it.
     owner: Vec<(u32, u32)>,
-    /// Each body's first particle in the flat arrays.
-    first: Vec<u32>,
-    cell: Vec<IVec3>,
-    /// Bucket `b` holds `order[starts[b]..starts[b + 1]]`.
+    /// Every body's triangles: its body and its corners' flat indices.
+    triangles: Vec<(u32, [u32; 3])>,
+    /// Each triangle's box as the particles stand, grown by the largest thickness, and its box
+    /// in the rest shape.
+    boxes: Vec<[Vec3A; 2]>,
+    rest_boxes: Vec<[Vec3A; 2]>,
+    /// Bucket `b` holds the triangles `entries[starts[b]..starts[b + 1]]`.
     starts: Vec<u32>,
-    order: Vec<u32>,
-    /// Each particle's new position and velocity, and what it met.
-    out: Vec<Moved>,
-}
-
-/// One particle's result of a pass.
-#[derive(Clone, Copy, Debug)]
-struct Moved {
-    x: Vec3,
-    v: Vec3,
-    contacts: u32,
-    clamped: bool,
+    entries: Vec<u32>,
+    /// Each particle's summed corrections and the number of contacts it took part in.
+    dx: Vec<Vec3>,
+    dv: Vec<Vec3>,
+    count: Vec<u32>,
 }
 
 /// One point–triangle contact: the correction each takes part in, per unit of its weight.
+#[derive(Clone, Copy, Debug)]
 struct Contact {
+    /// The point (flat index) and the triangle.
+    point: u32,
+    triangle: u32,
     /// Unit normal, from the triangle to the point.
     n: Vec3,
     /// The point's barycentric weights on the triangle.
@@ -179,186 +185,215 @@ impl ContactSolver {
     /// across bodies), as the [module docs](self) say, then checks the particles that moved
     /// against `frames` from where they were. `bodies` are written in place.
     pub fn resolve(&mut self, bodies: &mut [ContactBody<'_>], frames: &[ColliderFrame<'_>]) -> ContactStats {
-        let longest_edge = self.gather(bodies);
+        let mean_edge = self.gather(bodies);
         let n = self.x.len();
         let thickest = bodies.iter().map(|b| b.contact.thickness).fold(0.0f32, f32::max);
-        // A triangle within the thickness of a point has every corner within this of it.
-        let reach = thickest + longest_edge;
-        if n < 2 || !(reach.is_finite() && thickest > 0.0) {
+        // Twice a grown triangle's typical width: most triangles fall in one to eight cells.
+        let cell = 2.0 * (thickest + mean_edge);
+        if n < 2 || self.triangles.is_empty() || !(cell.is_finite() && thickest > 0.0) {
             return ContactStats::default();
         }
-        self.sort_into_buckets(reach);
+        let mut stats = ContactStats { clamped: self.sort_triangles(cell, thickest), ..Default::default() };
 
+        // Every point's contacts, in point order whatever the threads.
         let this = &*self;
         let bodies_ref: &[ContactBody<'_>] = bodies;
-        let respond = |k: usize| this.respond(k, bodies_ref, reach);
-        let out: Vec<Moved> = if n >= PARALLEL_MIN {
-            (0..n).into_par_iter().map(respond).collect()
-        } else {
-            (0..n).map(respond).collect()
+        let find = |(mut found, mut clamped): (Vec<Contact>, usize), p: usize| {
+            clamped += usize::from(this.contacts_of(p, bodies_ref, cell, &mut found));
+            (found, clamped)
         };
-        self.out = out;
+        let found: Vec<(Vec<Contact>, usize)> = if n >= PARALLEL_MIN {
+            (0..n).into_par_iter().fold(|| (Vec::new(), 0), find).collect()
+        } else {
+            vec![(0..n).fold((Vec::new(), 0), find)]
+        };
 
-        let mut stats = ContactStats::default();
-        for (k, moved) in self.out.iter().enumerate() {
-            stats.contacts += moved.contacts as usize;
-            stats.clamped += usize::from(moved.clamped);
-            if moved.contacts == 0 {
+        self.dx.clear();
+        self.dx.resize(n, Vec3::ZERO);
+        self.dv.clear();
+        self.dv.resize(n, Vec3::ZERO);
+        self.count.clear();
+        self.count.resize(n, 0);
+        for (contacts, clamped) in &found {
+            stats.clamped += clamped;
+            for c in contacts {
+                let p = c.point as usize;
+                self.dx[p] += self.free[p] * c.lambda * c.n;
+                self.dv[p] += self.free[p] * c.impulse;
+                self.count[p] += 1;
+                for (corner, &b) in self.triangles[c.triangle as usize].1.iter().zip(&c.b) {
+                    let k = *corner as usize;
+                    if self.free[k] > 0.0 {
+                        self.dx[k] -= self.free[k] * b * c.lambda * c.n;
+                        self.dv[k] -= self.free[k] * b * c.impulse;
+                        self.count[k] += 1;
+                    }
+                }
+            }
+        }
+        for k in 0..n {
+            let count = self.count[k];
+            if count == 0 {
                 continue;
             }
-            let (body, local) = self.owner[k];
-            let body = &mut bodies[body as usize];
-            let (mut p, mut vel) = (moved.x, moved.v);
+            stats.contacts += count as usize;
+            let mean = 1.0 / count as f32;
+            let (mut p, mut vel) = (self.x[k] + self.dx[k] * mean, self.v[k] + self.dv[k] * mean);
             for frame in frames {
                 frame.resolve(self.x[k], &mut p, &mut vel);
             }
+            let (body, local) = self.owner[k];
+            let body = &mut bodies[body as usize];
             body.x[local as usize] = p;
             body.v[local as usize] = vel;
         }
+
         stats
     }
 
-    /// Copies every body's particles into the flat arrays; returns the longest edge of any
-    /// triangle as the particles stand.
+    /// Copies every body's particles and triangles into the flat arrays; returns the mean edge
+    /// length of the triangles as the particles stand.
     fn gather(&mut self, bodies: &[ContactBody<'_>]) -> f32 {
         self.x.clear();
         self.v.clear();
         self.free.clear();
         self.owner.clear();
-        self.first.clear();
-        let mut longest = 0.0f32;
+        self.triangles.clear();
+        self.rest_boxes.clear();
+        let (mut sum, mut edges) = (0.0f64, 0usize);
         for (b, body) in bodies.iter().enumerate() {
             let n = body.topology.len();
             assert!(
                 body.x.len() >= n && body.v.len() >= n && body.free.len() >= n,
                 "a contact body holds fewer particles than its topology"
             );
-            self.first.push(self.x.len() as u32);
+            let first = self.x.len() as u32;
             self.x.extend_from_slice(&body.x[..n]);
             self.v.extend_from_slice(&body.v[..n]);
             self.free.extend_from_slice(&body.free[..n]);
             self.owner.extend((0..n as u32).map(|i| (b as u32, i)));
             for t in body.topology.triangles() {
-                let [a, b, c] = t.map(|k| body.x[k as usize]);
-                let edge = a.distance_squared(b).max(b.distance_squared(c)).max(c.distance_squared(a));
-                if edge.is_finite() {
-                    longest = longest.max(edge);
+                let [a, b2, c] = t.map(|k| body.x[k as usize]);
+                let perimeter = a.distance(b2) + b2.distance(c) + c.distance(a);
+                if perimeter.is_finite() {
+                    sum += f64::from(perimeter);
+                    edges += 3;
                 }
+                self.triangles.push((b as u32, t.map(|k| first + k)));
+                let [ra, rb, rc] = t.map(|k| body.topology.rest_positions()[k as usize]);
+                self.rest_boxes.push([ra.min(rb).min(rc).into(), ra.max(rb).max(rc).into()]);
             }
         }
-        longest.sqrt()
+        if edges == 0 { 0.0 } else { (sum / edges as f64) as f32 }
     }
 
-    /// The counting sort of the particles into the hashed grid's buckets.
-    fn sort_into_buckets(&mut self, cell_size: f32) {
-        let n = self.x.len();
-        let buckets = (2 * n).next_power_of_two();
-        let inv = 1.0 / cell_size;
-        self.cell.clear();
-        self.cell.extend(self.x.iter().map(|&p| cell_of(p, inv)));
+    /// The counting sort of the triangles into the hashed grid's buckets: each goes into
+    /// every cell its box, grown by `grow`, overlaps (at most [`MAX_SPAN`] cells along an
+    /// axis). Returns how many triangles were wider than that.
+    fn sort_triangles(&mut self, cell: f32, grow: f32) -> usize {
+        let buckets = (2 * self.triangles.len()).next_power_of_two();
+        let inv = 1.0 / cell;
+        let x = &self.x;
+        self.boxes.clear();
+        self.boxes.extend(self.triangles.iter().map(|(_, corners)| {
+            let [a, b, c] = corners.map(|k| x[k as usize]);
+            [(a.min(b).min(c) - grow).into(), (a.max(b).max(c) + grow).into()]
+        }));
+        let mut clamped = 0;
+        // The cells of each triangle's grown box, its span along each axis capped.
+        let ranges: Vec<Option<(IVec3, IVec3)>> = self
+            .boxes
+            .iter()
+            .map(|&[lo, hi]| {
+                if !(lo.is_finite() && hi.is_finite()) {
+                    return None;
+                }
+                let (lo, hi) = (cell_of(lo.into(), inv), cell_of(hi.into(), inv));
+                let capped = lo.wrapping_add(IVec3::splat(MAX_SPAN - 1)).min(hi);
+                if capped != hi {
+                    clamped += 1;
+                }
+                Some((lo, capped))
+            })
+            .collect();
         self.starts.clear();
         self.starts.resize(buckets + 1, 0);
-        for (k, &c) in self.cell.iter().enumerate() {
-            if self.x[k].is_finite() {
-                self.starts[bucket(c, buckets) + 1] += 1;
+        let mut used = Vec::with_capacity((MAX_SPAN * MAX_SPAN * MAX_SPAN) as usize);
+        for pass in 0..2 {
+            let mut next: Vec<u32> = if pass == 1 { self.starts[..buckets].to_vec() } else { Vec::new() };
+            for (t, range) in ranges.iter().enumerate() {
+                let Some((lo, hi)) = *range else { continue };
+                used.clear();
+                for z in lo.z..=hi.z {
+                    for y in lo.y..=hi.y {
+                        for x in lo.x..=hi.x {
+                            let b = bucket(IVec3::new(x, y, z), buckets);
+                            // Two cells of one triangle may share a bucket: enter it once.
+                            if used.contains(&b) {
+                                continue;
+                            }
+                            used.push(b);
+                            if pass == 0 {
+                                self.starts[b + 1] += 1;
+                            } else {
+                                self.entries[next[b] as usize] = t as u32;
+                                next[b] += 1;
+                            }
+                        }
+                    }
+                }
+            }
+            if pass == 0 {
+                for b in 0..buckets {
+                    self.starts[b + 1] += self.starts[b];
+                }
+                self.entries.clear();
+                self.entries.resize(self.starts[buckets] as usize, 0);
             }
         }
-        for b in 0..buckets {
-            self.starts[b + 1] += self.starts[b];
-        }
-        let mut next: Vec<u32> = self.starts[..buckets].to_vec();
-        self.order.clear();
-        self.order.resize(self.starts[buckets] as usize, 0);
-        for (k, &c) in self.cell.iter().enumerate() {
-            if self.x[k].is_finite() {
-                let slot = &mut next[bucket(c, buckets)];
-                self.order[*slot as usize] = k as u32;
-                *slot += 1;
-            }
-        }
+        clamped
     }
 
-    /// Particle `k`'s new position and velocity: the mean of its corrections as a point
-    /// against the triangles near it, and as a corner of its own triangles against the points
-    /// near them. Every candidate is a particle within `reach` of `k`.
-    fn respond(&self, k: usize, bodies: &[ContactBody<'_>], reach: f32) -> Moved {
-        let (x, v) = (self.x[k], self.v[k]);
-        let unmoved = Moved { x, v, contacts: 0, clamped: false };
-        if self.free[k] == 0.0 || !x.is_finite() {
-            return unmoved;
+    /// Adds the contacts of point `p` with the triangles in its cell's bucket to `found`;
+    /// returns whether it had more than [`MAX_CANDIDATES`] of them.
+    fn contacts_of(&self, p: usize, bodies: &[ContactBody<'_>], cell: f32, found: &mut Vec<Contact>) -> bool {
+        let x = self.x[p];
+        if !x.is_finite() {
+            return false;
         }
-        let (body, local) = self.owner[k];
-        let me = bodies[body as usize].topology;
-        let buckets = self.starts.len() - 1;
-        let centre = self.cell[k];
-        let mut seen = [u32::MAX; 27];
-        let (mut dx, mut dv, mut contacts, mut examined) = (Vec3::ZERO, Vec3::ZERO, 0u32, 0usize);
-        let mut clamped = false;
-        'cells: for (c, offset) in NEIGHBOUR_CELLS.iter().enumerate() {
-            let b = bucket(centre.wrapping_add(*offset), buckets) as u32;
-            // Two neighbour cells may share a bucket: read it once.
-            if seen[..c].contains(&b) {
-                continue;
-            }
-            seen[c] = b;
-            for &j in &self.order[self.starts[b as usize] as usize..self.starts[b as usize + 1] as usize] {
-                let j = j as usize;
-                if j == k || self.x[j].distance_squared(x) >= reach * reach {
-                    continue;
-                }
-                if examined == MAX_CANDIDATES {
-                    clamped = true;
-                    break 'cells;
-                }
-                examined += 1;
-                let (other_body, other_local) = self.owner[j];
-                let other = bodies[other_body as usize].topology;
-                // As a point: the triangles `j` is the first corner of (so each triangle once).
-                for &t in other.triangles_of(other_local as usize) {
-                    let tri = other.triangles()[t as usize];
-                    if tri[0] != other_local {
-                        continue;
-                    }
-                    if let Some(c) = self.contact(bodies, k, other_body, tri) {
-                        dx += self.free[k] * c.lambda * c.n;
-                        dv += self.free[k] * c.impulse;
-                        contacts += 1;
-                    }
-                }
-                // As a corner: `k`'s own triangles against the point `j`.
-                for &t in me.triangles_of(local as usize) {
-                    let tri = me.triangles()[t as usize];
-                    if let Some(c) = self.contact(bodies, j, body, tri) {
-                        let corner = tri.iter().position(|&q| q == local).unwrap_or(0);
-                        let share = -self.free[k] * c.b[corner];
-                        dx += share * c.lambda * c.n;
-                        dv += share * c.impulse;
-                        contacts += 1;
-                    }
-                }
-            }
-        }
-        if contacts == 0 {
-            return Moved { clamped, ..unmoved };
-        }
-        let mean = 1.0 / contacts as f32;
-        Moved { x: x + dx * mean, v: v + dv * mean, contacts, clamped }
+        let b = bucket(cell_of(x, 1.0 / cell), self.starts.len() - 1);
+        let candidates = &self.entries[self.starts[b] as usize..self.starts[b + 1] as usize];
+        found.extend(candidates.iter().take(MAX_CANDIDATES).filter_map(|&t| self.contact(bodies, p, t)));
+        candidates.len() > MAX_CANDIDATES
     }
 
-    /// The contact of point `p` (flat index) with triangle `tri` of body `tb`, if the point is
-    /// closer than the pair's thickness, is not one of its corners, and lay no closer than
-    /// that in their rest shape when they are of one body.
-    fn contact(&self, bodies: &[ContactBody<'_>], p: usize, tb: u32, tri: [u32; 3]) -> Option<Contact> {
-        let (pb, pl) = self.owner[p];
-        if pb == tb && tri.contains(&pl) {
+    /// The contact of point `p` (flat index) with triangle `t`, if the point is closer than
+    /// the pair's thickness, is not one of its corners, and lay no closer than that in their
+    /// rest shape when they are of one body.
+    fn contact(&self, bodies: &[ContactBody<'_>], p: usize, t: u32) -> Option<Contact> {
+        let (tb, corners) = self.triangles[t as usize];
+        if corners.contains(&(p as u32)) {
             return None;
         }
+        let xp = self.x[p];
+        // The boxes first: most candidates are beside the point, not within the thickness.
+        let [lo, hi] = self.boxes[t as usize];
+        let point = Vec3A::from(xp);
+        if !(point.cmpge(lo).all() && point.cmple(hi).all()) {
+            return None;
+        }
+        let (pb, pl) = self.owner[p];
         let (point_body, tri_body) = (&bodies[pb as usize], &bodies[tb as usize]);
         let h = 0.5 * (point_body.contact.thickness + tri_body.contact.thickness);
-        let first = self.first[tb as usize] as usize;
-        let corners = tri.map(|c| first + c as usize);
-        let at = corners.map(|c| self.x[c]);
-        let xp = self.x[p];
+        if pb == tb {
+            // Near it in the rest shape: the cloth's own neighbourhood, not another layer.
+            let [lo, hi] = self.rest_boxes[t as usize];
+            let rest = Vec3A::from(point_body.topology.rest_positions()[pl as usize]);
+            if rest.cmpge(lo - h).all() && rest.cmple(hi + h).all() {
+                return None;
+            }
+        }
+        let at = corners.map(|c| self.x[c as usize]);
         let q = closest_point(xp, at);
         let away = xp - q;
         let d2 = away.length_squared();
@@ -366,22 +401,16 @@ impl ContactSolver {
         if d2.is_nan() || d2 >= h * h {
             return None;
         }
-        if pb == tb {
-            let rest = tri_body.topology.rest_positions();
-            let rp = rest[pl as usize];
-            if closest_point(rp, tri.map(|c| rest[c as usize])).distance_squared(rp) < h * h {
-                return None;
-            }
-        }
         let d = d2.sqrt();
         let n = if d > 1.0e-6 * h { away / d } else { face_normal(at).unwrap_or(Vec3::Y) };
         let b = barycentric(q, at);
-        let w = corners.map(|c| self.free[c]);
+        let w = corners.map(|c| self.free[c as usize]);
         let denom = self.free[p] + w[0] * b[0] * b[0] + w[1] * b[1] * b[1] + w[2] * b[2] * b[2];
         if denom <= 0.0 {
             return None;
         }
-        let relative = self.v[p] - (b[0] * self.v[corners[0]] + b[1] * self.v[corners[1]] + b[2] * self.v[corners[2]]);
+        let v = corners.map(|c| self.v[c as usize]);
+        let relative = self.v[p] - (b[0] * v[0] + b[1] * v[1] + b[2] * v[2]);
         let vn = relative.dot(n);
         let impulse = if vn < 0.0 {
             let tangential = relative - vn * n;
@@ -392,7 +421,7 @@ impl ContactSolver {
         } else {
             Vec3::ZERO
         };
-        Some(Contact { n, b, lambda: (h - d) / denom, impulse })
+        Some(Contact { point: p as u32, triangle: t, n, b, lambda: (h - d) / denom, impulse })
     }
 }
 
@@ -411,22 +440,6 @@ fn barycentric(q: Vec3, [a, b, c]: [Vec3; 3]) -> [f32; 3] {
     let w = ((d11 * r2 - d12 * r1) / det).clamp(0.0, 1.0 - u);
     [1.0 - u - w, u, w]
 }
-
-/// The 27 cells round a cell, itself first.
-const NEIGHBOUR_CELLS: [IVec3; 27] = {
-    let mut cells = [IVec3::ZERO; 27];
-    let mut k = 1;
-    let mut i = 0;
-    while i < 27 {
-        let offset = IVec3::new(i % 3 - 1, (i / 3) % 3 - 1, i / 9 - 1);
-        if !(offset.x == 0 && offset.y == 0 && offset.z == 0) {
-            cells[k] = offset;
-            k += 1;
-        }
-        i += 1;
-    }
-    cells
-};
 
 /// The grid cell of `p` (cells `1 / inv` wide). Coordinates beyond `i32` saturate, and a
 /// non-finite one gives cell 0 (such a particle is left out of the grid).
