@@ -1,15 +1,17 @@
 //! The live parameter panel (feature `egui`): the paper's Looper, SpringK, Damping and
-//! External Force, plus pause, reset, the collider resolution (or voxel size) and contact, the debug view
-//! and live figures.
+//! External Force, plus pause, reset, the integrator, self-contact, the collider resolution (or
+//! voxel size) and contact, the debug view and live figures.
 
 use core::ops::DerefMut;
 
 use bevy::prelude::*;
 use bevy_egui::{EguiContexts, EguiPlugin, EguiPrimaryContextPass, egui};
 use bvh_cloth_core::params::MAX_ITERATIONS;
+use bvh_cloth_core::self_contact::particle_spacing;
 
 use crate::{
-    AutoCollider, Cloth, ClothSettings, ClothShape, ClothStats, ColliderContact, ColliderStatus, Integrator, ResetCloth,
+    AutoCollider, Cloth, ClothSettings, ClothShape, ClothSimulation, ClothStats, ColliderContact, ColliderStatus,
+    Integrator, ResetCloth, SelfContact,
 };
 
 /// Adds the panel (and [`EguiPlugin`] if the app has none).
@@ -38,7 +40,7 @@ fn cloth_panel(
     mut contexts: EguiContexts,
     mut settings: ResMut<ClothSettings>,
     stats: Res<ClothStats>,
-    mut cloths: Query<(Entity, &mut Cloth)>,
+    mut cloths: Query<(Entity, &mut Cloth, Option<&ClothSimulation>)>,
     mut colliders: Query<(Entity, &mut AutoCollider, &ColliderStatus)>,
     mut resets: MessageWriter<ResetCloth>,
 ) -> Result {
@@ -69,7 +71,10 @@ fn cloth_panel(
             resets.write(ResetCloth::All);
         }
 
-        for (entity, mut cloth) in &mut cloths {
+        for (entity, mut cloth, simulation) in &mut cloths {
+            // The thickest self-contact the cloth accepts: its particle spacing (5 cm until the
+            // cloth is built).
+            let spacing = simulation.map_or(0.05, |s| particle_spacing(s.sim().topology()));
             ui.separator();
             let shape = match &cloth.shape {
                 ClothShape::Grid { size, particles } => {
@@ -98,6 +103,14 @@ fn cloth_panel(
                 });
                 if let Integrator::BlockDescent { iterations } = &mut c.params.integrator {
                     ui.add(egui::Slider::new(iterations, 1..=MAX_ITERATIONS).text("Iterations per substep"));
+                }
+                let mut contact = c.params.self_contact.is_some();
+                if ui.checkbox(&mut contact, "Self-contact (CPU backend)").changed() {
+                    c.params.self_contact = contact.then_some(SelfContact { thickness: 0.5 * spacing, friction: 0.3 });
+                }
+                if let Some(contact) = &mut c.params.self_contact {
+                    ui.add(egui::Slider::new(&mut contact.thickness, 0.001..=spacing.max(0.002)).text("Thickness (m)"));
+                    ui.add(egui::Slider::new(&mut contact.friction, 0.0..=1.0).text("Friction between layers"));
                 }
             });
         }
