@@ -37,7 +37,10 @@
 //! at distance `d` from its closest point `q = Σ b_c x_c` (barycentric weights `b`), along the
 //! unit direction `n` from `q` to `p`: the constraint `(x_p - q)·n >= h` is projected with the
 //! particles' weights (1 free, 0 pinned), so `p` moves `w_p λ n` and each corner `-w_c b_c λ n`,
-//! with `λ = (h - d) / (w_p + Σ w_c b_c²)`. If they approach, the normal part of their relative
+//! with `λ = (h - d) / (w_p + Σ w_c b_c²)`. A point that changed sides of the triangle's plane
+//! during the substep (from the positions at its start, [`ContactBody::prev`]) went through it:
+//! `n` is then the face normal on the side it came from, and `d` its depth below the plane, so
+//! it goes back the thickness above the side it left. If they approach, the normal part of their relative
 //! velocity is taken off the same way, and the tangential part slowed by Coulomb friction. The
 //! contacts are found in parallel, point by point, and summed in point order; a particle in
 //! several contacts moves by the mean of its corrections (Jacobi with averaging), so the result
@@ -47,9 +50,11 @@
 //!
 //! # Limits
 //!
-//! The contact is discrete: a layer that crosses another within one substep (a relative speed
-//! above the thickness per substep, 10 mm in 1 ms is 10 m/s at Looper 16) is not caught, and
-//! layers that already cross are not untangled.
+//! A point is caught while it is within the thickness of a triangle: one that goes more than
+//! the thickness past another layer's triangle within one substep (10 mm in 1 ms is 10 m/s at
+//! Looper 16) is not, and layers that already cross are not untangled. Edges are not tested
+//! against edges, and a particle a collider holds is moved like a free one: where a collider
+//! presses one layer into another, layers can still cross.
 
 use glam::{IVec3, Vec3, Vec3A};
 use rayon::prelude::*;
@@ -124,6 +129,9 @@ pub struct ContactBody<'a> {
     pub contact: SelfContact,
     /// 1 for a free particle, 0 for a pinned one.
     pub free: &'a [f32],
+    /// Positions at the start of the substep: a point that went through a triangle during it
+    /// is put back on the side it came from.
+    pub prev: &'a [Vec3],
     /// Positions, in the world.
     pub x: &'a mut [Vec3],
     /// Velocities.
@@ -144,6 +152,7 @@ pub struct ContactStats {
 /// The grid and the scratch of contact resolution, kept between substeps.
 #[derive(Clone, Debug, Default)]
 pub struct ContactSolver {
+    prev: Vec<Vec3>,
     x: Vec<Vec3>,
     v: Vec<Vec3>,
     free: Vec<f32>,
@@ -254,6 +263,7 @@ impl ContactSolver {
     /// Copies every body's particles and triangles into the flat arrays; returns the mean edge
     /// length of the triangles as the particles stand.
     fn gather(&mut self, bodies: &[ContactBody<'_>]) -> f32 {
+        self.prev.clear();
         self.x.clear();
         self.v.clear();
         self.free.clear();
@@ -264,10 +274,11 @@ impl ContactSolver {
         for (b, body) in bodies.iter().enumerate() {
             let n = body.topology.len();
             assert!(
-                body.x.len() >= n && body.v.len() >= n && body.free.len() >= n,
+                body.x.len() >= n && body.v.len() >= n && body.free.len() >= n && body.prev.len() >= n,
                 "a contact body holds fewer particles than its topology"
             );
             let first = self.x.len() as u32;
+            self.prev.extend_from_slice(&body.prev[..n]);
             self.x.extend_from_slice(&body.x[..n]);
             self.v.extend_from_slice(&body.v[..n]);
             self.free.extend_from_slice(&body.free[..n]);
@@ -402,7 +413,21 @@ impl ContactSolver {
             return None;
         }
         let d = d2.sqrt();
-        let n = if d > 1.0e-6 * h { away / d } else { face_normal(at).unwrap_or(Vec3::Y) };
+        // The side of the triangle's plane the point was on at the start of the substep, and is
+        // on now. A point within the thickness that changed sides went through the triangle (or
+        // round its edge, closer than the thickness): it goes back to the side it came from,
+        // the thickness off the plane.
+        let face = face_normal(at);
+        let before = corners.map(|c| self.prev[c as usize]);
+        let side_before = face_normal(before).map_or(0.0, |n| (self.prev[p] - before[0]).dot(n));
+        let side_now = face.map_or(0.0, |n| (xp - at[0]).dot(n));
+        let through = side_before * side_now < 0.0;
+        let (n, gap) = match face {
+            Some(face) if through => (face * side_before.signum(), -side_now.abs()),
+            _ if d > 1.0e-6 * h => (away / d, d),
+            Some(face) if side_before != 0.0 => (face * side_before.signum(), 0.0),
+            _ => (face.unwrap_or(Vec3::Y), 0.0),
+        };
         let b = barycentric(q, at);
         let w = corners.map(|c| self.free[c as usize]);
         let denom = self.free[p] + w[0] * b[0] * b[0] + w[1] * b[1] * b[1] + w[2] * b[2] * b[2];
@@ -421,7 +446,7 @@ impl ContactSolver {
         } else {
             Vec3::ZERO
         };
-        Some(Contact { point: p as u32, triangle: t, n, b, lambda: (h - d) / denom, impulse })
+        Some(Contact { point: p as u32, triangle: t, n, b, lambda: (h - gap) / denom, impulse })
     }
 }
 

@@ -49,6 +49,7 @@ pub struct ClothSim {
     descent: BlockDescent,
     /// Self-contact's grid and scratch, and the positions and velocities it works on.
     contact: ContactSolver,
+    contact_prev: Vec<Vec3>,
     contact_x: Vec<Vec3>,
     contact_v: Vec<Vec3>,
 }
@@ -109,6 +110,7 @@ impl ClothSim {
             pins,
             descent: BlockDescent::default(),
             contact: ContactSolver::default(),
+            contact_prev: Vec::new(),
             contact_x: Vec::new(),
             contact_v: Vec::new(),
         };
@@ -312,6 +314,10 @@ impl ClothSim {
             }
         }
         for _ in 0..substeps {
+            if self.params.self_contact.is_some() {
+                self.contact_prev.clear();
+                self.contact_prev.extend(descent.x.iter().map(|&p| Vec3::from(p)));
+            }
             descent.substep(&self.topology, &model, &self.free[..n], h, iterations, &frames);
             if let Some(contact) = self.params.self_contact {
                 self.contact_x.clear();
@@ -322,6 +328,7 @@ impl ClothSim {
                     topology: &self.topology,
                     contact,
                     free: &self.free[..n],
+                    prev: &self.contact_prev,
                     x: &mut self.contact_x,
                     v: &mut self.contact_v,
                 }];
@@ -348,17 +355,21 @@ impl ClothSim {
             self.descend(h, 1, iterations, colliders);
             return;
         }
+        let Some(contact) = self.params.self_contact else {
+            self.integrate(h, colliders);
+            return;
+        };
+        let (mut x, mut v) = (core::mem::take(&mut self.contact_x), core::mem::take(&mut self.contact_v));
+        let mut prev = core::mem::take(&mut self.contact_prev);
+        self.read_state(&mut prev, &mut v);
         self.integrate(h, colliders);
-        if let Some(contact) = self.params.self_contact {
-            let frames: Vec<ColliderFrame<'_>> = colliders.iter().filter_map(ColliderFrame::new).collect();
-            let (mut x, mut v) = (core::mem::take(&mut self.contact_x), core::mem::take(&mut self.contact_v));
-            self.read_state(&mut x, &mut v);
-            let free = &self.free[..self.len()];
-            let mut body = [ContactBody { topology: &self.topology, contact, free, x: &mut x, v: &mut v }];
-            self.contact.resolve(&mut body, &frames);
-            self.write_state(&x, &v);
-            (self.contact_x, self.contact_v) = (x, v);
-        }
+        let frames: Vec<ColliderFrame<'_>> = colliders.iter().filter_map(ColliderFrame::new).collect();
+        self.read_state(&mut x, &mut v);
+        let free = &self.free[..self.len()];
+        let mut body = [ContactBody { topology: &self.topology, contact, free, prev: &prev, x: &mut x, v: &mut v }];
+        self.contact.resolve(&mut body, &frames);
+        self.write_state(&x, &v);
+        (self.contact_prev, self.contact_x, self.contact_v) = (prev, x, v);
     }
 
     /// Steps several cloths together for a tick of `dt` seconds, so that the ones with
@@ -379,9 +390,13 @@ impl ClothSim {
         let h = dt / substeps as f32;
         let frames: Vec<ColliderFrame<'_>> = colliders.iter().filter_map(ColliderFrame::new).collect();
         let mut stats = ContactStats::default();
-        let mut states: Vec<(Vec<Vec3>, Vec<Vec3>)> = sims.iter().map(|_| (Vec::new(), Vec::new())).collect();
+        let mut states: Vec<(Vec<Vec3>, Vec<Vec3>, Vec<Vec3>)> =
+            sims.iter().map(|_| (Vec::new(), Vec::new(), Vec::new())).collect();
         for _ in 0..substeps {
-            for sim in sims.iter_mut() {
+            for (sim, (prev, _, v)) in sims.iter_mut().zip(states.iter_mut()) {
+                if sim.params.self_contact.is_some() {
+                    sim.read_state(prev, v);
+                }
                 match sim.params.integrator {
                     Integrator::BlockDescent { iterations } => {
                         // One substep, its contact left to the joint pass below.
@@ -393,17 +408,18 @@ impl ClothSim {
                 }
             }
             let mut bodies = Vec::with_capacity(sims.len());
-            for (sim, (x, v)) in sims.iter().zip(states.iter_mut()) {
+            for (sim, (prev, x, v)) in sims.iter().zip(states.iter_mut()) {
                 let Some(contact) = sim.params.self_contact else { continue };
                 sim.read_state(x, v);
-                bodies.push(ContactBody { topology: &sim.topology, contact, free: &sim.free[..sim.len()], x, v });
+                let free = &sim.free[..sim.len()];
+                bodies.push(ContactBody { topology: &sim.topology, contact, free, prev, x, v });
             }
             if bodies.is_empty() {
                 continue;
             }
             stats = solver.resolve(&mut bodies, &frames);
             drop(bodies);
-            for (sim, (x, v)) in sims.iter_mut().zip(&states) {
+            for (sim, (_, x, v)) in sims.iter_mut().zip(&states) {
                 if sim.params.self_contact.is_some() {
                     sim.write_state(x, v);
                 }
