@@ -361,7 +361,7 @@ impl ClothSim {
         };
         let (mut x, mut v) = (core::mem::take(&mut self.contact_x), core::mem::take(&mut self.contact_v));
         let mut prev = core::mem::take(&mut self.contact_prev);
-        self.read_state(&mut prev, &mut v);
+        self.read_positions(&mut prev);
         self.integrate(h, colliders);
         let frames: Vec<ColliderFrame<'_>> = colliders.iter().filter_map(ColliderFrame::new).collect();
         self.read_state(&mut x, &mut v);
@@ -393,9 +393,9 @@ impl ClothSim {
         let mut states: Vec<(Vec<Vec3>, Vec<Vec3>, Vec<Vec3>)> =
             sims.iter().map(|_| (Vec::new(), Vec::new(), Vec::new())).collect();
         for _ in 0..substeps {
-            for (sim, (prev, _, v)) in sims.iter_mut().zip(states.iter_mut()) {
+            for (sim, (prev, _, _)) in sims.iter_mut().zip(states.iter_mut()) {
                 if sim.params.self_contact.is_some() {
-                    sim.read_state(prev, v);
+                    sim.read_positions(prev);
                 }
                 match sim.params.integrator {
                     Integrator::BlockDescent { iterations } => {
@@ -430,10 +430,15 @@ impl ClothSim {
 
     /// Every particle's position and velocity, into `x` and `v`.
     fn read_state(&self, x: &mut Vec<Vec3>, v: &mut Vec<Vec3>) {
-        x.clear();
+        self.read_positions(x);
         v.clear();
-        x.extend((0..self.len()).map(|i| self.position(i)));
         v.extend((0..self.len()).map(|i| self.velocity(i)));
+    }
+
+    /// Every particle's position, into `x`.
+    fn read_positions(&self, x: &mut Vec<Vec3>) {
+        x.clear();
+        x.extend((0..self.len()).map(|i| self.position(i)));
     }
 
     /// Sets every particle's position and velocity from `x` and `v`.
