@@ -61,6 +61,7 @@ use rayon::prelude::*;
 
 use crate::collision::ColliderFrame;
 use crate::error::ClothError;
+use crate::grid::SpringKind;
 use crate::topology::ClothTopology;
 use crate::triangles::{closest_point, face_normal};
 
@@ -71,7 +72,7 @@ pub const MAX_CANDIDATES: usize = 256;
 /// others) is entered in the first `MAX_SPAN³` of its cells and counted as clamped.
 pub const MAX_SPAN: i32 = 4;
 
-/// Above this many particles the pairs are found and resolved on the rayon pool.
+/// Above this many particles the contacts are found on the rayon pool.
 const PARALLEL_MIN: usize = 2048;
 
 /// How a cloth keeps off itself and other cloths.
@@ -115,7 +116,7 @@ pub fn particle_spacing(topology: &ClothTopology) -> f32 {
     let (sum, count) = topology
         .spring_ends()
         .iter()
-        .filter(|e| e.kind == 0)
+        .filter(|e| e.kind == SpringKind::Structural as u32)
         .fold((0.0f64, 0usize), |(sum, count), e| (sum + f64::from(e.rest), count + 1));
     if count == 0 { 0.0 } else { (sum / count as f64) as f32 }
 }
@@ -123,7 +124,8 @@ pub fn particle_spacing(topology: &ClothTopology) -> f32 {
 /// One cloth's particles as contact sees them.
 #[derive(Debug)]
 pub struct ContactBody<'a> {
-    /// The cloth's shape: its springs and rest positions say which pairs are skipped.
+    /// The cloth's shape: its triangles, and its rest shape, which says which of its own
+    /// triangles a point skips.
     pub topology: &'a ClothTopology,
     /// Its thickness and friction.
     pub contact: SelfContact,
