@@ -18,7 +18,7 @@ use crate::collision::ColliderFrame;
 use crate::error::ClothError;
 use crate::forces::{ForceModel, LANES, SpringScratch};
 use crate::params::{ClothParams, Integrator};
-use crate::self_contact::{ContactBody, ContactSolver, ContactStats};
+use crate::self_contact::{ContactBody, ContactSolver, ContactStats, SelfContact};
 use crate::topology::ClothTopology;
 
 /// Rows per band: the unit of parallel work, and of spring reuse (see
@@ -324,15 +324,7 @@ impl ClothSim {
                 self.contact_x.extend(descent.x.iter().map(|&p| Vec3::from(p)));
                 self.contact_v.clear();
                 self.contact_v.extend(descent.v.iter().map(|&p| Vec3::from(p)));
-                let mut body = [ContactBody {
-                    topology: &self.topology,
-                    contact,
-                    free: &self.free[..n],
-                    prev: &self.contact_prev,
-                    x: &mut self.contact_x,
-                    v: &mut self.contact_v,
-                }];
-                self.contact.resolve(&mut body, &frames);
+                self.resolve_own_contact(contact, &frames);
                 for (k, (p, v)) in self.contact_x.iter().zip(&self.contact_v).enumerate() {
                     (descent.x[k], descent.v[k]) = (Vec3A::from(*p), Vec3A::from(*v));
                 }
@@ -359,17 +351,34 @@ impl ClothSim {
             self.integrate(h, colliders);
             return;
         };
-        let (mut x, mut v) = (core::mem::take(&mut self.contact_x), core::mem::take(&mut self.contact_v));
-        let mut prev = core::mem::take(&mut self.contact_prev);
+        let (mut prev, mut x, mut v) = (
+            core::mem::take(&mut self.contact_prev),
+            core::mem::take(&mut self.contact_x),
+            core::mem::take(&mut self.contact_v),
+        );
         self.read_positions(&mut prev);
         self.integrate(h, colliders);
-        let frames: Vec<ColliderFrame<'_>> = colliders.iter().filter_map(ColliderFrame::new).collect();
         self.read_state(&mut x, &mut v);
-        let free = &self.free[..self.len()];
-        let mut body = [ContactBody { topology: &self.topology, contact, free, prev: &prev, x: &mut x, v: &mut v }];
-        self.contact.resolve(&mut body, &frames);
-        self.write_state(&x, &v);
         (self.contact_prev, self.contact_x, self.contact_v) = (prev, x, v);
+        let frames: Vec<ColliderFrame<'_>> = colliders.iter().filter_map(ColliderFrame::new).collect();
+        self.resolve_own_contact(contact, &frames);
+        let (x, v) = (core::mem::take(&mut self.contact_x), core::mem::take(&mut self.contact_v));
+        self.write_state(&x, &v);
+        (self.contact_x, self.contact_v) = (x, v);
+    }
+
+    /// This cloth's self-contact on the particles in `contact_prev`, `contact_x` and
+    /// `contact_v` (the substep's start, and its end), in place.
+    fn resolve_own_contact(&mut self, contact: SelfContact, frames: &[ColliderFrame<'_>]) {
+        let mut body = [ContactBody {
+            topology: &self.topology,
+            contact,
+            free: &self.free[..self.topology.len()],
+            prev: &self.contact_prev,
+            x: &mut self.contact_x,
+            v: &mut self.contact_v,
+        }];
+        self.contact.resolve(&mut body, frames);
     }
 
     /// Steps several cloths together for a tick of `dt` seconds, so that the ones with
