@@ -2,7 +2,7 @@
 //! on the CPU backend, and a thickness above the particle spacing is refused with a message.
 
 use bevy::prelude::*;
-use bevy_bvh_cloth::bvh_cloth_core::triangles::triangles_intersect;
+use bevy_bvh_cloth::bvh_cloth_core::triangles::crossing_pairs;
 use bevy_bvh_cloth::bvh_cloth_core::{ClothError, ClothGrid};
 use bevy_bvh_cloth::prelude::*;
 
@@ -29,11 +29,7 @@ fn crossing(a: &[Vec3], b: &[Vec3]) -> usize {
         .chunks_exact(3)
         .map(|t| [t[0], t[1], t[2]])
         .collect();
-    let corners = |t: &[u32; 3], x: &[Vec3]| t.map(|k| x[k as usize]);
-    triangles
-        .iter()
-        .map(|ta| triangles.iter().filter(|tb| triangles_intersect(corners(ta, a), corners(tb, b))).count())
-        .sum()
+    crossing_pairs(&triangles, a, Some((&triangles, b)))
 }
 
 /// Two cloths dropped one above the other onto a ball on the ground. With self-contact they end

@@ -529,3 +529,39 @@ fn the_gpu_backend_carries_anchors_on_another_entity() {
     }
     assert!(p[12..].iter().all(|q| q.y < 2.5), "the cloth hangs below its row");
 }
+
+/// Self-contact through the whole renderer on the GPU backend (its kernels composed and
+/// compiled by Bevy's pipeline cache): two cloths with self-contact dropped one above the other
+/// onto a ball end with none of their triangles crossing and the upper one above the lower.
+/// Without self-contact the upper falls through the lower (as the GPU crate's test of this scene
+/// shows), so either check fails when the kernels do not run.
+#[test]
+fn the_gpu_backend_keeps_cloths_with_self_contact_apart() {
+    let Some(mut app) = gpu_backend_app() else { return };
+    let contact = Some(SelfContact { thickness: 0.02, friction: 0.3 });
+    app.world_mut().spawn((PrimitiveCollider::sphere(0.25), Transform::from_xyz(0.0, 0.25, 0.0)));
+    let mut spawn = |height: f32, turn: f32| {
+        let cloth = Cloth {
+            params: ClothParams { damping: 1.0, self_contact: contact, ..default() },
+            ..Cloth::grid(Vec2::splat(1.0), UVec2::splat(20))
+        };
+        let at = Transform::from_xyz(0.0, height, 0.0).with_rotation(Quat::from_rotation_y(turn));
+        app.world_mut().spawn((cloth, at, ClothReadback::default())).id()
+    };
+    let (lower, upper) = (spawn(0.7, 0.0), spawn(0.85, 0.5));
+    for _ in 0..150 {
+        app.update();
+    }
+    let positions = |e: Entity| app.world().get::<ClothSimulation>(e).unwrap().sim().positions();
+    let (a, b) = (positions(lower), positions(upper));
+    assert!(app.world().get::<ClothReadback>(upper).unwrap().ticks_run.is_some_and(|t| t > 100));
+    let triangles = app.world().get::<ClothSimulation>(lower).unwrap().sim().topology().triangles().to_vec();
+    let crossing = bevy_bvh_cloth::bvh_cloth_core::triangles::crossing_pairs(&triangles, &a, Some((&triangles, &b)));
+    let mean_y = |x: &[Vec3]| x.iter().map(|p| p.y).sum::<f32>() / x.len() as f32;
+    eprintln!(
+        "GPU backend, self-contact: {crossing} crossing triangles, upper {} m above lower",
+        mean_y(&b) - mean_y(&a)
+    );
+    assert_eq!(crossing, 0, "triangles of the two cloths cross");
+    assert!(mean_y(&b) > mean_y(&a) + 0.01, "the upper cloth is not resting on the lower");
+}

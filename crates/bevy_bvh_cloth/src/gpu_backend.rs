@@ -219,6 +219,8 @@ struct RenderCloth {
     /// The state read back for gameplay, and the clock's ticks and the cloth's ticks run at the
     /// copy in flight.
     state: Option<(ParticleReadback, [AtomicU64; 2])>,
+    /// Whether its parameters ask for self-contact.
+    self_contact: bool,
 }
 
 /// The render world's cloth state.
@@ -254,6 +256,8 @@ pub(crate) struct GpuClothWorld {
     skin_refits: Vec<GpuSkin>,
     /// Skins whose refit the device refused, said once.
     refused_skins: Vec<Arc<SkinnedSpheres>>,
+    /// Self-contact's buffers did not fit the device: said once, until they fit again.
+    contact_refused: bool,
 }
 
 /// A skinned collider refitted on the GPU: its skin, its refit, and where the refit was bound
@@ -443,6 +447,7 @@ fn prepare_cloths(
                         faults: FaultReadback::new(device),
                         ticks_run: 0,
                         state: None,
+                        self_contact: false,
                     }),
                     Err(error) => {
                         error!("Cloth on {}: cannot run on the GPU: {error}; it stays at rest", cloth.entity);
@@ -462,6 +467,7 @@ fn prepare_cloths(
         }
         render.ticks_run += u64::from(world.ticks);
         batch.set_params(&queue, render.id, &cloth.params, world.tick_seconds.max(f32::MIN_POSITIVE));
+        render.self_contact = cloth.params.self_contact.is_some();
         batch.set_anchor_targets(render.id, &cloth.anchor_targets);
 
         // Where the mesh's vertices are this frame (slabs can move).
@@ -534,6 +540,18 @@ fn prepare_cloth_bind_groups(mut world: ResMut<GpuClothWorld>, device: Res<Rende
         return;
     };
     batch.prepare(device.wgpu_device(), &queue, kernels, colliders);
+    match batch.contact_error() {
+        Some(error) if !world.contact_refused => {
+            let entities: Vec<Entity> = world.cloths.iter().filter(|(_, c)| c.self_contact).map(|(e, _)| *e).collect();
+            error!(
+                "Cloths on {entities:?}: self-contact cannot run on this device ({error}); on the GPU they pass \
+                 through themselves and each other (ClothBackend::Cpu runs it)"
+            );
+            world.contact_refused = true;
+        }
+        Some(_) => {}
+        None => world.contact_refused = false,
+    }
 }
 
 fn simulate_cloths(mut render_context: RenderContext, world: Res<GpuClothWorld>) {

@@ -284,11 +284,7 @@ impl Plugin for BvhClothPlugin {
                     (
                         clock::advance_clock,
                         simulation::sync_cloths,
-                        (
-                            gpu_backend::reset_diverged_cloths,
-                            readback::apply_gpu_readbacks,
-                            simulation::warn_self_contact_on_gpu,
-                        )
+                        (gpu_backend::reset_diverged_cloths, readback::apply_gpu_readbacks)
                             .run_if(not(backend::cpu_backend_active)),
                         simulation::warn_stiff_cloths,
                     )

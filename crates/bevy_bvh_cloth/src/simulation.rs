@@ -441,20 +441,3 @@ pub(crate) fn warn_stiff_cloths(clock: Res<ClothClock>, mut cloths: Query<(Entit
         }
     }
 }
-
-/// Says once per cloth that its self-contact is not simulated: the GPU kernels do not run it
-/// yet, so on the GPU backend a cloth with [`bvh_cloth_core::ClothParams::self_contact`]
-/// passes through itself and other cloths. The CPU backend runs it.
-pub(crate) fn warn_self_contact_on_gpu(
-    cloths: Query<(Entity, &ClothSimulation)>,
-    mut warned: Local<bevy::ecs::entity::EntityHashSet>,
-) {
-    for (entity, state) in &cloths {
-        if state.sim.params().self_contact.is_some() && warned.insert(entity) {
-            warn!(
-                "Cloth on {entity}: self-contact runs on the CPU backend only; on the GPU backend this cloth \
-                 passes through itself and other cloths (use ClothBackend::Cpu for it)"
-            );
-        }
-    }
-}

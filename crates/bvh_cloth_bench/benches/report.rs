@@ -36,7 +36,7 @@ use bvh_cloth_core::obj::ObjMesh;
 use bvh_cloth_core::collision::{CONTACT_BAND, ColliderFrame};
 use bvh_cloth_core::self_contact::{ContactSolver, SelfContact};
 use bvh_cloth_core::skinning::{SkinRef, SkinScratch, SkinnedVertices};
-use bvh_cloth_core::triangles::triangles_intersect;
+use bvh_cloth_core::triangles::crossing_pairs;
 use bvh_cloth_core::{
     Affine3A, ClothGrid, ClothParams, ClothSim, ClothTopology, Collider, ColliderPose, Integrator, Primitive, Quat,
     UVec2, Vec2, Vec3,
@@ -63,6 +63,8 @@ struct Gpu {
     kernels: ClothKernels,
     /// A software rasteriser such as lavapipe, which runs on the CPU cores.
     software: bool,
+    /// The adapter's name.
+    name: String,
 }
 
 fn main() {
@@ -72,7 +74,7 @@ fn main() {
         let info = adapter.get_info();
         println!("GPU adapter: {} ({:?}, driver {} {})", info.name, info.device_type, info.driver, info.driver_info);
         let kernels = ClothKernels::new(&device).expect("the kernels fit the device");
-        Gpu { device, queue, kernels, software: info.device_type == wgpu::DeviceType::Cpu }
+        Gpu { device, queue, kernels, software: info.device_type == wgpu::DeviceType::Cpu, name: info.name }
     });
     if gpu.is_none() {
         println!("GPU adapter: none (set WGPU_BACKEND, e.g. vulkan for lavapipe); GPU columns are skipped");
@@ -126,7 +128,7 @@ fn main() {
         exact_contact(&meshes, &parry, &single, gpu.as_ref());
     }
     if run("self_contact") {
-        self_contact(&meshes[0], &single, threads);
+        self_contact(&meshes[0], &single, threads, gpu.as_ref());
     }
     println!("\nCSV written to docs/benchmarks/ (plot: python3 scripts/plot_benchmarks.py)");
 }
@@ -288,6 +290,12 @@ fn kernel_column(kernel: Kernel) -> usize {
         Kernel::VbdPredict => 3,
         Kernel::VbdSolve => 4,
         Kernel::VbdFinish => 5,
+        Kernel::ContactBegin
+        | Kernel::ContactCount
+        | Kernel::ContactScan
+        | Kernel::ContactScatter
+        | Kernel::ContactFind
+        | Kernel::ContactApply => 6,
     }
 }
 
@@ -296,7 +304,7 @@ fn kernel_column(kernel: Kernel) -> usize {
 /// dispatch in a compute pass of its own, after a second of falling (10 ticks on a software
 /// adapter). `None` without timestamp queries, or when a tick has more dispatches than a query
 /// set holds.
-fn kernel_ms(gpu: &Gpu, c: &Collider, cloths: &[ClothSim]) -> Option<([f64; 6], f64)> {
+fn kernel_ms(gpu: &Gpu, c: &Collider, cloths: &[ClothSim]) -> Option<([f64; 7], f64)> {
     if !gpu.device.features().contains(wgpu::Features::TIMESTAMP_QUERY) {
         return None;
     }
@@ -325,7 +333,7 @@ fn kernel_ms(gpu: &Gpu, c: &Collider, cloths: &[ClothSim]) -> Option<([f64; 6], 
         mapped_at_creation: false,
     });
     let period_ns = f64::from(gpu.queue.get_timestamp_period());
-    let mut samples: Vec<[f64; 6]> = Vec::new();
+    let mut samples: Vec<[f64; 7]> = Vec::new();
     for _ in 0..9 {
         let mut encoder = gpu.device.create_command_encoder(&Default::default());
         let kernels = batch.encode_ticks_timed(&mut encoder, &gpu.kernels, 1, &queries, capacity)?;
@@ -333,7 +341,7 @@ fn kernel_ms(gpu: &Gpu, c: &Collider, cloths: &[ClothSim]) -> Option<([f64; 6], 
         encoder.resolve_query_set(&queries, 0..used, &resolved, 0);
         gpu.queue.submit([encoder.finish()]);
         let stamps: Vec<u64> = headless::read(&gpu.device, &gpu.queue, &resolved);
-        let mut ms = [0.0f64; 6];
+        let mut ms = [0.0f64; 7];
         for (k, &kernel) in kernels.iter().enumerate() {
             ms[kernel_column(kernel)] += stamps[2 * k + 1].saturating_sub(stamps[2 * k]) as f64 * period_ns * 1e-6;
         }
@@ -1217,7 +1225,7 @@ fn exact_contact(meshes: &[ObjMesh], parry: &[TriMesh], single: &rayon::ThreadPo
 /// the end by an exact triangle–triangle test between every two triangles sharing no corner
 /// and by the least distance between particles sharing no spring; then the cost of contact in
 /// a tick of a 128 x 128 cloth.
-fn self_contact(bunny: &ObjMesh, single: &rayon::ThreadPool, threads: usize) {
+fn self_contact(bunny: &ObjMesh, single: &rayon::ThreadPool, threads: usize, gpu: Option<&Gpu>) {
     const THICKNESS: f32 = 0.008;
     const SECONDS: f32 = 3.0;
     let contact = SelfContact { thickness: THICKNESS, friction: 0.3 };
@@ -1317,34 +1325,34 @@ fn self_contact(bunny: &ObjMesh, single: &rayon::ThreadPool, threads: usize) {
     for (label, (off, on)) in [("1", single.install(measure)), (&*threads.to_string(), measure())] {
         println!("| {label} | {:.2} | {:.2} | {:.0}% |", off * 1e3, on * 1e3, (on - off) / off * 100.0);
     }
+
+    println!("\n### Cost on the GPU: the same 128 x 128 cloth\n");
+    let Some(gpu) = gpu else {
+        println!("No GPU adapter.");
+        return;
+    };
+    println!(
+        "From the state above, one more second on the GPU, then GPU ms per tick by timestamp queries, each dispatch in a compute pass of its own, median of 9 ticks: the eight self-contact kernels against everything else.\n"
+    );
+    println!("| adapter | self-contact ms | rest of the tick ms | self-contact / rest |");
+    println!("|---|---|---|---|");
+    match kernel_ms(gpu, &surface, std::slice::from_ref(&with)) {
+        Some((column, total)) => {
+            let contact = column[kernel_column(Kernel::ContactFind)];
+            let rest = total - contact;
+            println!("| {} | {contact:.3} | {rest:.3} | {:.0}% |", gpu.name, contact / rest * 100.0);
+        }
+        None => println!("| {} | no timestamp queries | | |", gpu.name),
+    }
+    if gpu.software {
+        println!("\nThe GPU here is a software adapter on the same CPU cores: its times are not GPU figures.");
+    }
 }
 
 /// Pairs of intersecting triangles: within `topology`'s cloth at `x` (pairs sharing no corner),
 /// or between it and `other`'s cloth.
 fn crossing_triangles(topology: &ClothTopology, x: &[Vec3], other: Option<(&ClothTopology, &[Vec3])>) -> usize {
-    let corners = |t: &[u32; 3], x: &[Vec3]| t.map(|k| x[k as usize]);
-    let bounds = |t: [Vec3; 3]| (t[0].min(t[1]).min(t[2]), t[0].max(t[1]).max(t[2]));
-    let overlap = |a: (Vec3, Vec3), b: (Vec3, Vec3)| a.1.cmpge(b.0).all() && b.1.cmpge(a.0).all();
-    let mine = topology.triangles();
-    let (theirs, y) = match other {
-        Some((t, y)) => (t.triangles(), y),
-        None => (mine, x),
-    };
-    (0..mine.len())
-        .into_par_iter()
-        .map(|i| {
-            let a = corners(&mine[i], x);
-            let first = if other.is_some() { 0 } else { i + 1 };
-            theirs[first..]
-                .iter()
-                .filter(|tj| other.is_some() || !mine[i].iter().any(|k| tj.contains(k)))
-                .filter(|tj| {
-                    let b = corners(tj, y);
-                    overlap(bounds(a), bounds(b)) && triangles_intersect(a, b)
-                })
-                .count()
-        })
-        .sum()
+    crossing_pairs(topology.triangles(), x, other.map(|(t, y)| (t.triangles(), y)))
 }
 
 /// Pairs of particles closer than `limit`: within `topology`'s cloth at `x` (sharing no spring

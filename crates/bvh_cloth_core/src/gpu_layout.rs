@@ -61,12 +61,12 @@ pub struct GpuBatchCloth {
     pub integrator: u32,
     /// Block-descent sweeps per substep (0 for the explicit integrators).
     pub iterations: u32,
+    /// [`crate::SelfContact::thickness`], or 0 for a cloth without self-contact.
+    pub contact_thickness: f32,
+    /// [`crate::SelfContact::friction`].
+    pub contact_friction: f32,
     /// Padding.
-    pub pad_a: u32,
-    /// Padding.
-    pub pad_b: u32,
-    /// Padding.
-    pub pad_c: u32,
+    pub pad: u32,
     /// Particles quarantined since the host last cleared this word.
     pub faults: u32,
 }
@@ -105,9 +105,9 @@ impl GpuBatchCloth {
                 Integrator::BlockDescent { iterations } => iterations,
                 _ => 0,
             },
-            pad_a: 0,
-            pad_b: 0,
-            pad_c: 0,
+            contact_thickness: params.self_contact.map_or(0.0, |c| c.thickness),
+            contact_friction: params.self_contact.map_or(0.0, |c| c.friction),
+            pad: 0,
             faults: 0,
         }
     }
@@ -154,6 +154,52 @@ pub struct GpuColourPass {
     pub iteration: u32,
     /// Threads along `x` of the dispatch.
     pub dispatch_width: u32,
+}
+
+/// What the self-contact kernels of a batch read (a uniform): the triangles of the cloths with
+/// self-contact, and the hashed grid they are sorted into each substep. 32 bytes.
+#[repr(C)]
+#[derive(Clone, Copy, Debug, Default, PartialEq, Pod, Zeroable)]
+pub struct GpuContactFrame {
+    /// Triangles of the cloths with self-contact: one thread each in the grid's build.
+    pub triangle_count: u32,
+    /// Buckets of the hashed grid, a power of two and a multiple of 256.
+    pub buckets: u32,
+    /// Blocks of 256 buckets: one workgroup each in the prefix sum.
+    pub blocks: u32,
+    /// Grid entries (a triangle in a bucket) there is room for.
+    pub entry_capacity: u32,
+    /// One over the grid's cell width, in 1/m.
+    pub inv_cell: f32,
+    /// How far each triangle's box is grown: the largest thickness, in metres.
+    pub grow: f32,
+    /// Threads along `x` of every self-contact dispatch.
+    pub dispatch_width: u32,
+    /// Particle slots the dispatches cover.
+    pub particle_slots: u32,
+}
+
+/// Vec4 words per triangle in the self-contact triangle buffer: its corners and cloth, its
+/// rest box, and its box as the particles stand (written on the GPU each substep).
+pub const CONTACT_TRIANGLE_WORDS: usize = 5;
+
+/// A cloth's triangles as the self-contact kernels read them, [`CONTACT_TRIANGLE_WORDS`] vec4s
+/// each: the corners' particle slots (the cloth's particles start at `particle_start`) and the
+/// cloth's index `slot`; the lower and upper corner of the triangle's box in the rest shape
+/// (`f32` bits); and two zero words, the room for its current box.
+pub fn gpu_contact_triangles(topology: &ClothTopology, particle_start: u32, slot: u32) -> Vec<[u32; 4]> {
+    let rest = topology.rest_positions();
+    let bits = |v: Vec3| [v.x.to_bits(), v.y.to_bits(), v.z.to_bits(), 0];
+    let mut words = Vec::with_capacity(CONTACT_TRIANGLE_WORDS * topology.triangles().len());
+    for t in topology.triangles() {
+        let [a, b, c] = t.map(|k| rest[k as usize]);
+        words.push([t[0] + particle_start, t[1] + particle_start, t[2] + particle_start, slot]);
+        words.push(bits(a.min(b).min(c)));
+        words.push(bits(a.max(b).max(c)));
+        words.push([0; 4]);
+        words.push([0; 4]);
+    }
+    words
 }
 
 /// Per particle of a batch, indexed like the particle buffers: its springs (a range of the
@@ -397,6 +443,7 @@ mod tests {
         assert_eq!(size_of::<GpuParticle>(), 32);
         assert_eq!(size_of::<GpuBatchCloth>(), 80);
         assert_eq!(size_of::<GpuColourPass>(), 16);
+        assert_eq!(size_of::<GpuContactFrame>(), 32);
         assert_eq!(std::mem::offset_of!(GpuBatchCloth, faults) as u64, GpuBatchCloth::HOST_BYTES);
         assert_eq!(size_of::<GpuBatchFrame>(), 16);
         assert_eq!(size_of::<GpuBatchStep>(), 16);

@@ -143,8 +143,8 @@ pub struct ContactBody<'a> {
 /// What one resolution found.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
 pub struct ContactStats {
-    /// Point–triangle contacts, counted once by each particle taking part (the point and each
-    /// free corner).
+    /// Point–triangle contacts, counted once by each free particle taking part (the point and
+    /// the triangle's corners). A pinned particle is never moved by contact.
     pub contacts: usize,
     /// Points that had more than [`MAX_CANDIDATES`] candidate triangles (some left
     /// unexamined), and triangles wider than [`MAX_SPAN`] cells.
@@ -229,9 +229,11 @@ impl ContactSolver {
             stats.clamped += clamped;
             for c in contacts {
                 let p = c.point as usize;
-                self.dx[p] += self.free[p] * c.lambda * c.n;
-                self.dv[p] += self.free[p] * c.impulse;
-                self.count[p] += 1;
+                if self.free[p] > 0.0 {
+                    self.dx[p] += self.free[p] * c.lambda * c.n;
+                    self.dv[p] += self.free[p] * c.impulse;
+                    self.count[p] += 1;
+                }
                 for (corner, &b) in self.triangles[c.triangle as usize].1.iter().zip(&c.b) {
                     let k = *corner as usize;
                     if self.free[k] > 0.0 {

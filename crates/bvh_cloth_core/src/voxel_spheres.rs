@@ -407,12 +407,16 @@ impl FixedPoint {
     const STEPS: f32 = (1u32 << 24) as f32;
 
     fn new(min: Vec3, extent: Vec3) -> Self {
-        let to_steps = Vec3::select(extent.cmpgt(Vec3::ZERO), Self::STEPS / extent, Vec3::ZERO);
+        // An axis too thin for its steps to be finite (an extent of 1e-34 m) counts as flat.
+        let steps = Self::STEPS / extent;
+        let to_steps = Vec3::select(extent.cmpgt(Vec3::ZERO) & steps.is_finite_mask(), steps, Vec3::ZERO);
         Self { min, to_steps, to_length: extent / Self::STEPS }
     }
 
+    /// The coordinate in steps from the box's corner, held within the box (twice its steps,
+    /// for rounding), so that no sum of a voxel's points can overflow.
     fn to_fixed(&self, p: Vec3, axis: usize) -> i64 {
-        ((p[axis] - self.min[axis]) * self.to_steps[axis]).round() as i64
+        ((p[axis] - self.min[axis]) * self.to_steps[axis]).round().clamp(0.0, 2.0 * Self::STEPS) as i64
     }
 
     /// The mean of `count` points whose fixed-point coordinates sum to `sum`.

@@ -10,7 +10,7 @@ mod common;
 use std::sync::Arc;
 
 use bvh_cloth_core::self_contact::{ContactBody, ContactSolver, MAX_CANDIDATES, particle_spacing};
-use bvh_cloth_core::triangles::triangles_intersect;
+use bvh_cloth_core::triangles::crossing_pairs as crossing_triangles;
 use bvh_cloth_core::{
     Affine3A, ClothError, ClothParams, ClothSim, ClothTopology, Collider, ColliderPose, Integrator, Primitive, Quat,
     SelfContact, Vec3,
@@ -48,43 +48,6 @@ fn close_pairs(topology: &ClothTopology, x: &[Vec3], limit: f32) -> usize {
 /// Pairs of particles of two cloths closer than `limit`.
 fn close_between(a: &[Vec3], b: &[Vec3], limit: f32) -> usize {
     a.iter().map(|p| b.iter().filter(|q| p.distance(**q) < limit).count()).sum()
-}
-
-/// Intersecting pairs among the triangles of `x` (indices into `x`), skipping pairs that share
-/// a corner, or all pairs across when `other` is given.
-fn crossing_triangles(tris: &[[u32; 3]], x: &[Vec3], other: Option<(&[[u32; 3]], &[Vec3])>) -> usize {
-    let corners = |t: &[u32; 3], x: &[Vec3]| t.map(|k| x[k as usize]);
-    let bounds = |t: [Vec3; 3]| (t[0].min(t[1]).min(t[2]), t[0].max(t[1]).max(t[2]));
-    let overlap = |a: (Vec3, Vec3), b: (Vec3, Vec3)| a.1.cmpge(b.0).all() && b.1.cmpge(a.0).all();
-    let mut count = 0;
-    match other {
-        None => {
-            for (i, ti) in tris.iter().enumerate() {
-                let a = corners(ti, x);
-                for tj in &tris[i + 1..] {
-                    if ti.iter().any(|k| tj.contains(k)) {
-                        continue;
-                    }
-                    let b = corners(tj, x);
-                    if overlap(bounds(a), bounds(b)) && triangles_intersect(a, b) {
-                        count += 1;
-                    }
-                }
-            }
-        }
-        Some((other_tris, y)) => {
-            for ti in tris {
-                let a = corners(ti, x);
-                for tj in other_tris {
-                    let b = corners(tj, y);
-                    if overlap(bounds(a), bounds(b)) && triangles_intersect(a, b) {
-                        count += 1;
-                    }
-                }
-            }
-        }
-    }
-    count
 }
 
 /// A 48 x 48 cloth of 1 m dropped from 0.3 m onto a bar of radius 3 cm (a capsule along Z), off

@@ -40,6 +40,7 @@ use wgpu::util::DeviceExt;
 use wgpu::{BindGroup, Buffer, BufferUsages, CommandEncoder, Device, Queue};
 
 use crate::colliders::GpuColliders;
+use crate::contact::{ContactCloth, ContactPlan, SharedBuffers};
 use crate::kernels::{ClothKernels, KernelError, WORKGROUP_SIZE, storage_binding_limit};
 
 /// The kernel a dispatch runs, as [`ClothBatch::encode_ticks_timed`] reports it.
@@ -57,6 +58,18 @@ pub enum Kernel {
     VbdSolve,
     /// `vbd_finish`: block descent's velocity update, with the collision response.
     VbdFinish,
+    /// `contact_begin`: self-contact's substep start kept, its sums and bucket counts cleared.
+    ContactBegin,
+    /// `contact_count`: each triangle counted in its grid buckets.
+    ContactCount,
+    /// `contact_scan_blocks`, `contact_scan_top` or `contact_scan_add`: the buckets' prefix sum.
+    ContactScan,
+    /// `contact_scatter`: each triangle entered in its grid buckets.
+    ContactScatter,
+    /// `contact_find`: each particle's contacts, their corrections summed.
+    ContactFind,
+    /// `contact_apply`: each particle's mean correction, then the collision response.
+    ContactApply,
 }
 
 /// A cloth in a [`ClothBatch`], valid until it is removed.
@@ -86,6 +99,10 @@ struct Slot {
     pending_state: Option<Vec<GpuParticle>>,
     /// Where `normal_shader` writes the cloth this frame: the layout, and the vertex buffer.
     writeback: Option<(GpuMeshWriteback, Buffer)>,
+    /// The substeps its own parameters ask for, and the tick they were given for: a cloth with
+    /// self-contact takes the largest count among the contact cloths instead.
+    own_substeps: u32,
+    tick_seconds: f32,
 }
 
 impl Slot {
@@ -190,6 +207,8 @@ struct Groups {
     solve: BindGroup,
     finish: BindGroup,
     apply_anchors: Option<BindGroup>,
+    /// Self-contact's kernels, when a cloth has it.
+    contact: Option<[BindGroup; 8]>,
 }
 
 /// One colour of the colour list: where it starts, how many particles it has, and the
@@ -230,6 +249,10 @@ pub struct ClothBatch {
     colour_passes: Buffer,
     /// The block-descent dispatches, `None` until written for the current buffers.
     descent: Option<DescentPlan>,
+    /// Self-contact's buffers, `None` while no cloth has self-contact (or they did not fit
+    /// the device: [`Self::contact_error`]).
+    contact: Option<ContactPlan>,
+    contact_error: Option<KernelError>,
     /// Workgroups of the integrator dispatches, and the batch's substeps per tick for the
     /// explicit integrators.
     workgroups: (u32, u32),
@@ -281,6 +304,8 @@ impl ClothBatch {
             writebacks: None,
             colour_passes,
             descent: None,
+            contact: None,
+            contact_error: None,
             workgroups: (1, 1),
             substeps: 0,
             anchor_count: 0,
@@ -305,6 +330,8 @@ impl ClothBatch {
             targets: Vec::new(),
             pending_state: Some(gpu_particles(sim)),
             writeback: None,
+            own_substeps: 0,
+            tick_seconds: 0.0,
         };
         let index = match self.slots.iter().position(Option::is_none) {
             Some(free) => free,
@@ -422,6 +449,7 @@ impl ClothBatch {
         self.groups = None;
         self.writebacks = None;
         self.descent = None;
+        self.contact = None;
         Ok(())
     }
 
@@ -492,6 +520,8 @@ impl ClothBatch {
         let substeps = params.substeps(tick_seconds, &slot.topology).min(MAX_SUBSTEPS);
         let h = tick_seconds / substeps as f32;
         slot.constants = GpuBatchCloth::new(params, &slot.topology, slot.particle_start, slot.ends_start, substeps, h);
+        slot.own_substeps = substeps;
+        slot.tick_seconds = tick_seconds;
         queue.write_buffer(
             &self.buffers.cloth_constants,
             u64::from(id.0) * size_of::<GpuBatchCloth>() as u64,
@@ -499,7 +529,8 @@ impl ClothBatch {
         );
     }
 
-    /// Substeps per tick `id` runs under its last parameters.
+    /// Substeps per tick `id` runs under its last parameters (for a cloth with self-contact,
+    /// the most any such cloth of the batch needs, once [`Self::prepare`] has run).
     pub fn substeps(&self, id: ClothId) -> u32 {
         self.slot(id).map_or(0, |slot| slot.constants.substeps)
     }
@@ -534,6 +565,7 @@ impl ClothBatch {
     /// cloths' [`Self::set_params`] and [`Self::set_anchor_targets`] and before
     /// [`Self::encode_ticks`].
     pub fn prepare(&mut self, device: &Device, queue: &Queue, kernels: &ClothKernels, colliders: &GpuColliders) {
+        self.prepare_contact(device, queue);
         let explicit = |slot: &&Slot| slot.constants.integrator != INTEGRATOR_BLOCK_DESCENT;
         self.substeps =
             self.slots.iter().flatten().filter(explicit).map(|slot| slot.constants.substeps).max().unwrap_or(0);
@@ -553,6 +585,78 @@ impl ClothBatch {
         if self.groups.as_ref().is_none_or(|g| g.colliders != key || g.anchors != anchors) {
             self.groups = Some(self.bind_groups(device, kernels, key, anchors));
         }
+    }
+
+    /// Gives every cloth with self-contact the largest substep count among them, as
+    /// [`ClothSim::tick_together`] does, and writes the contact buffers when the contact cloths,
+    /// or where they lie, changed; the contact constants every frame.
+    fn prepare_contact(&mut self, device: &Device, queue: &Queue) {
+        let in_contact = |slot: &Slot| slot.constants.contact_thickness > 0.0;
+        let substeps = self.slots.iter().flatten().filter(|s| in_contact(s)).map(|s| s.own_substeps).max().unwrap_or(0);
+        let mut thickest = 0.0f32;
+        for (index, slot) in self.slots.iter_mut().enumerate() {
+            let Some(slot) = slot.as_mut().filter(|slot| in_contact(slot)) else { continue };
+            thickest = thickest.max(slot.constants.contact_thickness);
+            if slot.constants.substeps != substeps {
+                slot.constants.substeps = substeps;
+                slot.constants.h = slot.tick_seconds / substeps as f32;
+                queue.write_buffer(
+                    &self.buffers.cloth_constants,
+                    index as u64 * size_of::<GpuBatchCloth>() as u64,
+                    &bytemuck::bytes_of(&slot.constants)[..GpuBatchCloth::HOST_BYTES as usize],
+                );
+            }
+        }
+        let cloths: Vec<(ContactCloth, &ClothTopology)> = self
+            .slots
+            .iter()
+            .enumerate()
+            .filter_map(|(index, slot)| Some((index as u32, slot.as_ref().filter(|slot| in_contact(slot))?)))
+            .map(|(index, slot)| ((index, slot.particle_start, Arc::as_ptr(&slot.topology) as usize), &*slot.topology))
+            .collect();
+        if cloths.is_empty() {
+            if self.contact.take().is_some() {
+                self.groups = None;
+            }
+            self.contact_error = None;
+            return;
+        }
+        let same = self.contact.as_ref().is_some_and(|plan| {
+            plan.particle_capacity == self.buffers.particles
+                && plan.cloths.len() == cloths.len()
+                && plan.cloths.iter().zip(&cloths).all(|(a, (b, _))| a == b)
+        });
+        if !same {
+            self.groups = None;
+            match ContactPlan::new(device, queue, &cloths, self.buffers.particles) {
+                Ok(plan) => {
+                    self.contact = Some(plan);
+                    self.contact_error = None;
+                }
+                Err(error) => {
+                    self.contact = None;
+                    self.contact_error = Some(error);
+                }
+            }
+        }
+        if let Some(plan) = self.contact.as_mut() {
+            plan.substeps = substeps;
+            plan.write_frame(device, queue, self.used.0, thickest);
+        }
+    }
+
+    /// Why the batch's cloths with self-contact run without it, if they do: its buffers would
+    /// not fit the device.
+    pub fn contact_error(&self) -> Option<&KernelError> {
+        self.contact_error.as_ref()
+    }
+
+    /// The self-contact statistics buffer (`COPY_SRC`) when a cloth has self-contact: its first
+    /// two `u32` words count the contacts (one per free particle taking part in one) and the
+    /// bounds met ([`bvh_cloth_core::self_contact::MAX_CANDIDATES`] and the grid's room) over
+    /// the ticks encoded since the last [`Self::prepare`].
+    pub fn contact_stats(&self) -> Option<&Buffer> {
+        self.contact.as_ref().map(ContactPlan::stats)
     }
 
     /// Writes the colour list and the colour passes when the block-descent cloths, or where
@@ -775,7 +879,17 @@ impl ClothBatch {
                 buffer(20, &b.stage_a),
             ],
         });
-        Groups { colliders, anchors, stages, last, predict, solve, finish, apply_anchors }
+        let contact = self.contact.as_ref().map(|plan| {
+            let shared = SharedBuffers {
+                frame: &self.frame,
+                particles: &b.base,
+                info: &b.info,
+                cloths: &b.cloth_constants,
+                colliders: (&colliders.0, &colliders.1),
+            };
+            plan.bind_groups(device, kernels, &shared)
+        });
+        Groups { colliders, anchors, stages, last, predict, solve, finish, apply_anchors, contact }
     }
 
     /// Records `ticks` ticks of every cloth: per tick the anchors, then per substep the
@@ -834,7 +948,9 @@ impl ClothBatch {
         if ticks == 0 || self.used.0 == 0 || (self.substeps == 0 && descent.is_none()) {
             return;
         }
-        let (x, y) = self.workgroups;
+        let contact = self.contact.as_ref().zip(groups.contact.as_ref()).filter(|(plan, _)| plan.substeps > 0);
+        let substeps = self.substeps.max(descent.map_or(0, |plan| plan.substeps));
+        let x = self.workgroups.0;
         let written = self.slots.iter().flatten().map(|s| s.targets.len()).max().unwrap_or(0) as u32;
         for tick in 0..ticks {
             if let (Some(group), Some(anchors)) = (&groups.apply_anchors, &self.anchors)
@@ -850,49 +966,86 @@ impl ClothBatch {
                     pass.dispatch_workgroups(x, rows, 1);
                 });
             }
-            for k in 0..self.substeps {
-                let step = |stage: u32| [(u64::from(3 * k + stage) * UNIFORM_STRIDE) as u32];
-                for (stage, group) in groups.stages.iter().enumerate() {
-                    let offset = step(stage as u32);
-                    each(Kernel::NodeUpdate, &|pass| {
-                        pass.set_pipeline(&kernels.node_update);
-                        pass.set_bind_group(0, group, &offset);
-                        pass.dispatch_workgroups(x, y, 1);
-                    });
+            // Substep by substep, every integrator in turn, so that contact sees all of them.
+            for k in 0..substeps {
+                let contact = contact.filter(|(plan, _)| k < plan.substeps);
+                if let Some((plan, contact_groups)) = contact {
+                    plan.begin(kernels, contact_groups, &mut each);
                 }
-                let offset = step(0);
-                each(Kernel::NodeUpdateFinal, &|pass| {
-                    pass.set_pipeline(&kernels.node_update_final);
-                    pass.set_bind_group(0, &groups.last, &offset);
-                    pass.dispatch_workgroups(x, y, 1);
-                });
+                self.dispatch_explicit(kernels, groups, k, &mut each);
+                if let Some(plan) = descent.filter(|plan| k < plan.substeps) {
+                    self.dispatch_descent(kernels, groups, plan, k, &mut each);
+                }
+                if let Some((plan, contact_groups)) = contact {
+                    plan.resolve(kernels, contact_groups, &mut each);
+                }
             }
-            let Some(plan) = descent else { continue };
-            for k in 0..plan.substeps {
-                let offset = [(u64::from(3 * k) * UNIFORM_STRIDE) as u32];
-                each(Kernel::VbdPredict, &|pass| {
-                    pass.set_pipeline(&kernels.vbd_predict);
-                    pass.set_bind_group(0, &groups.predict, &offset);
-                    pass.dispatch_workgroups(x, y, 1);
-                });
-                for iteration in 0..plan.iterations {
-                    for (colour, range) in plan.colours.iter().enumerate() {
-                        let entry = u64::from(iteration * MAX_COLOURS) + colour as u64;
-                        let offsets = [offset[0], (entry * UNIFORM_STRIDE) as u32];
-                        each(Kernel::VbdSolve, &|pass| {
-                            pass.set_pipeline(&kernels.vbd_solve);
-                            pass.set_bind_group(0, &groups.solve, &offsets);
-                            pass.dispatch_workgroups(range.workgroups.0, range.workgroups.1, 1);
-                        });
-                    }
-                }
-                each(Kernel::VbdFinish, &|pass| {
-                    pass.set_pipeline(&kernels.vbd_finish);
-                    pass.set_bind_group(0, &groups.finish, &offset);
-                    pass.dispatch_workgroups(x, y, 1);
+        }
+    }
+
+    /// Calls `each` with substep `k` of the explicit integrators: RK4's three stages, then the
+    /// last one with the collision response.
+    fn dispatch_explicit(
+        &self,
+        kernels: &ClothKernels,
+        groups: &Groups,
+        k: u32,
+        each: &mut impl FnMut(Kernel, &dyn Fn(&mut wgpu::ComputePass<'_>)),
+    ) {
+        if k >= self.substeps {
+            return;
+        }
+        let (x, y) = self.workgroups;
+        let step = |stage: u32| [(u64::from(3 * k + stage) * UNIFORM_STRIDE) as u32];
+        for (stage, group) in groups.stages.iter().enumerate() {
+            let offset = step(stage as u32);
+            each(Kernel::NodeUpdate, &|pass| {
+                pass.set_pipeline(&kernels.node_update);
+                pass.set_bind_group(0, group, &offset);
+                pass.dispatch_workgroups(x, y, 1);
+            });
+        }
+        let offset = step(0);
+        each(Kernel::NodeUpdateFinal, &|pass| {
+            pass.set_pipeline(&kernels.node_update_final);
+            pass.set_bind_group(0, &groups.last, &offset);
+            pass.dispatch_workgroups(x, y, 1);
+        });
+    }
+
+    /// Calls `each` with substep `k` of block descent: the prediction, the sweeps colour by
+    /// colour, and the finish with the collision response.
+    fn dispatch_descent(
+        &self,
+        kernels: &ClothKernels,
+        groups: &Groups,
+        plan: &DescentPlan,
+        k: u32,
+        each: &mut impl FnMut(Kernel, &dyn Fn(&mut wgpu::ComputePass<'_>)),
+    ) {
+        let (x, y) = self.workgroups;
+        let offset = [(u64::from(3 * k) * UNIFORM_STRIDE) as u32];
+        each(Kernel::VbdPredict, &|pass| {
+            pass.set_pipeline(&kernels.vbd_predict);
+            pass.set_bind_group(0, &groups.predict, &offset);
+            pass.dispatch_workgroups(x, y, 1);
+        });
+        for iteration in 0..plan.iterations {
+            for (colour, range) in plan.colours.iter().enumerate() {
+                let entry = u64::from(iteration * MAX_COLOURS) + colour as u64;
+                let offsets = [offset[0], (entry * UNIFORM_STRIDE) as u32];
+                each(Kernel::VbdSolve, &|pass| {
+                    pass.set_pipeline(&kernels.vbd_solve);
+                    pass.set_bind_group(0, &groups.solve, &offsets);
+                    pass.dispatch_workgroups(range.workgroups.0, range.workgroups.1, 1);
                 });
             }
         }
+        each(Kernel::VbdFinish, &|pass| {
+            pass.set_pipeline(&kernels.vbd_finish);
+            pass.set_bind_group(0, &groups.finish, &offset);
+            pass.dispatch_workgroups(x, y, 1);
+        });
     }
 
     /// Sets where [`Self::encode_writebacks`] writes `id` (until it is set again or cleared):

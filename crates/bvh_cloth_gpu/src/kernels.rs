@@ -10,7 +10,7 @@ use wgpu::{
 /// The kernels' WGSL files, in the order [`shader_source`] joins them: the shared types, the
 /// spring forces, the collision response, then one file per kernel. Each starts with naga_oil directives
 /// (`#define_import_path`, `#import`) for engines that compose shaders that way.
-pub const SHADER_FILES: [(&str, &str); 10] = [
+pub const SHADER_FILES: [(&str, &str); 11] = [
     ("types.wgsl", include_str!("shaders/types.wgsl")),
     ("springs.wgsl", include_str!("shaders/springs.wgsl")),
     ("primitives.wgsl", include_str!("shaders/primitives.wgsl")),
@@ -21,6 +21,7 @@ pub const SHADER_FILES: [(&str, &str); 10] = [
     ("apply_anchors.wgsl", include_str!("shaders/apply_anchors.wgsl")),
     ("normal_shader.wgsl", include_str!("shaders/normal_shader.wgsl")),
     ("skin_refit.wgsl", include_str!("shaders/skin_refit.wgsl")),
+    ("self_contact.wgsl", include_str!("shaders/self_contact.wgsl")),
 ];
 
 /// The kernels as one WGSL module: [`SHADER_FILES`] joined, their import directives dropped.
@@ -36,6 +37,19 @@ pub fn shader_source() -> String {
     }
     source
 }
+
+/// Self-contact's kernels, in the order they run in a substep (`contact_begin` before the
+/// integrator, the others after it).
+pub const CONTACT_KERNELS: [&str; 8] = [
+    "contact_begin",
+    "contact_count",
+    "contact_scan_blocks",
+    "contact_scan_top",
+    "contact_scan_add",
+    "contact_scatter",
+    "contact_find",
+    "contact_apply",
+];
 
 /// Threads per workgroup along each grid axis (workgroups are 8 x 8 x 1, paper Table I).
 pub const WORKGROUP_SIZE: u32 = 8;
@@ -113,13 +127,14 @@ pub struct KernelDescriptor {
 }
 
 /// Number of kernels (entry points): the length of [`ClothKernels::descriptors`].
-pub const KERNEL_COUNT: usize = 11;
+pub const KERNEL_COUNT: usize = 19;
 
 /// The compiled kernels: `node_update` (RK4's first three stages, the stage named by the step
 /// uniform), `node_update_final` (the last stage with the collision response), block descent's
-/// `vbd_predict`, `vbd_solve` and `vbd_finish`, `apply_anchors`, `normal_shader`, and a skinned
-/// collider's refit (`skin_vertices`, `fit_leaves`, `refit_nodes`, `refit_reach`), with their
-/// bind group layouts.
+/// `vbd_predict`, `vbd_solve` and `vbd_finish`, `apply_anchors`, `normal_shader`, a skinned
+/// collider's refit (`skin_vertices`, `fit_leaves`, `refit_nodes`, `refit_reach`), and
+/// self-contact's eight kernels (`contact_begin` to `contact_apply`), with their bind group
+/// layouts.
 #[derive(Debug)]
 pub struct ClothKernels {
     pub(crate) node_update: ComputePipeline,
@@ -132,6 +147,9 @@ pub struct ClothKernels {
     /// The refit's four kernels, in order, and their layouts (the same entries).
     pub(crate) refit: [ComputePipeline; 4],
     pub(crate) refit_layouts: [BindGroupLayout; 4],
+    /// Self-contact's kernels in [`CONTACT_KERNELS`] order, and their layouts.
+    pub(crate) contact: [ComputePipeline; 8],
+    pub(crate) contact_layouts: [BindGroupLayout; 8],
     pub(crate) node_update_layout: BindGroupLayout,
     pub(crate) final_layout: BindGroupLayout,
     pub(crate) vbd_predict_layout: BindGroupLayout,
@@ -157,10 +175,15 @@ fn storage(binding: u32, read_only: bool) -> BindGroupLayoutEntry {
 impl ClothKernels {
     /// The kernels, in the order [`Self::from_parts`] takes them: `node_update`,
     /// `node_update_final`, `vbd_predict`, `vbd_solve`, `vbd_finish`, `apply_anchors`,
-    /// `normal_shader`, `skin_vertices`, `fit_leaves`, `refit_nodes`, `refit_reach`.
+    /// `normal_shader`, `skin_vertices`, `fit_leaves`, `refit_nodes`, `refit_reach`, then
+    /// [`CONTACT_KERNELS`].
     pub fn descriptors() -> [KernelDescriptor; KERNEL_COUNT] {
         let frame = entry(0, BufferBindingType::Uniform, false);
         let step = entry(1, BufferBindingType::Uniform, true);
+        let contact = |entry_point, mut layout: Vec<BindGroupLayoutEntry>| {
+            layout.insert(0, entry(35, BufferBindingType::Uniform, false));
+            KernelDescriptor { entry_point, file: "self_contact.wgsl", layout }
+        };
         let refit = |entry_point| KernelDescriptor {
             entry_point,
             file: "skin_refit.wgsl",
@@ -276,6 +299,47 @@ impl ClothKernels {
             refit("fit_leaves"),
             refit("refit_nodes"),
             refit("refit_reach"),
+            contact(
+                CONTACT_KERNELS[0],
+                vec![
+                    storage(6, true),
+                    storage(8, false),
+                    storage(36, false),
+                    storage(38, false),
+                    storage(39, false),
+                    storage(40, false),
+                ],
+            ),
+            contact(CONTACT_KERNELS[1], vec![storage(37, false), storage(38, false), storage(40, false)]),
+            contact(CONTACT_KERNELS[2], vec![storage(38, false)]),
+            contact(CONTACT_KERNELS[3], vec![storage(38, false)]),
+            contact(CONTACT_KERNELS[4], vec![storage(38, false)]),
+            contact(CONTACT_KERNELS[5], vec![storage(37, false), storage(38, false), storage(40, false)]),
+            contact(
+                CONTACT_KERNELS[6],
+                vec![
+                    storage(6, true),
+                    storage(8, false),
+                    storage(36, false),
+                    storage(37, false),
+                    storage(38, false),
+                    storage(39, false),
+                    storage(40, false),
+                ],
+            ),
+            contact(
+                CONTACT_KERNELS[7],
+                vec![
+                    frame,
+                    storage(6, true),
+                    storage(8, false),
+                    storage(11, true),
+                    storage(12, true),
+                    storage(38, false),
+                    storage(39, false),
+                    storage(40, false),
+                ],
+            ),
         ]
     }
 
@@ -323,8 +387,27 @@ impl ClothKernels {
     /// Kernels compiled elsewhere (by an engine's pipeline cache, from [`Self::descriptors`]):
     /// the pipelines and their bind group layouts, in the order of [`Self::descriptors`].
     pub fn from_parts(pipelines: [ComputePipeline; KERNEL_COUNT], layouts: [BindGroupLayout; KERNEL_COUNT]) -> Self {
-        let [node_update, node_update_final, vbd_predict, vbd_solve, vbd_finish, anchors, normal, r0, r1, r2, r3] =
-            pipelines;
+        let [
+            node_update,
+            node_update_final,
+            vbd_predict,
+            vbd_solve,
+            vbd_finish,
+            anchors,
+            normal,
+            r0,
+            r1,
+            r2,
+            r3,
+            c0,
+            c1,
+            c2,
+            c3,
+            c4,
+            c5,
+            c6,
+            c7,
+        ] = pipelines;
         let [
             node_update_layout,
             final_layout,
@@ -337,6 +420,14 @@ impl ClothKernels {
             l1,
             l2,
             l3,
+            k0,
+            k1,
+            k2,
+            k3,
+            k4,
+            k5,
+            k6,
+            k7,
         ] = layouts;
         Self {
             node_update,
@@ -348,6 +439,8 @@ impl ClothKernels {
             normal,
             refit: [r0, r1, r2, r3],
             refit_layouts: [l0, l1, l2, l3],
+            contact: [c0, c1, c2, c3, c4, c5, c6, c7],
+            contact_layouts: [k0, k1, k2, k3, k4, k5, k6, k7],
             node_update_layout,
             final_layout,
             vbd_predict_layout,

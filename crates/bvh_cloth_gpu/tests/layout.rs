@@ -5,8 +5,8 @@
 use core::mem::{offset_of, size_of};
 
 use bvh_cloth_core::gpu_layout::{
-    GpuBatchCloth, GpuBatchFrame, GpuBatchStep, GpuBatchWriteback, GpuCollider, GpuColourPass, GpuMeshWriteback,
-    GpuParticle, GpuRefitParams, GpuSkinVertex, GpuWritebackGroup,
+    GpuBatchCloth, GpuBatchFrame, GpuBatchStep, GpuBatchWriteback, GpuCollider, GpuColourPass, GpuContactFrame,
+    GpuMeshWriteback, GpuParticle, GpuRefitParams, GpuSkinVertex, GpuWritebackGroup,
 };
 use bvh_cloth_core::skinning::SkinPoint;
 use bvh_cloth_core::{BvhNode, Sphere, Vec3};
@@ -58,12 +58,23 @@ fn wgsl_is_valid() {
             "skin_vertices",
             "fit_leaves",
             "refit_nodes",
-            "refit_reach"
+            "refit_reach",
+            "contact_begin",
+            "contact_count",
+            "contact_scan_blocks",
+            "contact_scan_top",
+            "contact_scan_add",
+            "contact_scatter",
+            "contact_find",
+            "contact_apply",
         ]
     );
     for entry in &module.entry_points {
-        // The refit's kernels run one row of 64 threads.
-        let size = if entry.name.contains("refit") || entry.name.ends_with("_leaves") || entry.name.starts_with("skin")
+        // The refit's kernels and the prefix sum's run one row of 64 threads.
+        let size = if entry.name.contains("refit")
+            || entry.name.ends_with("_leaves")
+            || entry.name.starts_with("skin")
+            || entry.name.contains("_scan_")
         {
             [64, 1, 1]
         } else {
@@ -94,9 +105,9 @@ fn wgsl_structs_match_the_rust_layouts() {
             damping,
             integrator,
             iterations,
-            pad_a,
-            pad_b,
-            pad_c,
+            contact_thickness,
+            contact_friction,
+            pad,
             faults
         ]
     );
@@ -124,6 +135,12 @@ fn wgsl_structs_match_the_rust_layouts() {
     ];
     assert_eq!(members[..6].iter().map(|m| m.1 as usize).collect::<Vec<_>>(), rust, "members of BatchWriteback");
     assert_layout!(&module, "ColourPass", GpuColourPass, [start, count, iteration, dispatch_width]);
+    assert_layout!(
+        &module,
+        "ContactFrame",
+        GpuContactFrame,
+        [triangle_count, buckets, blocks, entry_capacity, inv_cell, grow, dispatch_width, particle_slots]
+    );
     assert_layout!(&module, "WritebackGroup", GpuWritebackGroup, [first_owner, vertex_count, dispatch_width, pad]);
     assert_layout!(
         &module,

@@ -48,9 +48,9 @@ struct BatchCloth {
     damping: f32,
     integrator: u32,
     iterations: u32,
-    pad_a: u32,
-    pad_b: u32,
-    pad_c: u32,
+    contact_thickness: f32,
+    contact_friction: f32,
+    pad: u32,
     faults: atomic<u32>,
 }
 

@@ -1,0 +1,493 @@
+// Self-contact and contact between cloths (bvh_cloth_core::self_contact), for every cloth of
+// the batch with a contact thickness, in the same order of operations as the CPU reference.
+// Per substep:
+// - contact_begin, before the integrator, one thread per particle slot and per bucket: keeps
+//   each contact particle's position at the start of the substep, clears its sums, and empties
+//   the grid's bucket counts;
+// then, after the integrator's last kernel (collision response included):
+// - contact_count, one thread per triangle: its box, grown by the largest thickness, and one
+//   count in the bucket of each cell the box overlaps (at most MAX_SPAN cells along an axis,
+//   each bucket once);
+// - contact_scan_blocks, contact_scan_top and contact_scan_add: the exclusive prefix sum of the
+//   counts, in blocks of 256 buckets (one workgroup of 64 threads each), then the blocks' sums
+//   (one workgroup), then the blocks' offsets added back: each bucket's first entry;
+// - contact_scatter, one thread per triangle: the triangle entered in each of its buckets;
+// - contact_find, one thread per particle: its cell's bucket, at most MAX_CANDIDATES
+//   triangles of it, and for each contact the corrections of the point and of the triangle's
+//   free corners, added to their sums;
+// - contact_apply, one thread per particle: the mean of its corrections, then the response
+//   against every collider from where it was.
+//
+// The sums are fixed-point integers, so that atomic adds give one answer whatever the order
+// the threads run in: the result is deterministic, and differs from the CPU's float sums by
+// the rounding of each correction to 2^-20 m (positions) and 2^-14 m/s (velocities). Every loop
+// is bounded and every write is checked against its buffer: the grid has room for
+// `entry_capacity` entries, and entries past it are dropped and counted as clamped.
+
+#import bvh_cloth::types::{GpuParticle, NO_CLOTH, thread_index, all_finite}
+#import bvh_cloth::springs::{particle_info, cloths}
+#import bvh_cloth::collision::{collide, closest_on_triangle}
+
+struct ContactFrame {
+    triangle_count: u32,
+    buckets: u32,
+    blocks: u32,
+    entry_capacity: u32,
+    inv_cell: f32,
+    grow: f32,
+    dispatch_width: u32,
+    particle_slots: u32,
+}
+
+@group(0) @binding(35) var<uniform> contact: ContactFrame;
+// Per particle slot, two vec4s: the position at the start of the substep, the rest position.
+@group(0) @binding(36) var<storage, read_write> contact_points: array<vec4<f32>>;
+// Per triangle, five vec4s (bvh_cloth_core::gpu_layout::gpu_contact_triangles): corners and
+// cloth; rest box; current grown box (f32 bits).
+@group(0) @binding(37) var<storage, read_write> contact_triangles: array<vec4<u32>>;
+// The grid: 4 statistics words, then the bucket counts, the bucket cursors, the bucket starts
+// (one more than the buckets), the blocks' sums, and the entries.
+@group(0) @binding(38) var<storage, read_write> contact_grid: array<atomic<u32>>;
+// Per particle slot, eight words: position correction (3), velocity correction (3), contacts.
+@group(0) @binding(39) var<storage, read_write> contact_sums: array<atomic<i32>>;
+@group(0) @binding(40) var<storage, read_write> contact_state: array<GpuParticle>;
+
+const MAX_CANDIDATES: u32 = 256u;       // bvh_cloth_core::self_contact::MAX_CANDIDATES
+const MAX_SPAN: i32 = 4;                // bvh_cloth_core::self_contact::MAX_SPAN
+const TRIANGLE_WORDS: u32 = 5u;         // bvh_cloth_core::gpu_layout::CONTACT_TRIANGLE_WORDS
+const SUM_WORDS: u32 = 8u;
+const POSITION_SCALE: f32 = 1048576.0;  // 2^20 per metre
+const VELOCITY_SCALE: f32 = 16384.0;    // 2^14 per m/s
+const POSITION_LIMIT: f32 = 1.0;        // largest correction of one contact, m
+const VELOCITY_LIMIT: f32 = 64.0;       // m/s
+const STAT_CONTACTS: u32 = 0u;
+const STAT_CLAMPED: u32 = 1u;
+const GRID_HEADER: u32 = 4u;
+const SCAN_BLOCK: u32 = 256u;
+const SCAN_THREADS: u32 = 64u;
+
+fn count_at(b: u32) -> u32 {
+    return GRID_HEADER + b;
+}
+
+fn cursor_at(b: u32) -> u32 {
+    return GRID_HEADER + contact.buckets + b;
+}
+
+fn start_at(b: u32) -> u32 {
+    return GRID_HEADER + 2u * contact.buckets + b;
+}
+
+fn block_sum_at(k: u32) -> u32 {
+    return GRID_HEADER + 3u * contact.buckets + 1u + k;
+}
+
+fn entry_at(e: u32) -> u32 {
+    return GRID_HEADER + 3u * contact.buckets + 1u + contact.blocks + e;
+}
+
+// The cloth of particle slot i if it has self-contact, else NO_CLOTH.
+fn contact_cloth(i: u32) -> u32 {
+    if (i >= contact.particle_slots) {
+        return NO_CLOTH;
+    }
+    let c = particle_info[i].w;
+    if (c == NO_CLOTH || cloths[c].contact_thickness <= 0.0) {
+        return NO_CLOTH;
+    }
+    return c;
+}
+
+// bvh_cloth_core::self_contact::cell_of, coordinates held inside i32's range.
+fn cell_of(p: vec3<f32>) -> vec3<i32> {
+    return vec3<i32>(clamp(floor(p * contact.inv_cell), vec3(-2147483648.0), vec3(2147483520.0)));
+}
+
+// bvh_cloth_core::self_contact::bucket.
+fn bucket_of(c: vec3<i32>) -> u32 {
+    let u = bitcast<vec3<u32>>(c);
+    return ((u.x * 73856093u) ^ (u.y * 19349663u) ^ (u.z * 83492791u)) & (contact.buckets - 1u);
+}
+
+fn corner_position(i: u32) -> vec3<f32> {
+    return contact_state[i].position.xyz;
+}
+
+@compute @workgroup_size(8, 8, 1)
+fn contact_begin(@builtin(global_invocation_id) id: vec3<u32>) {
+    let i = thread_index(id, contact.dispatch_width);
+    if (i < contact.buckets) {
+        atomicStore(&contact_grid[count_at(i)], 0u);
+    }
+    if (contact_cloth(i) != NO_CLOTH) {
+        contact_points[2u * i] = contact_state[i].position;
+        for (var k = 0u; k < SUM_WORDS; k++) {
+            atomicStore(&contact_sums[SUM_WORDS * i + k], 0);
+        }
+    }
+}
+
+// Triangle t's cells: the range of its grown box (written into the triangle's box words),
+// capped at MAX_SPAN cells along each axis. `valid` is false for a box that is not finite.
+struct CellRange {
+    lo: vec3<i32>,
+    hi: vec3<i32>,
+    valid: bool,
+}
+
+fn triangle_cells(t: u32, record: bool) -> CellRange {
+    let corners = contact_triangles[TRIANGLE_WORDS * t];
+    let a = corner_position(corners.x);
+    let b = corner_position(corners.y);
+    let c = corner_position(corners.z);
+    let lo = min(min(a, b), c) - contact.grow;
+    let hi = max(max(a, b), c) + contact.grow;
+    var range: CellRange;
+    range.valid = all_finite(lo) && all_finite(hi);
+    if (record) {
+        // A box that is not finite is stored empty, so that no point is inside it.
+        let box_lo = select(vec3(1.0), lo, range.valid);
+        let box_hi = select(vec3(-1.0), hi, range.valid);
+        contact_triangles[TRIANGLE_WORDS * t + 3u] = vec4(bitcast<vec3<u32>>(box_lo), 0u);
+        contact_triangles[TRIANGLE_WORDS * t + 4u] = vec4(bitcast<vec3<u32>>(box_hi), 0u);
+    }
+    if (!range.valid) {
+        return range;
+    }
+    range.lo = cell_of(lo);
+    let full = cell_of(hi);
+    range.hi = min(range.lo + vec3(MAX_SPAN - 1), full);
+    if (record && any(range.hi != full)) {
+        atomicAdd(&contact_grid[STAT_CLAMPED], 1u);
+    }
+    range.valid = all(range.hi >= range.lo);
+    return range;
+}
+
+// Counts (or, with `place`, enters) triangle t in each bucket its cells hash to, once each.
+fn visit_buckets(t: u32, place: bool) {
+    let range = triangle_cells(t, !place);
+    if (!range.valid) {
+        return;
+    }
+    var used: array<u32, 64>;
+    var count = 0u;
+    let span = range.hi - range.lo;
+    for (var z = 0; z <= span.z; z++) {
+        for (var y = 0; y <= span.y; y++) {
+            for (var x = 0; x <= span.x; x++) {
+                let b = bucket_of(range.lo + vec3(x, y, z));
+                var seen = false;
+                for (var k = 0u; k < count; k++) {
+                    seen = seen || used[k] == b;
+                }
+                if (seen) {
+                    continue;
+                }
+                used[count] = b;
+                count++;
+                if (place) {
+                    let e = atomicAdd(&contact_grid[cursor_at(b)], 1u);
+                    if (e < contact.entry_capacity) {
+                        atomicStore(&contact_grid[entry_at(e)], t);
+                    }
+                } else {
+                    atomicAdd(&contact_grid[count_at(b)], 1u);
+                }
+            }
+        }
+    }
+}
+
+@compute @workgroup_size(8, 8, 1)
+fn contact_count(@builtin(global_invocation_id) id: vec3<u32>) {
+    let t = thread_index(id, contact.dispatch_width);
+    if (t < contact.triangle_count) {
+        visit_buckets(t, false);
+    }
+}
+
+var<workgroup> scan_partial: array<u32, 64>;
+
+// The exclusive prefix sum of `value` over the workgroup's 64 threads (Hillis and Steele);
+// every thread of the workgroup calls it.
+fn workgroup_exclusive_scan(t: u32, value: u32) -> u32 {
+    scan_partial[t] = value;
+    workgroupBarrier();
+    for (var offset = 1u; offset < SCAN_THREADS; offset *= 2u) {
+        var add = 0u;
+        if (t >= offset) {
+            add = scan_partial[t - offset];
+        }
+        workgroupBarrier();
+        scan_partial[t] += add;
+        workgroupBarrier();
+    }
+    return scan_partial[t] - value;
+}
+
+fn scan_block(wg: vec3<u32>, groups: vec3<u32>) -> u32 {
+    return wg.x + wg.y * groups.x;
+}
+
+@compute @workgroup_size(64, 1, 1)
+fn contact_scan_blocks(
+    @builtin(local_invocation_index) t: u32,
+    @builtin(workgroup_id) wg: vec3<u32>,
+    @builtin(num_workgroups) groups: vec3<u32>,
+) {
+    let block = scan_block(wg, groups);
+    if (block >= contact.blocks) {
+        return;
+    }
+    let first = block * SCAN_BLOCK + 4u * t;
+    var before_each: array<u32, 4>;
+    var sum = 0u;
+    for (var k = 0u; k < 4u; k++) {
+        before_each[k] = sum;
+        sum += atomicLoad(&contact_grid[count_at(first + k)]);
+    }
+    let before = workgroup_exclusive_scan(t, sum);
+    for (var k = 0u; k < 4u; k++) {
+        atomicStore(&contact_grid[start_at(first + k)], before + before_each[k]);
+    }
+    if (t == SCAN_THREADS - 1u) {
+        atomicStore(&contact_grid[block_sum_at(block)], before + sum);
+    }
+}
+
+@compute @workgroup_size(64, 1, 1)
+fn contact_scan_top(@builtin(local_invocation_index) t: u32) {
+    let per = (contact.blocks + SCAN_THREADS - 1u) / SCAN_THREADS;
+    let first = t * per;
+    let last = min(first + per, contact.blocks);
+    var sum = 0u;
+    for (var k = first; k < last; k++) {
+        sum += atomicLoad(&contact_grid[block_sum_at(k)]);
+    }
+    let before = workgroup_exclusive_scan(t, sum);
+    var running = before;
+    for (var k = first; k < last; k++) {
+        let s = atomicLoad(&contact_grid[block_sum_at(k)]);
+        atomicStore(&contact_grid[block_sum_at(k)], running);
+        running += s;
+    }
+    if (t == SCAN_THREADS - 1u) {
+        let total = before + sum;
+        atomicStore(&contact_grid[start_at(contact.buckets)], total);
+        if (total > contact.entry_capacity) {
+            atomicAdd(&contact_grid[STAT_CLAMPED], 1u);
+        }
+    }
+}
+
+@compute @workgroup_size(64, 1, 1)
+fn contact_scan_add(
+    @builtin(local_invocation_index) t: u32,
+    @builtin(workgroup_id) wg: vec3<u32>,
+    @builtin(num_workgroups) groups: vec3<u32>,
+) {
+    let block = scan_block(wg, groups);
+    if (block >= contact.blocks) {
+        return;
+    }
+    let offset = atomicLoad(&contact_grid[block_sum_at(block)]);
+    for (var k = 0u; k < 4u; k++) {
+        let b = block * SCAN_BLOCK + 4u * t + k;
+        let start = atomicLoad(&contact_grid[start_at(b)]) + offset;
+        atomicStore(&contact_grid[start_at(b)], start);
+        atomicStore(&contact_grid[cursor_at(b)], start);
+    }
+}
+
+@compute @workgroup_size(8, 8, 1)
+fn contact_scatter(@builtin(global_invocation_id) id: vec3<u32>) {
+    let t = thread_index(id, contact.dispatch_width);
+    if (t < contact.triangle_count) {
+        visit_buckets(t, true);
+    }
+}
+
+// bvh_cloth_core::triangles::face_normal: the unit normal, or a zero vector for a triangle
+// without one.
+fn face_normal(a: vec3<f32>, b: vec3<f32>, c: vec3<f32>) -> vec3<f32> {
+    let n = cross(b - a, c - a);
+    let rcp = 1.0 / length(n);
+    if (all_finite(vec3(rcp)) && rcp > 0.0) {
+        return n * rcp;
+    }
+    return vec3(0.0);
+}
+
+// bvh_cloth_core::self_contact::barycentric.
+fn barycentric(q: vec3<f32>, a: vec3<f32>, b: vec3<f32>, c: vec3<f32>) -> vec3<f32> {
+    let e1 = b - a;
+    let e2 = c - a;
+    let r = q - a;
+    let d11 = dot(e1, e1);
+    let d12 = dot(e1, e2);
+    let d22 = dot(e2, e2);
+    let r1 = dot(r, e1);
+    let r2 = dot(r, e2);
+    let det = d11 * d22 - d12 * d12;
+    let scale = max(d11, d22);
+    if (!(det > 1.0e-12 * scale * scale)) {
+        return vec3(1.0 / 3.0);
+    }
+    let u = clamp((d22 * r1 - d12 * r2) / det, 0.0, 1.0);
+    let w = clamp((d11 * r2 - d12 * r1) / det, 0.0, 1.0 - u);
+    return vec3(1.0 - u - w, u, w);
+}
+
+fn add_correction(k: u32, dx: vec3<f32>, dv: vec3<f32>) {
+    let x = vec3<i32>(round(clamp(dx, vec3(-POSITION_LIMIT), vec3(POSITION_LIMIT)) * POSITION_SCALE));
+    let v = vec3<i32>(round(clamp(dv, vec3(-VELOCITY_LIMIT), vec3(VELOCITY_LIMIT)) * VELOCITY_SCALE));
+    let at = SUM_WORDS * k;
+    atomicAdd(&contact_sums[at], x.x);
+    atomicAdd(&contact_sums[at + 1u], x.y);
+    atomicAdd(&contact_sums[at + 2u], x.z);
+    atomicAdd(&contact_sums[at + 3u], v.x);
+    atomicAdd(&contact_sums[at + 4u], v.y);
+    atomicAdd(&contact_sums[at + 5u], v.z);
+    atomicAdd(&contact_sums[at + 6u], 1);
+}
+
+// bvh_cloth_core::self_contact::ContactSolver::contact, its corrections added to the sums.
+fn touch(p: u32, pc: u32, me: GpuParticle, t: u32) {
+    let corners = contact_triangles[TRIANGLE_WORDS * t];
+    if (corners.x == p || corners.y == p || corners.z == p) {
+        return;
+    }
+    let xp = me.position.xyz;
+    let lo = bitcast<vec3<f32>>(contact_triangles[TRIANGLE_WORDS * t + 3u].xyz);
+    let hi = bitcast<vec3<f32>>(contact_triangles[TRIANGLE_WORDS * t + 4u].xyz);
+    if (!(all(xp >= lo) && all(xp <= hi))) {
+        return;
+    }
+    let tc = corners.w;
+    let h = 0.5 * (cloths[pc].contact_thickness + cloths[tc].contact_thickness);
+    if (pc == tc) {
+        let rest_lo = bitcast<vec3<f32>>(contact_triangles[TRIANGLE_WORDS * t + 1u].xyz);
+        let rest_hi = bitcast<vec3<f32>>(contact_triangles[TRIANGLE_WORDS * t + 2u].xyz);
+        let rest = contact_points[2u * p + 1u].xyz;
+        if (all(rest >= rest_lo - h) && all(rest <= rest_hi + h)) {
+            return;
+        }
+    }
+    let ca = contact_state[corners.x];
+    let cb = contact_state[corners.y];
+    let cc = contact_state[corners.z];
+    let a = ca.position.xyz;
+    let b = cb.position.xyz;
+    let c = cc.position.xyz;
+    let q = closest_on_triangle(xp, a, b, c);
+    let away = xp - q;
+    let d2 = dot(away, away);
+    if (!(d2 < h * h)) {
+        return;
+    }
+    let d = sqrt(d2);
+    let face = face_normal(a, b, c);
+    let has_face = any(face != vec3(0.0));
+    let pa = contact_points[2u * corners.x].xyz;
+    let pb = contact_points[2u * corners.y].xyz;
+    let pcorner = contact_points[2u * corners.z].xyz;
+    let side_before = dot(contact_points[2u * p].xyz - pa, face_normal(pa, pb, pcorner));
+    let side_now = dot(xp - a, face);
+    let through = side_before * side_now < 0.0;
+    var n: vec3<f32>;
+    var gap: f32;
+    if (has_face && through) {
+        n = face * sign(side_before);
+        gap = -abs(side_now);
+    } else if (d > 1.0e-6 * h) {
+        n = away / d;
+        gap = d;
+    } else if (has_face && side_before != 0.0) {
+        n = face * sign(side_before);
+        gap = 0.0;
+    } else {
+        n = select(vec3(0.0, 1.0, 0.0), face, has_face);
+        gap = 0.0;
+    }
+    let bary = barycentric(q, a, b, c);
+    let w = vec3(ca.position.w, cb.position.w, cc.position.w);
+    let wp = me.position.w;
+    let denom = wp + w.x * bary.x * bary.x + w.y * bary.y * bary.y + w.z * bary.z * bary.z;
+    if (denom <= 0.0) {
+        return;
+    }
+    let relative = me.velocity.xyz
+        - (bary.x * ca.velocity.xyz + bary.y * cb.velocity.xyz + bary.z * cc.velocity.xyz);
+    let vn = dot(relative, n);
+    var impulse = vec3(0.0);
+    if (vn < 0.0) {
+        let tangential = relative - vn * n;
+        let friction = 0.5 * (cloths[pc].contact_friction + cloths[tc].contact_friction);
+        let speed = length(tangential);
+        var slow = 0.0;
+        if (speed > 0.0) {
+            slow = min(friction * -vn / speed, 1.0);
+        }
+        impulse = -(vn * n + slow * tangential) / denom;
+    }
+    let lambda = (h - gap) / denom;
+    if (wp > 0.0) {
+        add_correction(p, wp * lambda * n, wp * impulse);
+    }
+    let ids = vec3(corners.x, corners.y, corners.z);
+    for (var k = 0u; k < 3u; k++) {
+        if (w[k] > 0.0) {
+            add_correction(ids[k], -w[k] * bary[k] * lambda * n, -w[k] * bary[k] * impulse);
+        }
+    }
+}
+
+@compute @workgroup_size(8, 8, 1)
+fn contact_find(@builtin(global_invocation_id) id: vec3<u32>) {
+    let p = thread_index(id, contact.dispatch_width);
+    let c = contact_cloth(p);
+    if (c == NO_CLOTH) {
+        return;
+    }
+    let me = contact_state[p];
+    if (!all_finite(me.position.xyz)) {
+        return;
+    }
+    let b = bucket_of(cell_of(me.position.xyz));
+    let end = min(atomicLoad(&contact_grid[start_at(b + 1u)]), contact.entry_capacity);
+    let start = min(atomicLoad(&contact_grid[start_at(b)]), end);
+    if (end - start > MAX_CANDIDATES) {
+        atomicAdd(&contact_grid[STAT_CLAMPED], 1u);
+    }
+    let last = min(end, start + MAX_CANDIDATES);
+    for (var e = start; e < last; e++) {
+        touch(p, c, me, atomicLoad(&contact_grid[entry_at(e)]));
+    }
+}
+
+@compute @workgroup_size(8, 8, 1)
+fn contact_apply(@builtin(global_invocation_id) id: vec3<u32>) {
+    let i = thread_index(id, contact.dispatch_width);
+    if (contact_cloth(i) == NO_CLOTH) {
+        return;
+    }
+    let at = SUM_WORDS * i;
+    let count = atomicLoad(&contact_sums[at + 6u]);
+    if (count <= 0) {
+        return;
+    }
+    atomicAdd(&contact_grid[STAT_CONTACTS], u32(count));
+    let mean = 1.0 / f32(count);
+    let dx = vec3<f32>(
+        vec3(atomicLoad(&contact_sums[at]), atomicLoad(&contact_sums[at + 1u]), atomicLoad(&contact_sums[at + 2u])),
+    ) / POSITION_SCALE;
+    let dv = vec3<f32>(
+        vec3(atomicLoad(&contact_sums[at + 3u]), atomicLoad(&contact_sums[at + 4u]), atomicLoad(&contact_sums[at + 5u])),
+    ) / VELOCITY_SCALE;
+    let me = contact_state[i];
+    var moved: GpuParticle;
+    moved.position = vec4(me.position.xyz + dx * mean, me.position.w);
+    moved.velocity = vec4(me.velocity.xyz + dv * mean, 0.0);
+    contact_state[i] = collide(me.position.xyz, moved);
+}
