@@ -202,6 +202,8 @@ pub(crate) struct BlockDescent {
     start: Vec<Vec3A>,
     target: Vec<Vec3A>,
     moved: Vec<Vec3A>,
+    /// 1 for a particle a collider touched in the last substep's collision response, else 0.
+    pub(crate) held: Vec<f32>,
 }
 
 impl BlockDescent {
@@ -210,6 +212,7 @@ impl BlockDescent {
         for buffer in [&mut self.x, &mut self.v, &mut self.start, &mut self.target] {
             buffer.resize(n, Vec3A::ZERO);
         }
+        self.held.resize(n, 0.0);
     }
 
     /// One substep of `h` seconds with `iterations` sweeps over the colours, then the velocity
@@ -225,7 +228,7 @@ impl BlockDescent {
         frames: &[ColliderFrame<'_>],
     ) {
         let Ok(colouring) = topology.colouring() else { return };
-        let Self { x, v, start, target, moved } = self;
+        let Self { x, v, start, target, moved, held } = self;
         let accel = Vec3A::from(model.uniform_accel);
         start.copy_from_slice(x);
         // The first iterate moves with the velocity only: a cloth at rest starts where it was,
@@ -278,18 +281,22 @@ impl BlockDescent {
             .zip(v.par_iter_mut())
             .zip(start.par_iter())
             .zip(free.par_iter())
+            .zip(held.par_iter_mut())
             .with_min_len(MIN_TASK)
-            .for_each(|(((x, v), &start), &free)| {
+            .for_each(|((((x, v), &start), &free), held)| {
+                *held = 0.0;
                 if free == 0.0 {
                     return;
                 }
                 *v = (*x - start) * inv_h;
                 if !frames.is_empty() {
                     let (mut p, mut velocity) = (Vec3::from(*x), Vec3::from(*v));
+                    let mut touched = false;
                     for frame in frames {
-                        frame.resolve(start.into(), &mut p, &mut velocity);
+                        touched |= frame.resolve(start.into(), &mut p, &mut velocity);
                     }
                     (*x, *v) = (p.into(), velocity.into());
+                    *held = f32::from(u8::from(touched));
                 }
             });
     }

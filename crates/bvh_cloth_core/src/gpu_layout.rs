@@ -20,7 +20,8 @@ use crate::topology::ClothTopology;
 pub struct GpuParticle {
     /// `xyz`: position; `w`: 1 for a free particle, 0 for a pinned one.
     pub position: [f32; 4],
-    /// `xyz`: velocity; `w`: unused.
+    /// `xyz`: velocity; `w`: 1 where a collider touched the particle in the last substep's
+    /// collision response, else 0 (the kernels write it; self-contact reads it).
     pub velocity: [f32; 4],
 }
 

@@ -37,11 +37,17 @@
 //! at distance `d` from its closest point `q = Σ b_c x_c` (barycentric weights `b`), along the
 //! unit direction `n` from `q` to `p`: the constraint `(x_p - q)·n >= h` is projected with the
 //! particles' weights (1 free, 0 pinned), so `p` moves `w_p λ n` and each corner `-w_c b_c λ n`,
-//! with `λ = (h - d) / (w_p + Σ w_c b_c²)`. A point that changed sides of the triangle's plane
-//! during the substep (from the positions at its start, [`ContactBody::prev`]) went through it:
-//! `n` is then the face normal on the side it came from, and `d` its depth below the plane, so
-//! it goes back the thickness above the side it left. If they approach, the normal part of their relative
-//! velocity is taken off the same way, and the tangential part slowed by Coulomb friction. The
+//! with `λ = (h - d) / (w_p + Σ w_c b_c²)`. A particle a collider touched in the substep's
+//! collision response ([`ContactBody::held`]) takes no part either, unless every particle of
+//! the contact is held: where a model presses one layer into another, the layer on the model
+//! cannot give way (the collider puts it back), so the other side takes the held particles'
+//! share too (`λ` scaled by the ratio of the two denominators, at most [`MAX_HELD_SCALE`]),
+//! and the layers do not cross.
+//! A point that changed sides of the triangle's plane during the substep (from the positions
+//! at its start, [`ContactBody::prev`]) went through it: `n` is then the face normal on the
+//! side it came from, and `d` its depth below the plane, so it goes back the thickness above
+//! the side it left. If they approach, the normal part of their relative velocity is taken off
+//! the same way, and the tangential part slowed by Coulomb friction. The
 //! contacts are found in parallel, point by point, and summed in point order; a particle in
 //! several contacts moves by the mean of its corrections (Jacobi with averaging), so the result
 //! depends neither on the thread count nor on the order. A particle that moved is then checked
@@ -52,9 +58,8 @@
 //!
 //! A point is caught while it is within the thickness of a triangle: one that goes more than
 //! the thickness past another layer's triangle within one substep (10 mm in 1 ms is 10 m/s at
-//! Looper 16) is not, and layers that already cross are not untangled. Edges are not tested
-//! against edges, and a particle a collider holds is moved like a free one: where a collider
-//! presses one layer into another, layers can still cross.
+//! Looper 16) is not. Edges are not tested against edges: two edges can pass through each
+//! other between the particles of both layers.
 
 use glam::{IVec3, Vec3, Vec3A};
 use rayon::prelude::*;
@@ -71,6 +76,11 @@ pub const MAX_CANDIDATES: usize = 256;
 /// Most grid cells a triangle covers along an axis; a wider one (stretched far beyond the
 /// others) is entered in the first `MAX_SPAN³` of its cells and counted as clamped.
 pub const MAX_SPAN: i32 = 4;
+
+/// Most a contact's correction is scaled up when held particles take no part of it: the free
+/// side takes the held side's share, up to this many times its own (a triangle whose only free
+/// corner has a small weight at the contact would otherwise be levered far).
+pub const MAX_HELD_SCALE: f32 = 16.0;
 
 /// Above this many particles the contacts are found on the rayon pool.
 const PARALLEL_MIN: usize = 2048;
@@ -131,6 +141,9 @@ pub struct ContactBody<'a> {
     pub contact: SelfContact,
     /// 1 for a free particle, 0 for a pinned one.
     pub free: &'a [f32],
+    /// 1 for a particle a collider touched in this substep's collision response, else 0 (or
+    /// an empty slice for none): contact weighs it as pinned.
+    pub held: &'a [f32],
     /// Positions at the start of the substep: a point that went through a triangle during it
     /// is put back on the side it came from.
     pub prev: &'a [Vec3],
@@ -158,6 +171,8 @@ pub struct ContactSolver {
     x: Vec<Vec3>,
     v: Vec<Vec3>,
     free: Vec<f32>,
+    /// 1 for a particle a collider touched in the substep.
+    held: Vec<f32>,
     /// For each particle, its body and its index in it.
     owner: Vec<(u32, u32)>,
     /// Every body's triangles: its body and its corners' flat indices.
@@ -189,6 +204,8 @@ struct Contact {
     lambda: f32,
     /// Velocity correction per unit weight (normal and friction).
     impulse: Vec3,
+    /// The weights the corrections are taken with: the point's, then the corners'.
+    w: [f32; 4],
 }
 
 impl ContactSolver {
@@ -229,16 +246,16 @@ impl ContactSolver {
             stats.clamped += clamped;
             for c in contacts {
                 let p = c.point as usize;
-                if self.free[p] > 0.0 {
-                    self.dx[p] += self.free[p] * c.lambda * c.n;
-                    self.dv[p] += self.free[p] * c.impulse;
+                if c.w[0] > 0.0 {
+                    self.dx[p] += c.w[0] * c.lambda * c.n;
+                    self.dv[p] += c.w[0] * c.impulse;
                     self.count[p] += 1;
                 }
-                for (corner, &b) in self.triangles[c.triangle as usize].1.iter().zip(&c.b) {
+                for ((corner, &b), &w) in self.triangles[c.triangle as usize].1.iter().zip(&c.b).zip(&c.w[1..]) {
                     let k = *corner as usize;
-                    if self.free[k] > 0.0 {
-                        self.dx[k] -= self.free[k] * b * c.lambda * c.n;
-                        self.dv[k] -= self.free[k] * b * c.impulse;
+                    if w > 0.0 {
+                        self.dx[k] -= w * b * c.lambda * c.n;
+                        self.dv[k] -= w * b * c.impulse;
                         self.count[k] += 1;
                     }
                 }
@@ -271,6 +288,7 @@ impl ContactSolver {
         self.x.clear();
         self.v.clear();
         self.free.clear();
+        self.held.clear();
         self.owner.clear();
         self.triangles.clear();
         self.rest_boxes.clear();
@@ -286,6 +304,7 @@ impl ContactSolver {
             self.x.extend_from_slice(&body.x[..n]);
             self.v.extend_from_slice(&body.v[..n]);
             self.free.extend_from_slice(&body.free[..n]);
+            self.held.extend((0..n).map(|i| body.held.get(i).copied().unwrap_or(0.0)));
             self.owner.extend((0..n as u32).map(|i| (b as u32, i)));
             for t in body.topology.triangles() {
                 let [a, b2, c] = t.map(|k| body.x[k as usize]);
@@ -433,11 +452,20 @@ impl ContactSolver {
             _ => (face.unwrap_or(Vec3::Y), 0.0),
         };
         let b = barycentric(q, at);
-        let w = corners.map(|c| self.free[c as usize]);
-        let denom = self.free[p] + w[0] * b[0] * b[0] + w[1] * b[1] * b[1] + w[2] * b[2] * b[2];
+        let weigh = |w: [f32; 4]| w[0] + w[1] * b[0] * b[0] + w[2] * b[1] * b[1] + w[3] * b[2] * b[2];
+        let ids = [p as u32, corners[0], corners[1], corners[2]];
+        let free = ids.map(|k| self.free[k as usize]);
+        let denom = weigh(free);
         if denom <= 0.0 {
             return None;
         }
+        // The held particles' share goes to the others, when there are others: the correction
+        // is scaled so that the free side alone makes the whole of it, at most MAX_HELD_SCALE
+        // times its own share.
+        let unheld = ids.map(|k| self.free[k as usize] * (1.0 - self.held[k as usize]));
+        let unheld_denom = weigh(unheld);
+        let (w, scale) =
+            if unheld_denom > 0.0 { (unheld, (denom / unheld_denom).min(MAX_HELD_SCALE)) } else { (free, 1.0) };
         let v = corners.map(|c| self.v[c as usize]);
         let relative = self.v[p] - (b[0] * v[0] + b[1] * v[1] + b[2] * v[2]);
         let vn = relative.dot(n);
@@ -446,11 +474,11 @@ impl ContactSolver {
             let friction = 0.5 * (point_body.contact.friction + tri_body.contact.friction);
             let speed = tangential.length();
             let slow = if speed > 0.0 { (friction * -vn / speed).min(1.0) } else { 0.0 };
-            -(vn * n + slow * tangential) / denom
+            -(vn * n + slow * tangential) / denom * scale
         } else {
             Vec3::ZERO
         };
-        Some(Contact { point: p as u32, triangle: t, n, b, lambda: (h - gap) / denom, impulse })
+        Some(Contact { point: p as u32, triangle: t, n, b, lambda: (h - gap) / denom * scale, impulse, w })
     }
 }
 

@@ -44,6 +44,10 @@ pub struct ClothSim {
     slope_sum: Vec<f32>,
     /// 1 for a free particle, 0 for a pinned or massless one and for padding.
     free: Vec<f32>,
+    /// 1 for a particle a collider touched in the last substep's collision response (of the
+    /// explicit integrators; block descent keeps its own), else 0: self-contact weighs it as
+    /// pinned.
+    held: Vec<f32>,
     pins: Vec<u32>,
     /// Working state of block descent, which keeps positions by particle during a tick.
     descent: BlockDescent,
@@ -106,6 +110,7 @@ impl ClothSim {
             stage_a: vec![0.0; slots * LANES],
             stage_b: vec![0.0; slots * LANES],
             slope_sum: vec![0.0; slots * LANES],
+            held: vec![0.0; free.len()],
             free,
             pins,
             descent: BlockDescent::default(),
@@ -324,7 +329,7 @@ impl ClothSim {
                 self.contact_x.extend(descent.x.iter().map(|&p| Vec3::from(p)));
                 self.contact_v.clear();
                 self.contact_v.extend(descent.v.iter().map(|&p| Vec3::from(p)));
-                self.resolve_own_contact(contact, &frames);
+                self.resolve_own_contact(contact, &frames, Some(&descent.held));
                 for (k, (p, v)) in self.contact_x.iter().zip(&self.contact_v).enumerate() {
                     (descent.x[k], descent.v[k]) = (Vec3A::from(*p), Vec3A::from(*v));
                 }
@@ -361,24 +366,37 @@ impl ClothSim {
         self.read_state(&mut x, &mut v);
         (self.contact_prev, self.contact_x, self.contact_v) = (prev, x, v);
         let frames: Vec<ColliderFrame<'_>> = colliders.iter().filter_map(ColliderFrame::new).collect();
-        self.resolve_own_contact(contact, &frames);
+        self.resolve_own_contact(contact, &frames, None);
         let (x, v) = (core::mem::take(&mut self.contact_x), core::mem::take(&mut self.contact_v));
         self.write_state(&x, &v);
         (self.contact_x, self.contact_v) = (x, v);
     }
 
     /// This cloth's self-contact on the particles in `contact_prev`, `contact_x` and
-    /// `contact_v` (the substep's start, and its end), in place.
-    fn resolve_own_contact(&mut self, contact: SelfContact, frames: &[ColliderFrame<'_>]) {
+    /// `contact_v` (the substep's start, and its end), in place. `held` marks the particles a
+    /// collider touched in the substep: block descent's, or by default the explicit
+    /// integrators'.
+    fn resolve_own_contact(&mut self, contact: SelfContact, frames: &[ColliderFrame<'_>], held: Option<&[f32]>) {
+        let n = self.topology.len();
         let mut body = [ContactBody {
             topology: &self.topology,
             contact,
-            free: &self.free[..self.topology.len()],
+            free: &self.free[..n],
+            held: held.unwrap_or(&self.held[..n]),
             prev: &self.contact_prev,
             x: &mut self.contact_x,
             v: &mut self.contact_v,
         }];
         self.contact.resolve(&mut body, frames);
+    }
+
+    /// Per particle, 1 where a collider touched it in the last substep's collision response.
+    fn held(&self) -> &[f32] {
+        let n = self.len();
+        match self.params.integrator {
+            Integrator::BlockDescent { .. } => &self.descent.held[..n.min(self.descent.held.len())],
+            _ => &self.held[..n],
+        }
     }
 
     /// Steps several cloths together for a tick of `dt` seconds, so that the ones with
@@ -421,7 +439,7 @@ impl ClothSim {
                 let Some(contact) = sim.params.self_contact else { continue };
                 sim.read_state(x, v);
                 let free = &sim.free[..sim.len()];
-                bodies.push(ContactBody { topology: &sim.topology, contact, free, prev, x, v });
+                bodies.push(ContactBody { topology: &sim.topology, contact, free, held: sim.held(), prev, x, v });
             }
             if bodies.is_empty() {
                 continue;
@@ -496,7 +514,7 @@ impl ClothSim {
     ) {
         let width = self.width;
         let w = LANES * width;
-        let Self { state, stage_a, stage_b, slope_sum, free, topology, .. } = self;
+        let Self { state, stage_a, stage_b, slope_sum, free, held, topology, .. } = self;
         let topology: &ClothTopology = topology;
         let (src, out): (&[f32], &mut [f32]) = match (src, dst) {
             (Src::State, Dst::A) => (state, stage_a),
@@ -507,31 +525,37 @@ impl ClothSim {
         let base: &[f32] = state;
         let free: &[f32] = free;
         let band_len = BAND_ROWS * w;
-        out.par_chunks_mut(band_len).zip(slope_sum.par_chunks_mut(band_len)).enumerate().for_each_init(
-            || (vec![0.0f32; 3 * width * BAND_ROWS], SpringScratch::default()),
-            |(acc, scratch), (b, (out_band, sum_band))| {
-                let first = b * BAND_ROWS;
-                let band = first..first + out_band.len() / w;
-                match topology.stencil() {
-                    Some(grid) => {
-                        let inv_share = topology.inv_mass_share()[0];
-                        model.band_acceleration(grid, inv_share, src, free, band.clone(), acc, scratch);
+        let collides = matches!(stage, Stage::Rk4Final | Stage::Euler);
+        out.par_chunks_mut(band_len)
+            .zip(slope_sum.par_chunks_mut(band_len))
+            .zip(held.par_chunks_mut(BAND_ROWS * width))
+            .enumerate()
+            .for_each_init(
+                || (vec![0.0f32; 3 * width * BAND_ROWS], SpringScratch::default()),
+                |(acc, scratch), (b, ((out_band, sum_band), held_band))| {
+                    let first = b * BAND_ROWS;
+                    let band = first..first + out_band.len() / w;
+                    match topology.stencil() {
+                        Some(grid) => {
+                            let inv_share = topology.inv_mass_share()[0];
+                            model.band_acceleration(grid, inv_share, src, free, band.clone(), acc, scratch);
+                        }
+                        None => model.band_acceleration_general(topology, width, src, free, band.clone(), acc),
                     }
-                    None => model.band_acceleration_general(topology, width, src, free, band.clone(), acc),
-                }
-                for (j, r) in band.enumerate() {
-                    let row = r * w..(r + 1) * w;
-                    let (out_row, sum_row) = (&mut out_band[j * w..(j + 1) * w], &mut sum_band[j * w..(j + 1) * w]);
-                    let acc_row = &acc[j * 3 * width..(j + 1) * 3 * width];
-                    let (src_row, base_row) = (&src[row.clone()], &base[row]);
-                    let free_row = &free[r * width..(r + 1) * width];
-                    integrate_row(stage, h, width, src_row, base_row, free_row, acc_row, sum_row, out_row);
-                    if matches!(stage, Stage::Rk4Final | Stage::Euler) && !frames.is_empty() {
-                        collide_row(frames, width, base_row, free_row, out_row);
+                    for (j, r) in band.enumerate() {
+                        let row = r * w..(r + 1) * w;
+                        let (out_row, sum_row) = (&mut out_band[j * w..(j + 1) * w], &mut sum_band[j * w..(j + 1) * w]);
+                        let acc_row = &acc[j * 3 * width..(j + 1) * 3 * width];
+                        let (src_row, base_row) = (&src[row.clone()], &base[row]);
+                        let free_row = &free[r * width..(r + 1) * width];
+                        integrate_row(stage, h, width, src_row, base_row, free_row, acc_row, sum_row, out_row);
+                        if collides {
+                            let held_row = &mut held_band[j * width..(j + 1) * width];
+                            collide_row(frames, width, base_row, free_row, out_row, held_row);
+                        }
                     }
-                }
-            },
-        );
+                },
+            );
     }
 }
 
@@ -637,12 +661,20 @@ impl Slope<'_> {
 
 /// Collision response for every free particle of a row, from its position before the substep
 /// (`base`) to after it (`out`).
-fn collide_row(frames: &[ColliderFrame<'_>], cols: usize, base: &[f32], free: &[f32], out: &mut [f32]) {
+fn collide_row(
+    frames: &[ColliderFrame<'_>],
+    cols: usize,
+    base: &[f32],
+    free: &[f32],
+    out: &mut [f32],
+    held: &mut [f32],
+) {
     let get = |buf: &[f32], i: usize, l: usize| {
         Vec3::new(buf[l * cols + i], buf[(l + 1) * cols + i], buf[(l + 2) * cols + i])
     };
     for i in 0..cols {
-        if free[i] == 0.0 {
+        held[i] = 0.0;
+        if free[i] == 0.0 || frames.is_empty() {
             continue;
         }
         let prev = get(base, i, 0);
@@ -652,6 +684,7 @@ fn collide_row(frames: &[ColliderFrame<'_>], cols: usize, base: &[f32], free: &[
         for frame in frames {
             hit |= frame.resolve(prev, &mut p, &mut v);
         }
+        held[i] = f32::from(u8::from(hit));
         if hit {
             for (l, value) in [p.x, p.y, p.z, v.x, v.y, v.z].into_iter().enumerate() {
                 out[l * cols + i] = value;

@@ -162,7 +162,7 @@ fn everything_at_one_point_is_bounded() {
     let contact = SelfContact { thickness: THICKNESS, friction: 0.3 };
     let mut solver = ContactSolver::default();
     let stats = solver.resolve(
-        &mut [ContactBody { topology: &topology, contact, free: &free, prev: &prev, x: &mut x, v: &mut v }],
+        &mut [ContactBody { topology: &topology, contact, free: &free, held: &[], prev: &prev, x: &mut x, v: &mut v }],
         &[],
     );
     assert_eq!(stats.clamped, n, "every particle had more than {MAX_CANDIDATES} candidates");
@@ -202,6 +202,7 @@ fn a_point_that_went_through_goes_back_to_its_side() {
                     topology: &floor,
                     contact,
                     free: &pinned,
+                    held: &[],
                     prev: &floor_x,
                     x: &mut floor_now,
                     v: &mut floor_v,
@@ -210,6 +211,7 @@ fn a_point_that_went_through_goes_back_to_its_side() {
                     topology: &sheet,
                     contact,
                     free: &free,
+                    held: &[],
                     prev: &sheet_prev,
                     x: &mut sheet_x,
                     v: &mut sheet_v,
@@ -225,5 +227,59 @@ fn a_point_that_went_through_goes_back_to_its_side() {
             }
         }
         assert_eq!(floor_now, floor_x, "the pinned sheet moved");
+    }
+}
+
+/// A free sheet that a collider holds (every particle touched in the substep) does not yield to
+/// a small free sheet pressed 2 mm into it from above: the small sheet alone goes back the whole
+/// thickness. The control, the same sheets with nothing held, share the correction and the
+/// large sheet moves down.
+#[test]
+fn a_particle_a_collider_holds_does_not_yield() {
+    let floor = common::grid_topology(1.0, 2, 2);
+    let sheet = common::grid_topology(0.1, 2, 2);
+    let contact = SelfContact { thickness: THICKNESS, friction: 0.0 };
+    let free = vec![1.0; 4];
+    let at = |topology: &ClothTopology, y: f32| -> Vec<Vec3> {
+        topology.rest_positions().iter().map(|p| Vec3::new(p.x, y, p.z)).collect()
+    };
+    for held in [vec![1.0; 4], vec![]] {
+        let floor_x = at(&floor, 0.0);
+        let mut floor_now = floor_x.clone();
+        let mut floor_v = vec![Vec3::ZERO; 4];
+        let sheet_prev = at(&sheet, 0.004);
+        let mut sheet_x = at(&sheet, 0.002);
+        let mut sheet_v = vec![Vec3::new(0.0, -1.0, 0.0); 4];
+        let mut solver = ContactSolver::default();
+        let floor_body = ContactBody {
+            topology: &floor,
+            contact,
+            free: &free,
+            held: &held,
+            prev: &floor_x,
+            x: &mut floor_now,
+            v: &mut floor_v,
+        };
+        let sheet_body = ContactBody {
+            topology: &sheet,
+            contact,
+            free: &free,
+            held: &[],
+            prev: &sheet_prev,
+            x: &mut sheet_x,
+            v: &mut sheet_v,
+        };
+        let stats = solver.resolve(&mut [floor_body, sheet_body], &[]);
+        assert!(stats.contacts > 0);
+        let gap = sheet_x.iter().map(|p| p.y).fold(f32::INFINITY, f32::min)
+            - floor_now.iter().map(|p| p.y).fold(f32::NEG_INFINITY, f32::max);
+        if held.is_empty() {
+            assert!(floor_now.iter().any(|p| p.y < -1e-4), "with nothing held the large sheet yields");
+        } else {
+            assert_eq!(floor_now, floor_x, "the held sheet moved");
+            assert!(sheet_x.iter().all(|p| (p.y - THICKNESS).abs() < 1e-5), "the small sheet ends at {sheet_x:?}");
+            assert!(sheet_v.iter().all(|v| v.y.abs() < 1e-5), "the small sheet still approaches: {sheet_v:?}");
+        }
+        assert!(gap > 0.0, "the sheets cross");
     }
 }

@@ -275,10 +275,12 @@ fn contact_velocity(velocity: vec3<f32>, n: vec3<f32>, friction: f32) -> vec3<f3
 }
 
 // The response of a free particle that moved from `prev_world` to `moved` in this substep,
-// against every collider in turn.
+// against every collider in turn. The velocity's w says whether any collider touched it (1) or
+// none did (0): self-contact weighs a touched particle as pinned.
 fn collide(prev_world: vec3<f32>, moved: GpuParticle) -> GpuParticle {
     var position = moved.position.xyz;
     var velocity = moved.velocity.xyz;
+    var touched = false;
     for (var c = 0u; c < frame.collider_count; c++) {
         let col = colliders[c];
         let prev = (col.local_from_world * vec4(prev_world, 1.0)).xyz;
@@ -286,6 +288,7 @@ fn collide(prev_world: vec3<f32>, moved: GpuParticle) -> GpuParticle {
         if (col.shape == SHAPE_TRIANGLES) {
             let response = respond_triangles(col, prev, p, velocity);
             velocity = response.velocity;
+            touched = touched || response.kind != 0u;
             if (response.kind == 1u) {
                 position = (col.world_from_local * vec4(response.position, 1.0)).xyz;
             } else if (response.kind == 2u) {
@@ -295,6 +298,7 @@ fn collide(prev_world: vec3<f32>, moved: GpuParticle) -> GpuParticle {
         }
         if (col.shape != SHAPE_SPHERES) {
             let contact = respond_primitive(col, prev, p);
+            touched = touched || contact.moved;
             if (contact.moved) {
                 velocity = contact_velocity(velocity, rotate(col.rotation, contact.normal), col.friction);
                 position = (col.world_from_local * vec4(contact.position, 1.0)).xyz;
@@ -303,13 +307,14 @@ fn collide(prev_world: vec3<f32>, moved: GpuParticle) -> GpuParticle {
         }
         let response = respond(col, prev, p, velocity);
         velocity = response.velocity;
+        touched = touched || response.kind != 0u;
         if (response.kind == 1u) {
             position = (col.world_from_local * vec4(response.position, 1.0)).xyz;
         } else if (response.kind == 2u) {
             position = prev_world;
         }
     }
-    return GpuParticle(vec4(position, moved.position.w), vec4(velocity, 0.0));
+    return GpuParticle(vec4(position, moved.position.w), vec4(velocity, select(0.0, 1.0, touched)));
 }
 
 // ---- Exact contact (bvh_cloth_core::exact_contact and triangles), in the same order of

@@ -54,6 +54,7 @@ struct ContactFrame {
 
 const MAX_CANDIDATES: u32 = 256u;       // bvh_cloth_core::self_contact::MAX_CANDIDATES
 const MAX_SPAN: i32 = 4;                // bvh_cloth_core::self_contact::MAX_SPAN
+const MAX_HELD_SCALE: f32 = 16.0;       // bvh_cloth_core::self_contact::MAX_HELD_SCALE
 const TRIANGLE_WORDS: u32 = 5u;         // bvh_cloth_core::gpu_layout::CONTACT_TRIANGLE_WORDS
 const SUM_WORDS: u32 = 8u;
 const POSITION_SCALE: f32 = 1048576.0;  // 2^20 per metre
@@ -339,6 +340,11 @@ fn barycentric(q: vec3<f32>, a: vec3<f32>, b: vec3<f32>, c: vec3<f32>) -> vec3<f
     return vec3(1.0 - u - w, u, w);
 }
 
+// The denominator of a contact's projection with weights w (the point's, then the corners').
+fn weigh(w: vec4<f32>, b: vec3<f32>) -> f32 {
+    return w.x + w.y * b.x * b.x + w.z * b.y * b.y + w.w * b.z * b.z;
+}
+
 fn add_correction(k: u32, dx: vec3<f32>, dv: vec3<f32>) {
     let x = vec3<i32>(round(clamp(dx, vec3(-POSITION_LIMIT), vec3(POSITION_LIMIT)) * POSITION_SCALE));
     let v = vec3<i32>(round(clamp(dv, vec3(-VELOCITY_LIMIT), vec3(VELOCITY_LIMIT)) * VELOCITY_SCALE));
@@ -411,11 +417,20 @@ fn touch(p: u32, pc: u32, me: GpuParticle, t: u32) {
         gap = 0.0;
     }
     let bary = barycentric(q, a, b, c);
-    let w = vec3(ca.position.w, cb.position.w, cc.position.w);
-    let wp = me.position.w;
-    let denom = wp + w.x * bary.x * bary.x + w.y * bary.y * bary.y + w.z * bary.z * bary.z;
+    // Weights 1 free, 0 pinned; a particle a collider touched in this substep (collide's
+    // velocity.w) takes no part unless all four did, its share going to the others.
+    let free = vec4(me.position.w, ca.position.w, cb.position.w, cc.position.w);
+    let denom = weigh(free, bary);
     if (denom <= 0.0) {
         return;
+    }
+    let unheld = free * (vec4(1.0) - vec4(me.velocity.w, ca.velocity.w, cb.velocity.w, cc.velocity.w));
+    let unheld_denom = weigh(unheld, bary);
+    var w = free;
+    var scale = 1.0;
+    if (unheld_denom > 0.0) {
+        w = unheld;
+        scale = min(denom / unheld_denom, MAX_HELD_SCALE);
     }
     let relative = me.velocity.xyz
         - (bary.x * ca.velocity.xyz + bary.y * cb.velocity.xyz + bary.z * cc.velocity.xyz);
@@ -429,16 +444,16 @@ fn touch(p: u32, pc: u32, me: GpuParticle, t: u32) {
         if (speed > 0.0) {
             slow = min(friction * -vn / speed, 1.0);
         }
-        impulse = -(vn * n + slow * tangential) / denom;
+        impulse = -(vn * n + slow * tangential) / denom * scale;
     }
-    let lambda = (h - gap) / denom;
-    if (wp > 0.0) {
-        add_correction(p, wp * lambda * n, wp * impulse);
+    let lambda = (h - gap) / denom * scale;
+    if (w.x > 0.0) {
+        add_correction(p, w.x * lambda * n, w.x * impulse);
     }
     let ids = vec3(corners.x, corners.y, corners.z);
     for (var k = 0u; k < 3u; k++) {
-        if (w[k] > 0.0) {
-            add_correction(ids[k], -w[k] * bary[k] * lambda * n, -w[k] * bary[k] * impulse);
+        if (w[k + 1u] > 0.0) {
+            add_correction(ids[k], -w[k + 1u] * bary[k] * lambda * n, -w[k + 1u] * bary[k] * impulse);
         }
     }
 }

@@ -19,8 +19,8 @@
 // (Bevy's shader composer) refuses them in modules that others import.
 
 struct GpuParticle {
-    position: vec4<f32>, // w: 1 free, 0 held
-    velocity: vec4<f32>,
+    position: vec4<f32>, // w: 1 free, 0 pinned
+    velocity: vec4<f32>, // w: 1 where a collider touched it in the substep's response
 }
 
 struct BatchFrame {
