@@ -14,6 +14,11 @@
 //! cloth, then colour `k + 1`, so one dispatch updates one colour of all of them. The list is
 //! written again when the set of block-descent cloths, or where they lie, changes.
 //!
+//! The substeps run in step: substep `k` of the explicit cloths, then of the block-descent
+//! cloths, then self-contact for the cloths that have it (`contact_begin` before the
+//! integrators; see the `contact` module), so that contact sees every integrator's result.
+//! The cloths with self-contact all take the largest substep count among them.
+//!
 //! Cloths that need different substep counts share the tick: the batch runs the largest count,
 //! and a cloth sits out the substeps past its own (each cloth keeps its own substep length, so
 //! its trajectory is the one it would have alone, and the CPU stepper's). A semi-implicit Euler
@@ -138,16 +143,19 @@ struct Buffers {
     writebacks: Buffer,
 }
 
+/// A storage buffer of at least `bytes` (16 at least) that can be written, copied and read back.
+pub(crate) fn storage_buffer(device: &Device, label: &str, bytes: u64) -> Buffer {
+    device.create_buffer(&wgpu::BufferDescriptor {
+        label: Some(label),
+        size: bytes.max(16),
+        usage: BufferUsages::STORAGE | BufferUsages::COPY_DST | BufferUsages::COPY_SRC,
+        mapped_at_creation: false,
+    })
+}
+
 impl Buffers {
     fn new(device: &Device, particles: u32, ends: u32, surface: u32, cloths: u32) -> Self {
-        let storage = |label: &str, bytes: u64| {
-            device.create_buffer(&wgpu::BufferDescriptor {
-                label: Some(label),
-                size: bytes.max(16),
-                usage: BufferUsages::STORAGE | BufferUsages::COPY_DST | BufferUsages::COPY_SRC,
-                mapped_at_creation: false,
-            })
-        };
+        let storage = |label: &str, bytes: u64| storage_buffer(device, label, bytes);
         let particle_bytes = u64::from(particles) * size_of::<GpuParticle>() as u64;
         Self {
             particles,

@@ -16,7 +16,7 @@ use bvh_cloth_core::ClothTopology;
 use bvh_cloth_core::gpu_layout::{CONTACT_TRIANGLE_WORDS, GpuContactFrame, gpu_contact_triangles};
 use wgpu::{BindGroup, Buffer, BufferUsages, ComputePass, Device, Queue};
 
-use crate::batch::Kernel;
+use crate::batch::{Kernel, storage_buffer};
 use crate::kernels::{ClothKernels, KernelError, WORKGROUP_SIZE, storage_binding_limit};
 
 /// Buckets per prefix-sum block (`SCAN_BLOCK` in the WGSL).
@@ -97,14 +97,7 @@ impl ContactPlan {
         if let Some(&bytes) = sizes.iter().find(|&&bytes| bytes > max) {
             return Err(KernelError::BufferTooLarge { bytes, max });
         }
-        let storage = |label: &str, bytes: u64| {
-            device.create_buffer(&wgpu::BufferDescriptor {
-                label: Some(label),
-                size: bytes.max(16),
-                usage: BufferUsages::STORAGE | BufferUsages::COPY_DST | BufferUsages::COPY_SRC,
-                mapped_at_creation: false,
-            })
-        };
+        let storage = |label: &str, bytes: u64| storage_buffer(device, label, bytes);
         let points = storage("bvh_cloth_contact_points", sizes[0]);
         let triangle_words = storage("bvh_cloth_contact_triangles", sizes[1]);
         let grid = storage("bvh_cloth_contact_grid", sizes[2]);
