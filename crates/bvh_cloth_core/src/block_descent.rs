@@ -202,8 +202,6 @@ pub(crate) struct BlockDescent {
     start: Vec<Vec3A>,
     target: Vec<Vec3A>,
     moved: Vec<Vec3A>,
-    /// 1 for a particle a collider touched in the last substep's collision response, else 0.
-    pub(crate) held: Vec<f32>,
 }
 
 impl BlockDescent {
@@ -212,23 +210,25 @@ impl BlockDescent {
         for buffer in [&mut self.x, &mut self.v, &mut self.start, &mut self.target] {
             buffer.resize(n, Vec3A::ZERO);
         }
-        self.held.resize(n, 0.0);
     }
 
     /// One substep of `h` seconds with `iterations` sweeps over the colours, then the velocity
     /// update and the collision response. `free[i]` is 0 for a held particle, which neither
-    /// moves nor changes velocity.
+    /// moves nor changes velocity; `held[i]` becomes 1 where a collider touched particle `i`,
+    /// else 0.
+    #[allow(clippy::too_many_arguments)]
     pub(crate) fn substep(
         &mut self,
         topology: &ClothTopology,
         model: &ForceModel,
         free: &[f32],
+        held: &mut [f32],
         h: f32,
         iterations: u32,
         frames: &[ColliderFrame<'_>],
     ) {
         let Ok(colouring) = topology.colouring() else { return };
-        let Self { x, v, start, target, moved, held } = self;
+        let Self { x, v, start, target, moved } = self;
         let accel = Vec3A::from(model.uniform_accel);
         start.copy_from_slice(x);
         // The first iterate moves with the velocity only: a cloth at rest starts where it was,

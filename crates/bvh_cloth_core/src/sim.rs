@@ -44,9 +44,8 @@ pub struct ClothSim {
     slope_sum: Vec<f32>,
     /// 1 for a free particle, 0 for a pinned or massless one and for padding.
     free: Vec<f32>,
-    /// 1 for a particle a collider touched in the last substep's collision response (of the
-    /// explicit integrators; block descent keeps its own), else 0: self-contact weighs it as
-    /// pinned.
+    /// 1 for a particle a collider touched in the last substep's collision response, else 0:
+    /// self-contact weighs it as pinned.
     held: Vec<f32>,
     pins: Vec<u32>,
     /// Working state of block descent, which keeps positions by particle during a tick.
@@ -323,13 +322,13 @@ impl ClothSim {
                 self.contact_prev.clear();
                 self.contact_prev.extend(descent.x.iter().map(|&p| Vec3::from(p)));
             }
-            descent.substep(&self.topology, &model, &self.free[..n], h, iterations, &frames);
+            descent.substep(&self.topology, &model, &self.free[..n], &mut self.held[..n], h, iterations, &frames);
             if let Some(contact) = self.params.self_contact {
                 self.contact_x.clear();
                 self.contact_x.extend(descent.x.iter().map(|&p| Vec3::from(p)));
                 self.contact_v.clear();
                 self.contact_v.extend(descent.v.iter().map(|&p| Vec3::from(p)));
-                self.resolve_own_contact(contact, &frames, Some(&descent.held));
+                self.resolve_own_contact(contact, &frames);
                 for (k, (p, v)) in self.contact_x.iter().zip(&self.contact_v).enumerate() {
                     (descent.x[k], descent.v[k]) = (Vec3A::from(*p), Vec3A::from(*v));
                 }
@@ -366,37 +365,26 @@ impl ClothSim {
         self.read_state(&mut x, &mut v);
         (self.contact_prev, self.contact_x, self.contact_v) = (prev, x, v);
         let frames: Vec<ColliderFrame<'_>> = colliders.iter().filter_map(ColliderFrame::new).collect();
-        self.resolve_own_contact(contact, &frames, None);
+        self.resolve_own_contact(contact, &frames);
         let (x, v) = (core::mem::take(&mut self.contact_x), core::mem::take(&mut self.contact_v));
         self.write_state(&x, &v);
         (self.contact_x, self.contact_v) = (x, v);
     }
 
     /// This cloth's self-contact on the particles in `contact_prev`, `contact_x` and
-    /// `contact_v` (the substep's start, and its end), in place. `held` marks the particles a
-    /// collider touched in the substep: block descent's, or by default the explicit
-    /// integrators'.
-    fn resolve_own_contact(&mut self, contact: SelfContact, frames: &[ColliderFrame<'_>], held: Option<&[f32]>) {
+    /// `contact_v` (the substep's start, and its end), in place.
+    fn resolve_own_contact(&mut self, contact: SelfContact, frames: &[ColliderFrame<'_>]) {
         let n = self.topology.len();
         let mut body = [ContactBody {
             topology: &self.topology,
             contact,
             free: &self.free[..n],
-            held: held.unwrap_or(&self.held[..n]),
+            held: &self.held[..n],
             prev: &self.contact_prev,
             x: &mut self.contact_x,
             v: &mut self.contact_v,
         }];
         self.contact.resolve(&mut body, frames);
-    }
-
-    /// Per particle, 1 where a collider touched it in the last substep's collision response.
-    fn held(&self) -> &[f32] {
-        let n = self.len();
-        match self.params.integrator {
-            Integrator::BlockDescent { .. } => &self.descent.held[..n.min(self.descent.held.len())],
-            _ => &self.held[..n],
-        }
     }
 
     /// Steps several cloths together for a tick of `dt` seconds, so that the ones with
@@ -439,7 +427,15 @@ impl ClothSim {
                 let Some(contact) = sim.params.self_contact else { continue };
                 sim.read_state(x, v);
                 let free = &sim.free[..sim.len()];
-                bodies.push(ContactBody { topology: &sim.topology, contact, free, held: sim.held(), prev, x, v });
+                bodies.push(ContactBody {
+                    topology: &sim.topology,
+                    contact,
+                    free,
+                    held: &sim.held[..sim.len()],
+                    prev,
+                    x,
+                    v,
+                });
             }
             if bodies.is_empty() {
                 continue;
