@@ -118,6 +118,18 @@ pub enum ClothError {
         /// Largest particle count accepted.
         max: u32,
     },
+    /// A parameter lies outside the range the model accepts (a wind speed no air reaches, a
+    /// coefficient no fabric has).
+    OutOfRange {
+        /// Name of the offending field.
+        field: &'static str,
+        /// The value that was given (for a vector, its length).
+        value: f32,
+        /// Smallest value accepted.
+        min: f32,
+        /// Largest value accepted.
+        max: f32,
+    },
     /// The self-contact thickness is larger than the cloth's particle spacing.
     ThicknessAboveSpacing {
         /// The thickness given, in metres.
@@ -186,6 +198,9 @@ impl fmt::Display for ClothError {
             }
             Self::TooManyParticles { particles, max } => {
                 write!(f, "cloth has {particles} particles; at most {max} are supported")
+            }
+            Self::OutOfRange { field, value, min, max } => {
+                write!(f, "cloth parameter `{field}` must be in [{min}, {max}], got {value}")
             }
             Self::ThicknessAboveSpacing { thickness, spacing } => write!(
                 f,

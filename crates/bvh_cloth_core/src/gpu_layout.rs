@@ -5,6 +5,7 @@
 use bytemuck::{Pod, Zeroable};
 use glam::{Affine3A, Mat4, Vec3};
 
+use crate::aerodynamics::AirModel;
 use crate::collider::{Collider, ColliderShape};
 use crate::collision::ColliderFrame;
 use crate::forces::ForceModel;
@@ -111,6 +112,53 @@ impl GpuBatchCloth {
             pad: 0,
             faults: 0,
         }
+    }
+}
+
+/// One cloth's aerodynamics as the air kernels read it (an array of these is one storage
+/// buffer, indexed like the [`GpuBatchCloth`] array). 32 bytes. A cloth with zero `drag` and
+/// `lift` is left out of the air kernels.
+#[repr(C)]
+#[derive(Clone, Copy, Debug, Default, PartialEq, Pod, Zeroable)]
+pub struct GpuAirCloth {
+    /// Where the cloth's surface (see [`gpu_surface_words`]) starts in the surface buffer.
+    pub surface_start: u32,
+    /// The cloth's render vertices: the surface's first `vertex_count` words.
+    pub vertex_count: u32,
+    /// [`AirModel::seed`].
+    pub seed: u32,
+    /// Wind sources in the source buffer.
+    pub source_count: u32,
+    /// [`AirModel::turbulence`].
+    pub turbulence: f32,
+    /// [`AirModel::inv_scale`].
+    pub inv_scale: f32,
+    /// [`AirModel::drag`].
+    pub drag: f32,
+    /// [`AirModel::lift`].
+    pub lift: f32,
+}
+
+impl GpuAirCloth {
+    /// The constants of a cloth with the air `model` on `topology`, whose surface starts at
+    /// `surface_start`, among `source_count` wind sources.
+    pub fn new(model: &AirModel, topology: &ClothTopology, surface_start: u32, source_count: u32) -> Self {
+        Self {
+            surface_start,
+            vertex_count: topology.vertex_particle().len() as u32,
+            seed: model.seed,
+            source_count,
+            turbulence: model.turbulence,
+            inv_scale: model.inv_scale,
+            drag: model.drag,
+            lift: model.lift,
+        }
+    }
+
+    /// One tick's word of the cloth in the air kernels' tick buffer: the ambient wind (gusts
+    /// included) and the turbulence's lattice time.
+    pub fn tick_word(model: &AirModel) -> [f32; 4] {
+        model.ambient.extend(model.lattice_time).to_array()
     }
 }
 

@@ -10,6 +10,7 @@
 //! |---|---|
 //! | [`params`], [`grid`], [`topology`], [`pins`], [`forces`] | 2.1, eq. 1–3, Table V |
 //! | [`sim`] (RK4, semi-implicit Euler) | 2.2, eq. 4 |
+//! | [`aerodynamics`] | (drag, lift and wind; not in the paper) |
 //! | [`block_descent`], [`colouring`] | (vertex block descent, Chen et al. 2024; not in the paper) |
 //! | [`voxel_spheres`] | 2.4.1 |
 //! | [`skinning`] | (skinned colliders: the spheres follow the joints; not in the paper) |
@@ -48,6 +49,7 @@
 
 #![deny(missing_docs)]
 
+pub mod aerodynamics;
 pub mod block_descent;
 pub mod collider;
 pub mod collision;
@@ -73,6 +75,7 @@ pub mod triangles;
 mod voxel_grid;
 pub mod voxel_spheres;
 
+pub use aerodynamics::{Aerodynamics, Wind, WindSource};
 pub use collider::{Collider, ColliderPose, ColliderShape};
 pub use error::{ClothError, ColliderError};
 pub use glam::{Affine3A, Quat, UVec2, UVec3, Vec2, Vec3};

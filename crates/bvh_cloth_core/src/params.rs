@@ -4,6 +4,7 @@
 use bevy_reflect::std_traits::ReflectDefault;
 use glam::Vec3;
 
+use crate::aerodynamics::Aerodynamics;
 pub use crate::block_descent::MAX_ITERATIONS;
 use crate::error::ClothError;
 use crate::self_contact::SelfContact;
@@ -115,6 +116,10 @@ pub struct ClothParams {
     /// through itself. Off by default because it costs a neighbour search every substep, and
     /// a flag or a banner never folds onto itself; a cape, a skirt or a dropped towel needs it.
     pub self_contact: Option<SelfContact>,
+    /// How the cloth catches the air ([`crate::aerodynamics`]): drag and lift against the
+    /// wind and against its own motion. The default, [`Aerodynamics::NONE`], is the paper's
+    /// model, a cloth in vacuum that no wind moves; [`Aerodynamics::FABRIC`] is a woven fabric.
+    pub aerodynamics: Aerodynamics,
 }
 
 impl Default for ClothParams {
@@ -129,6 +134,7 @@ impl Default for ClothParams {
             stiffness: SpringStiffness::default(),
             integrator: Integrator::default(),
             self_contact: None,
+            aerodynamics: Aerodynamics::NONE,
         }
     }
 }
@@ -204,7 +210,7 @@ impl ClothParams {
         if let Some(contact) = &self.self_contact {
             contact.validate()?;
         }
-        Ok(())
+        self.aerodynamics.validate()
     }
 
     /// [`Self::validate`], and whether `topology` can be stepped with these parameters: block

@@ -12,6 +12,7 @@ use std::sync::Arc;
 use glam::{Affine3A, Vec3, Vec3A};
 use rayon::prelude::*;
 
+use crate::aerodynamics::{Air, AirModel, AirSource, Wind, WindSource};
 use crate::block_descent::BlockDescent;
 use crate::collider::Collider;
 use crate::collision::ColliderFrame;
@@ -55,6 +56,17 @@ pub struct ClothSim {
     contact_prev: Vec<Vec3>,
     contact_x: Vec<Vec3>,
     contact_v: Vec<Vec3>,
+    /// The air around the cloth: its ambient wind, the wind sources, and the wind clock in
+    /// seconds.
+    wind: Wind,
+    wind_sources: Vec<AirSource>,
+    wind_time: f64,
+    /// This tick's air (`None` when the cloth has no aerodynamics), the wind sampled at each
+    /// particle, and the explicit integrators' positions and velocities by particle for the kick.
+    air_model: Option<AirModel>,
+    air: Air,
+    air_x: Vec<Vec3A>,
+    air_v: Vec<Vec3A>,
 }
 
 /// What one stage of the integrator does with the slope `k = f(src)` of each particle.
@@ -117,6 +129,13 @@ impl ClothSim {
             contact_prev: Vec::new(),
             contact_x: Vec::new(),
             contact_v: Vec::new(),
+            wind: Wind::STILL,
+            wind_sources: Vec::new(),
+            wind_time: 0.0,
+            air_model: None,
+            air: Air::default(),
+            air_x: Vec::new(),
+            air_v: Vec::new(),
         };
         sim.reset(pose);
         Ok(sim)
@@ -166,6 +185,78 @@ impl ClothSim {
         params.validate_for(&self.topology)?;
         self.params = params;
         Ok(())
+    }
+
+    /// Sets the air the cloth moves in: its ambient `wind` and the `sources` in reach (see
+    /// [`crate::aerodynamics`]). Only a cloth whose [`ClothParams::aerodynamics`] is active
+    /// feels it. Returns an error, and keeps the old air, when either is invalid.
+    pub fn set_wind(&mut self, wind: Wind, sources: &[WindSource]) -> Result<(), ClothError> {
+        wind.validate()?;
+        for source in sources {
+            source.validate()?;
+        }
+        self.wind = wind;
+        self.wind_sources.clear();
+        self.wind_sources.extend(sources.iter().map(WindSource::prepare));
+        Ok(())
+    }
+
+    /// The ambient wind.
+    pub fn wind(&self) -> &Wind {
+        &self.wind
+    }
+
+    /// Sets the wind clock: the time in seconds at the start of the next tick, which picks the
+    /// gusts and the turbulence. Each tick advances it by its length; a world whose cloths
+    /// share one wind sets them all to its own clock.
+    pub fn set_wind_time(&mut self, seconds: f64) {
+        if seconds.is_finite() {
+            self.wind_time = seconds;
+        }
+    }
+
+    /// The wind clock in seconds.
+    pub fn wind_time(&self) -> f64 {
+        self.wind_time
+    }
+
+    /// The wind at each particle, as last sampled (at the start of the last tick), or `None`
+    /// when the cloth has no aerodynamics.
+    pub fn sampled_wind(&self) -> Option<&[Vec3]> {
+        self.air_model.map(|_| &self.air.wind[..])
+    }
+
+    /// Samples this tick's air at every particle, at the wind clock's time.
+    fn sample_air(&mut self) {
+        let aerodynamics = self.params.aerodynamics;
+        if !aerodynamics.is_active() {
+            self.air_model = None;
+            return;
+        }
+        let model = AirModel::new(aerodynamics, self.params.mass, &self.wind, self.wind_time);
+        let n = self.len();
+        let mut x = core::mem::take(&mut self.air_x);
+        x.clear();
+        x.extend((0..n).map(|i| Vec3A::from(self.position(i))));
+        self.air.sample(&model, &self.wind_sources, &x);
+        self.air_x = x;
+        self.air_model = Some(model);
+    }
+
+    /// The aerodynamic kick of one explicit substep of `h` seconds, on the row layout.
+    fn kick_explicit(&mut self, h: f32) {
+        let Some(model) = self.air_model else { return };
+        let n = self.len();
+        let (mut x, mut v) = (core::mem::take(&mut self.air_x), core::mem::take(&mut self.air_v));
+        x.clear();
+        x.extend((0..n).map(|i| Vec3A::from(self.position(i))));
+        v.clear();
+        v.extend((0..n).map(|i| Vec3A::from(self.velocity(i))));
+        self.air.kick(&model, &self.topology, &self.free[..n], h, &x, &mut v);
+        for (i, &vel) in v.iter().enumerate() {
+            self.set_velocity(i, vel.into());
+        }
+        (self.air_x, self.air_v) = (x, v);
     }
 
     /// The cloth's shape.
@@ -293,13 +384,15 @@ impl ClothSim {
         }
         let substeps = self.substeps(dt);
         let h = dt / substeps as f32;
+        self.sample_air();
         if let Integrator::BlockDescent { iterations } = self.params.integrator {
             self.descend(h, substeps, iterations, colliders);
-            return substeps;
+        } else {
+            for _ in 0..substeps {
+                self.explicit_substep(h, colliders);
+            }
         }
-        for _ in 0..substeps {
-            self.substep(h, colliders);
-        }
+        self.wind_time += f64::from(dt);
         substeps
     }
 
@@ -321,6 +414,9 @@ impl ClothSim {
             if self.params.self_contact.is_some() {
                 self.contact_prev.clear();
                 self.contact_prev.extend(descent.x.iter().map(|&p| Vec3::from(p)));
+            }
+            if let Some(model) = self.air_model {
+                self.air.kick(&model, &self.topology, &self.free[..n], h, &descent.x, &mut descent.v);
             }
             descent.substep(&self.topology, &model, &self.free[..n], &mut self.held[..n], h, iterations, &frames);
             if let Some(contact) = self.params.self_contact {
@@ -345,12 +441,20 @@ impl ClothSim {
         self.descent = descent;
     }
 
-    /// Advances one substep of `h` seconds (integration, then collision, then self-contact).
+    /// Advances one substep of `h` seconds (the aerodynamic kick, with the wind sampled at the
+    /// wind clock's time, then integration, collision and self-contact). The wind clock does
+    /// not move.
     pub fn substep(&mut self, h: f32, colliders: &[Collider]) {
+        self.sample_air();
         if let Integrator::BlockDescent { iterations } = self.params.integrator {
             self.descend(h, 1, iterations, colliders);
             return;
         }
+        self.explicit_substep(h, colliders);
+    }
+
+    /// One substep of an explicit integrator, with this tick's air already sampled.
+    fn explicit_substep(&mut self, h: f32, colliders: &[Collider]) {
         let Some(contact) = self.params.self_contact else {
             self.integrate(h, colliders);
             return;
@@ -407,6 +511,9 @@ impl ClothSim {
         let mut stats = ContactStats::default();
         let mut states: Vec<(Vec<Vec3>, Vec<Vec3>, Vec<Vec3>)> =
             sims.iter().map(|_| (Vec::new(), Vec::new(), Vec::new())).collect();
+        for sim in sims.iter_mut() {
+            sim.sample_air();
+        }
         for _ in 0..substeps {
             for (sim, (prev, _, _)) in sims.iter_mut().zip(states.iter_mut()) {
                 if sim.params.self_contact.is_some() {
@@ -448,6 +555,9 @@ impl ClothSim {
                 }
             }
         }
+        for sim in sims.iter_mut() {
+            sim.wind_time += f64::from(dt);
+        }
         (substeps, stats)
     }
 
@@ -475,6 +585,7 @@ impl ClothSim {
     /// One substep of an explicit integrator: integration with collision fused into its last
     /// stage.
     fn integrate(&mut self, h: f32, colliders: &[Collider]) {
+        self.kick_explicit(h);
         let frames: Vec<ColliderFrame<'_>> = colliders.iter().filter_map(ColliderFrame::new).collect();
         let model = ForceModel::new(&self.params);
         match self.params.integrator {

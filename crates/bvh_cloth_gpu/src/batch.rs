@@ -34,16 +34,19 @@
 
 use std::sync::Arc;
 
+use bvh_cloth_core::aerodynamics::{AirModel, AirSource};
 use bvh_cloth_core::colouring::{MAX_COLOURS, ParticleColouring};
+use bvh_cloth_core::gpu_layout::GpuAirCloth;
 use bvh_cloth_core::gpu_layout::{
     GpuBatchCloth, GpuBatchFrame, GpuBatchStep, GpuBatchWriteback, GpuColourPass, GpuMeshWriteback, GpuParticle,
     GpuWritebackGroup, INTEGRATOR_BLOCK_DESCENT, NO_CLOTH, gpu_particle_info, gpu_particles, gpu_surface_words,
 };
 use bvh_cloth_core::params::MAX_ITERATIONS;
-use bvh_cloth_core::{ClothParams, ClothSim, ClothTopology, Vec3};
+use bvh_cloth_core::{Aerodynamics, ClothError, ClothParams, ClothSim, ClothTopology, Vec3, Wind, WindSource};
 use wgpu::util::DeviceExt;
 use wgpu::{BindGroup, Buffer, BufferUsages, CommandEncoder, Device, Queue};
 
+use crate::air::{AirFrame, AirPlan};
 use crate::colliders::GpuColliders;
 use crate::contact::{ContactCloth, ContactPlan, SharedBuffers};
 use crate::kernels::{ClothKernels, KernelError, WORKGROUP_SIZE, storage_binding_limit};
@@ -75,6 +78,12 @@ pub enum Kernel {
     ContactFind,
     /// `contact_apply`: each particle's mean correction, then the collision response.
     ContactApply,
+    /// `air_sample`: the wind at every particle of the cloths with aerodynamics, once a tick.
+    AirSample,
+    /// `air_forces`: each particle's drag and lift, gathered from its triangles.
+    AirForces,
+    /// `air_kick`: each particle's velocity changed by its drag and lift.
+    AirKick,
 }
 
 /// A cloth in a [`ClothBatch`], valid until it is removed.
@@ -83,7 +92,7 @@ pub struct ClothId(u32);
 
 /// Bytes between two dynamic-offset uniforms (the largest alignment wgpu allows a device to
 /// ask for).
-const UNIFORM_STRIDE: u64 = 256;
+pub(crate) const UNIFORM_STRIDE: u64 = 256;
 
 /// Most substeps one tick may run ([`bvh_cloth_core::params::MAX_SUBSTEPS_PER_TICK`]).
 const MAX_SUBSTEPS: u32 = bvh_cloth_core::params::MAX_SUBSTEPS_PER_TICK;
@@ -108,6 +117,10 @@ struct Slot {
     /// self-contact takes the largest count among the contact cloths instead.
     own_substeps: u32,
     tick_seconds: f32,
+    /// How it catches the air, its mass, and its ambient wind.
+    aerodynamics: Aerodynamics,
+    mass: f32,
+    wind: Wind,
 }
 
 impl Slot {
@@ -217,6 +230,8 @@ struct Groups {
     apply_anchors: Option<BindGroup>,
     /// Self-contact's kernels, when a cloth has it.
     contact: Option<[BindGroup; 8]>,
+    /// Aerodynamics' kernels, when a cloth has drag or lift.
+    air: Option<[BindGroup; 3]>,
 }
 
 /// One colour of the colour list: where it starts, how many particles it has, and the
@@ -261,6 +276,11 @@ pub struct ClothBatch {
     /// the device: [`Self::contact_error`]).
     contact: Option<ContactPlan>,
     contact_error: Option<KernelError>,
+    /// Aerodynamics' buffers, `None` while no cloth has drag or lift; the wind sources; and
+    /// the wind clock of the coming frame: the first tick's time, the tick length, the ticks.
+    air: Option<AirPlan>,
+    wind_sources: Vec<AirSource>,
+    wind_clock: (f64, f64, u32),
     /// Workgroups of the integrator dispatches, and the batch's substeps per tick for the
     /// explicit integrators.
     workgroups: (u32, u32),
@@ -314,6 +334,9 @@ impl ClothBatch {
             descent: None,
             contact: None,
             contact_error: None,
+            air: None,
+            wind_sources: Vec::new(),
+            wind_clock: (0.0, 0.0, 1),
             workgroups: (1, 1),
             substeps: 0,
             anchor_count: 0,
@@ -340,6 +363,9 @@ impl ClothBatch {
             writeback: None,
             own_substeps: 0,
             tick_seconds: 0.0,
+            aerodynamics: sim.params().aerodynamics,
+            mass: sim.params().mass,
+            wind: *sim.wind(),
         };
         let index = match self.slots.iter().position(Option::is_none) {
             Some(free) => free,
@@ -458,6 +484,7 @@ impl ClothBatch {
         self.writebacks = None;
         self.descent = None;
         self.contact = None;
+        self.air = None;
         Ok(())
     }
 
@@ -530,11 +557,44 @@ impl ClothBatch {
         slot.constants = GpuBatchCloth::new(params, &slot.topology, slot.particle_start, slot.ends_start, substeps, h);
         slot.own_substeps = substeps;
         slot.tick_seconds = tick_seconds;
+        slot.aerodynamics = params.aerodynamics;
+        slot.mass = params.mass;
         queue.write_buffer(
             &self.buffers.cloth_constants,
             u64::from(id.0) * size_of::<GpuBatchCloth>() as u64,
             &bytemuck::bytes_of(&slot.constants)[..GpuBatchCloth::HOST_BYTES as usize],
         );
+    }
+
+    /// Sets `id`'s ambient wind (see [`bvh_cloth_core::aerodynamics`]); only a cloth with drag
+    /// or lift feels it. Refused, keeping the last one, when it is invalid.
+    pub fn set_wind(&mut self, id: ClothId, wind: Wind) -> Result<(), ClothError> {
+        wind.validate()?;
+        if let Some(slot) = self.slots.get_mut(id.0 as usize).and_then(Option::as_mut) {
+            slot.wind = wind;
+        }
+        Ok(())
+    }
+
+    /// Sets the wind sources every cloth of the batch is in. Refused, keeping the last ones,
+    /// when one is invalid.
+    pub fn set_wind_sources(&mut self, sources: &[WindSource]) -> Result<(), ClothError> {
+        for source in sources {
+            source.validate()?;
+        }
+        self.wind_sources.clear();
+        self.wind_sources.extend(sources.iter().map(WindSource::prepare));
+        Ok(())
+    }
+
+    /// Sets the wind clock of the coming frame, as [`ClothSim::set_wind_time`] does on the
+    /// CPU: its `ticks` ticks of `tick_seconds` start at `start` seconds, and each samples the
+    /// wind at its own start. Ticks past `ticks` sample it as the last one does. Call it once
+    /// per frame, before [`Self::prepare`].
+    pub fn set_wind_clock(&mut self, start: f64, tick_seconds: f32, ticks: u32) {
+        if start.is_finite() && tick_seconds.is_finite() {
+            self.wind_clock = (start, f64::from(tick_seconds), ticks.max(1));
+        }
     }
 
     /// Substeps per tick `id` runs under its last parameters (for a cloth with self-contact,
@@ -574,6 +634,7 @@ impl ClothBatch {
     /// [`Self::encode_ticks`].
     pub fn prepare(&mut self, device: &Device, queue: &Queue, kernels: &ClothKernels, colliders: &GpuColliders) {
         self.prepare_contact(device, queue);
+        self.prepare_air(device, queue);
         let explicit = |slot: &&Slot| slot.constants.integrator != INTEGRATOR_BLOCK_DESCENT;
         self.substeps =
             self.slots.iter().flatten().filter(explicit).map(|slot| slot.constants.substeps).max().unwrap_or(0);
@@ -650,6 +711,48 @@ impl ClothBatch {
         if let Some(plan) = self.contact.as_mut() {
             plan.substeps = substeps;
             plan.write_frame(device, queue, self.used.0, thickest);
+        }
+    }
+
+    /// Writes the air of the coming frame's ticks for the cloths with drag or lift, making the
+    /// air buffers when there are none or they no longer fit.
+    fn prepare_air(&mut self, device: &Device, queue: &Queue) {
+        let active = |slot: &Slot| slot.aerodynamics.is_active();
+        if !self.slots.iter().flatten().any(active) {
+            if self.air.take().is_some() {
+                self.groups = None;
+            }
+            return;
+        }
+        let capacity = self.buffers.cloths as usize;
+        let (start, tick_seconds, ticks) = self.wind_clock;
+        let mut frame = AirFrame {
+            cloths: vec![GpuAirCloth::default(); capacity],
+            sources: self.wind_sources.clone(),
+            ticks: vec![vec![[0.0; 4]; capacity]; ticks as usize],
+            substeps: 0,
+        };
+        for (index, slot) in self.slots.iter().enumerate() {
+            let Some(slot) = slot.as_ref().filter(|slot| active(slot)) else { continue };
+            frame.substeps = frame.substeps.max(slot.constants.substeps);
+            for (k, words) in frame.ticks.iter_mut().enumerate() {
+                let time = start + k as f64 * tick_seconds;
+                let model = AirModel::new(slot.aerodynamics, slot.mass, &slot.wind, time);
+                if k == 0 {
+                    let sources = self.wind_sources.len() as u32;
+                    frame.cloths[index] = GpuAirCloth::new(&model, &slot.topology, slot.surface_start, sources);
+                }
+                words[index] = GpuAirCloth::tick_word(&model);
+            }
+        }
+        if self.air.as_ref().is_none_or(|plan| !plan.fits(self.buffers.particles, self.buffers.cloths)) {
+            self.air = Some(AirPlan::new(device, self.buffers.particles, self.buffers.cloths));
+            self.groups = None;
+        }
+        if let Some(plan) = self.air.as_mut()
+            && plan.write(device, queue, &frame)
+        {
+            self.groups = None;
         }
     }
 
@@ -897,7 +1000,18 @@ impl ClothBatch {
             };
             plan.bind_groups(device, kernels, &shared)
         });
-        Groups { colliders, anchors, stages, last, predict, solve, finish, apply_anchors, contact }
+        let air = self.air.as_ref().map(|plan| {
+            let shared = crate::air::SharedBuffers {
+                frame: &self.frame,
+                steps: &self.steps,
+                particles: &b.base,
+                info: &b.info,
+                cloths: &b.cloth_constants,
+                surface: &b.surface_words,
+            };
+            plan.bind_groups(device, kernels, &shared)
+        });
+        Groups { colliders, anchors, stages, last, predict, solve, finish, apply_anchors, contact, air }
     }
 
     /// Records `ticks` ticks of every cloth: per tick the anchors, then per substep the
@@ -957,6 +1071,7 @@ impl ClothBatch {
             return;
         }
         let contact = self.contact.as_ref().zip(groups.contact.as_ref()).filter(|(plan, _)| plan.substeps > 0);
+        let air = self.air.as_ref().zip(groups.air.as_ref());
         let substeps = self.substeps.max(descent.map_or(0, |plan| plan.substeps));
         let x = self.workgroups.0;
         let written = self.slots.iter().flatten().map(|s| s.targets.len()).max().unwrap_or(0) as u32;
@@ -974,8 +1089,14 @@ impl ClothBatch {
                     pass.dispatch_workgroups(x, rows, 1);
                 });
             }
+            if let Some((plan, air_groups)) = air {
+                plan.sample(kernels, air_groups, self.workgroups, tick, &mut each);
+            }
             // Substep by substep, every integrator in turn, so that contact sees all of them.
             for k in 0..substeps {
+                if let Some((plan, air_groups)) = air {
+                    plan.kick(kernels, air_groups, self.workgroups, k, &mut each);
+                }
                 let contact = contact.filter(|(plan, _)| k < plan.substeps);
                 if let Some((plan, contact_groups)) = contact {
                     plan.begin(kernels, contact_groups, &mut each);

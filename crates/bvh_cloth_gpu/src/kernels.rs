@@ -10,7 +10,7 @@ use wgpu::{
 /// The kernels' WGSL files, in the order [`shader_source`] joins them: the shared types, the
 /// spring forces, the collision response, then one file per kernel. Each starts with naga_oil directives
 /// (`#define_import_path`, `#import`) for engines that compose shaders that way.
-pub const SHADER_FILES: [(&str, &str); 11] = [
+pub const SHADER_FILES: [(&str, &str); 12] = [
     ("types.wgsl", include_str!("shaders/types.wgsl")),
     ("springs.wgsl", include_str!("shaders/springs.wgsl")),
     ("primitives.wgsl", include_str!("shaders/primitives.wgsl")),
@@ -22,6 +22,7 @@ pub const SHADER_FILES: [(&str, &str); 11] = [
     ("normal_shader.wgsl", include_str!("shaders/normal_shader.wgsl")),
     ("skin_refit.wgsl", include_str!("shaders/skin_refit.wgsl")),
     ("self_contact.wgsl", include_str!("shaders/self_contact.wgsl")),
+    ("air.wgsl", include_str!("shaders/air.wgsl")),
 ];
 
 /// The kernels as one WGSL module: [`SHADER_FILES`] joined, their import directives dropped.
@@ -50,6 +51,10 @@ pub const CONTACT_KERNELS: [&str; 8] = [
     "contact_find",
     "contact_apply",
 ];
+
+/// Aerodynamics' kernels: `air_sample` once per tick, then `air_forces` and `air_kick` at the
+/// start of every substep.
+pub const AIR_KERNELS: [&str; 3] = ["air_sample", "air_forces", "air_kick"];
 
 /// Threads per workgroup along each grid axis (workgroups are 8 x 8 x 1, paper Table I).
 pub const WORKGROUP_SIZE: u32 = 8;
@@ -127,14 +132,14 @@ pub struct KernelDescriptor {
 }
 
 /// Number of kernels (entry points): the length of [`ClothKernels::descriptors`].
-pub const KERNEL_COUNT: usize = 19;
+pub const KERNEL_COUNT: usize = 22;
 
 /// The compiled kernels: `node_update` (RK4's first three stages, the stage named by the step
 /// uniform), `node_update_final` (the last stage with the collision response), block descent's
 /// `vbd_predict`, `vbd_solve` and `vbd_finish`, `apply_anchors`, `normal_shader`, a skinned
 /// collider's refit (`skin_vertices`, `fit_leaves`, `refit_nodes`, `refit_reach`), and
-/// self-contact's eight kernels (`contact_begin` to `contact_apply`), with their bind group
-/// layouts.
+/// self-contact's eight kernels (`contact_begin` to `contact_apply`) and aerodynamics' three
+/// ([`AIR_KERNELS`]), with their bind group layouts.
 #[derive(Debug)]
 pub struct ClothKernels {
     pub(crate) node_update: ComputePipeline,
@@ -150,6 +155,9 @@ pub struct ClothKernels {
     /// Self-contact's kernels in [`CONTACT_KERNELS`] order, and their layouts.
     pub(crate) contact: [ComputePipeline; 8],
     pub(crate) contact_layouts: [BindGroupLayout; 8],
+    /// Aerodynamics' kernels in [`AIR_KERNELS`] order, and their layouts.
+    pub(crate) air: [ComputePipeline; 3],
+    pub(crate) air_layouts: [BindGroupLayout; 3],
     pub(crate) node_update_layout: BindGroupLayout,
     pub(crate) final_layout: BindGroupLayout,
     pub(crate) vbd_predict_layout: BindGroupLayout,
@@ -176,7 +184,7 @@ impl ClothKernels {
     /// The kernels, in the order [`Self::from_parts`] takes them: `node_update`,
     /// `node_update_final`, `vbd_predict`, `vbd_solve`, `vbd_finish`, `apply_anchors`,
     /// `normal_shader`, `skin_vertices`, `fit_leaves`, `refit_nodes`, `refit_reach`, then
-    /// [`CONTACT_KERNELS`].
+    /// [`CONTACT_KERNELS`], then [`AIR_KERNELS`].
     pub fn descriptors() -> [KernelDescriptor; KERNEL_COUNT] {
         let frame = entry(0, BufferBindingType::Uniform, false);
         let step = entry(1, BufferBindingType::Uniform, true);
@@ -340,6 +348,47 @@ impl ClothKernels {
                     storage(40, false),
                 ],
             ),
+            KernelDescriptor {
+                entry_point: AIR_KERNELS[0],
+                file: "air.wgsl",
+                layout: vec![
+                    frame,
+                    storage(6, true),
+                    entry(41, BufferBindingType::Storage { read_only: true }, true),
+                    storage(42, true),
+                    storage(43, true),
+                    storage(44, false),
+                    storage(46, false),
+                ],
+            },
+            KernelDescriptor {
+                entry_point: AIR_KERNELS[1],
+                file: "air.wgsl",
+                layout: vec![
+                    frame,
+                    step,
+                    storage(6, true),
+                    storage(8, false),
+                    storage(42, true),
+                    storage(44, false),
+                    storage(45, false),
+                    storage(46, false),
+                    storage(47, true),
+                ],
+            },
+            KernelDescriptor {
+                entry_point: AIR_KERNELS[2],
+                file: "air.wgsl",
+                layout: vec![
+                    frame,
+                    step,
+                    storage(6, true),
+                    storage(8, false),
+                    storage(42, true),
+                    storage(45, false),
+                    storage(46, false),
+                ],
+            },
         ]
     }
 
@@ -407,6 +456,9 @@ impl ClothKernels {
             c5,
             c6,
             c7,
+            a0,
+            a1,
+            a2,
         ] = pipelines;
         let [
             node_update_layout,
@@ -428,6 +480,9 @@ impl ClothKernels {
             k5,
             k6,
             k7,
+            m0,
+            m1,
+            m2,
         ] = layouts;
         Self {
             node_update,
@@ -441,6 +496,8 @@ impl ClothKernels {
             refit_layouts: [l0, l1, l2, l3],
             contact: [c0, c1, c2, c3, c4, c5, c6, c7],
             contact_layouts: [k0, k1, k2, k3, k4, k5, k6, k7],
+            air: [a0, a1, a2],
+            air_layouts: [m0, m1, m2],
             node_update_layout,
             final_layout,
             vbd_predict_layout,

@@ -6,9 +6,11 @@
 //! `collision_detection_with_bvh`: stack traversal of every collider's LBVH and the collision
 //! response), `apply_anchors` (pins moved at the start of each tick) and `normal_shader`
 //! (normals, written with the positions into an interleaved vertex buffer such as a mesh's
-//! vertex slab), block descent's three kernels, and self-contact's eight ([`CONTACT_KERNELS`]:
+//! vertex slab), block descent's three kernels, self-contact's eight ([`CONTACT_KERNELS`]:
 //! a hashed grid of the cloths' triangles rebuilt by counting sort each substep, then
-//! point–triangle contacts within and between cloths). The WGSL is one file per kernel beside a shared types file
+//! point–triangle contacts within and between cloths), and aerodynamics' three
+//! ([`AIR_KERNELS`]: the wind sampled at every particle each tick, then drag and lift gathered
+//! from each particle's triangles each substep). The WGSL is one file per kernel beside a shared types file
 //! ([`SHADER_FILES`]).
 //!
 //! It knows no engine, so that the kernels can be tested against the CPU reference of
@@ -28,6 +30,7 @@
 
 #![deny(missing_docs)]
 
+mod air;
 mod batch;
 mod colliders;
 mod contact;
@@ -39,8 +42,8 @@ mod skin_refit;
 pub use batch::{ClothBatch, ClothId, Kernel};
 pub use colliders::GpuColliders;
 pub use kernels::{
-    CONTACT_KERNELS, ClothKernels, KERNEL_COUNT, KernelDescriptor, KernelError, SHADER_FILES, STORAGE_BUFFERS_NEEDED,
-    WORKGROUP_SIZE, shader_source,
+    AIR_KERNELS, CONTACT_KERNELS, ClothKernels, KERNEL_COUNT, KernelDescriptor, KernelError, SHADER_FILES,
+    STORAGE_BUFFERS_NEEDED, WORKGROUP_SIZE, shader_source,
 };
 pub use readback::{FaultReadback, ParticleReadback};
 pub use skin_refit::SkinRefit;

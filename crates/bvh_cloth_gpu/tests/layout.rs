@@ -4,9 +4,10 @@
 
 use core::mem::{offset_of, size_of};
 
+use bvh_cloth_core::aerodynamics::AirSource;
 use bvh_cloth_core::gpu_layout::{
-    GpuBatchCloth, GpuBatchFrame, GpuBatchStep, GpuBatchWriteback, GpuCollider, GpuColourPass, GpuContactFrame,
-    GpuMeshWriteback, GpuParticle, GpuRefitParams, GpuSkinVertex, GpuWritebackGroup,
+    GpuAirCloth, GpuBatchCloth, GpuBatchFrame, GpuBatchStep, GpuBatchWriteback, GpuCollider, GpuColourPass,
+    GpuContactFrame, GpuMeshWriteback, GpuParticle, GpuRefitParams, GpuSkinVertex, GpuWritebackGroup,
 };
 use bvh_cloth_core::skinning::SkinPoint;
 use bvh_cloth_core::{BvhNode, Sphere, Vec3};
@@ -67,6 +68,9 @@ fn wgsl_is_valid() {
             "contact_scatter",
             "contact_find",
             "contact_apply",
+            "air_sample",
+            "air_forces",
+            "air_kick",
         ]
     );
     for entry in &module.entry_points {
@@ -164,6 +168,13 @@ fn wgsl_structs_match_the_rust_layouts() {
     assert_layout!(&module, "BvhNode", BvhNode, [aabb_min, left, aabb_max, right]);
     assert_layout!(
         &module,
+        "AirCloth",
+        GpuAirCloth,
+        [surface_start, vertex_count, seed, source_count, turbulence, inv_scale, drag, lift]
+    );
+    assert_layout!(&module, "WindSource", AirSource, [origin, axis, reach]);
+    assert_layout!(
+        &module,
         "GpuMeshWriteback",
         GpuMeshWriteback,
         [local_from_world, normal_from_world, first_word, stride_words, position_word, normal_word]
@@ -227,6 +238,8 @@ fn shared_constants_match_the_core() {
     }
     assert_eq!(constant("SWEEP_STEPS"), format!("{}u", bvh_cloth_core::primitives::SWEEP_STEPS));
     assert_eq!(constant("CLOSEST_STEPS"), format!("{}u", bvh_cloth_core::primitives::CLOSEST_STEPS));
+    assert_eq!(constant("NOISE_TIME_PERIOD"), format!("{}u", bvh_cloth_core::aerodynamics::NOISE_TIME_PERIOD));
+    assert_eq!(constant("SOURCE_FAN").parse::<f32>().unwrap(), bvh_cloth_core::aerodynamics::SOURCE_FAN as f32);
     assert_eq!(constant("INTEGRATOR_EULER"), format!("{}u", bvh_cloth_core::gpu_layout::INTEGRATOR_EULER));
     assert_eq!(
         constant("INTEGRATOR_BLOCK_DESCENT"),

@@ -1,0 +1,677 @@
+//! Aerodynamics: drag and lift on every triangle of a cloth from its velocity relative to the
+//! air, and the air itself: a wind with gusts and turbulence, and local sources (a fan, a
+//! blast).
+//!
+//! ## The force on a triangle
+//! A triangle of area `A` and unit normal `n`, whose corners move on average at `v` in air whose
+//! velocity averaged over the corners is `w`, meets the relative flow `u = w - v`. With
+//! `cos θ = n · û` (θ the angle between the normal and the flow):
+//! - drag, along the flow: `½ ρ C_d A |u|² |cos θ| û`. A triangle square to the flow catches
+//!   all of it, one edge-on catches none.
+//! - lift, across the flow: `½ ρ C_l A |u|² cos θ (n - cos θ û)`, of size
+//!   `½ ρ C_l A |u|² cos θ sin θ`: zero square to the flow and edge-on, largest at 45°, and
+//!   pushing the triangle away from the side the air strikes.
+//!
+//! Both are unchanged when the normal flips, so the mesh's winding does not matter. Each corner
+//! takes a third of its triangle's force. This split into a drag and a lift coefficient is the
+//! one game cloth solvers expose (NvCloth's `setDragCoefficient` and `setLiftCoefficient`).
+//!
+//! ## How it is stepped
+//! The wind is sampled at every particle once per tick, at the tick's start. The forces are
+//! evaluated once per substep from the substep's start state and applied as a change of
+//! velocity before the integrator runs, `v += h a`: the same splitting for every integrator
+//! and on both backends. A particle's change of velocity is capped at its speed relative to the
+//! wind, so drag can bring a particle up to the wind's speed but never past it, and a light
+//! cloth in a gale stays stable at any substep length.
+//!
+//! ## The wind
+//! At a point `p` and time `t`, the air moves at
+//! `velocity (1 + gust_strength g(t / gust_period)) + turbulence N(p / turbulence_scale, t / turbulence_period)`
+//! plus every source's velocity there. `g` is a value noise in time and `N` a vector value
+//! noise in space and time, each component in `[-1, 1]`: lattice values from an integer hash,
+//! blended with smoothstep weights, so the same integers give the same values on every device.
+//! The time lattice repeats every [`NOISE_TIME_PERIOD`] steps, which keeps the lattice time in
+//! `f32` precise however long a game runs, with no seam.
+
+use glam::{Vec3, Vec3A};
+use rayon::prelude::*;
+
+#[cfg(feature = "bevy_reflect")]
+use bevy_reflect::std_traits::ReflectDefault;
+
+use crate::error::ClothError;
+use crate::topology::ClothTopology;
+
+/// The fastest wind accepted, in m/s: above the strongest gusts measured on Earth (113 m/s,
+/// Barrow Island, 1996). Faster air is compressible, and the model no longer holds.
+pub const MAX_WIND_SPEED: f32 = 150.0;
+
+/// The largest drag or lift coefficient accepted. A flat plate square to the flow has a drag
+/// coefficient of about 1.2; ten times that is no fabric.
+pub const MAX_COEFFICIENT: f32 = 10.0;
+
+/// The densest air accepted, in kg/m³ (sea-level air is 1.225).
+pub const MAX_AIR_DENSITY: f32 = 10.0;
+
+/// Lattice steps after which the noise's time axis repeats.
+pub const NOISE_TIME_PERIOD: u32 = 4096;
+
+/// Particles one rayon task handles at least.
+const MIN_TASK: usize = 2048;
+
+/// How a cloth catches the air: its drag and lift coefficients.
+///
+/// The default is no aerodynamics at all, the paper's model: the cloth moves as if in vacuum
+/// (its `damping` aside), and wind does not touch it. [`Self::FABRIC`] is a woven fabric.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+#[cfg_attr(feature = "bevy_reflect", derive(bevy_reflect::Reflect), reflect(Default, Debug, PartialEq))]
+pub struct Aerodynamics {
+    /// Drag coefficient `C_d`, 0 to [`MAX_COEFFICIENT`].
+    pub drag: f32,
+    /// Lift coefficient `C_l`, 0 to [`MAX_COEFFICIENT`].
+    pub lift: f32,
+}
+
+impl Aerodynamics {
+    /// No drag and no lift: the cloth ignores the air.
+    pub const NONE: Self = Self { drag: 0.0, lift: 0.0 };
+
+    /// A woven fabric: the drag of a flat plate square to the flow (about 1.2, Hoerner,
+    /// "Fluid-Dynamic Drag", 1965), and a lift coefficient that gives a plate at 45° a lift
+    /// about half its drag.
+    pub const FABRIC: Self = Self { drag: 1.2, lift: 0.8 };
+
+    /// Whether the cloth feels the air at all.
+    pub fn is_active(&self) -> bool {
+        self.drag > 0.0 || self.lift > 0.0
+    }
+
+    /// Checks both coefficients.
+    pub fn validate(&self) -> Result<(), ClothError> {
+        in_range("aerodynamics.drag", self.drag, 0.0, MAX_COEFFICIENT)?;
+        in_range("aerodynamics.lift", self.lift, 0.0, MAX_COEFFICIENT)
+    }
+}
+
+/// The air around a cloth: a steady velocity, gusts that raise and lower it over time, and
+/// turbulence, a smooth random field in space and time.
+#[derive(Clone, Copy, Debug, PartialEq)]
+#[cfg_attr(feature = "bevy_reflect", derive(bevy_reflect::Reflect), reflect(Default, Debug, PartialEq))]
+pub struct Wind {
+    /// The mean wind in m/s, at most [`MAX_WIND_SPEED`].
+    pub velocity: Vec3,
+    /// Air density in kg/m³ (sea level: 1.225).
+    pub density: f32,
+    /// How far gusts raise and lower the mean wind, as a fraction of it: 0 is steady, 0.5 swings
+    /// between half and one and a half times the mean. 0 to 1.
+    pub gust_strength: f32,
+    /// Seconds between one gust and the next, roughly; above 0.
+    pub gust_period: f32,
+    /// Turbulence in m/s: each component of the random field is within this of the mean.
+    /// 0 to [`MAX_WIND_SPEED`].
+    pub turbulence: f32,
+    /// Size of the turbulence's eddies in metres; above 0.
+    pub turbulence_scale: f32,
+    /// Seconds over which the turbulence at a point changes; above 0.
+    pub turbulence_period: f32,
+    /// Picks the noise: two winds that differ only in their seed blow alike but not in step.
+    pub seed: u32,
+}
+
+impl Default for Wind {
+    fn default() -> Self {
+        Self::STILL
+    }
+}
+
+impl Wind {
+    /// Still air at sea level.
+    pub const STILL: Self = Self {
+        velocity: Vec3::ZERO,
+        density: 1.225,
+        gust_strength: 0.0,
+        gust_period: 4.0,
+        turbulence: 0.0,
+        turbulence_scale: 2.0,
+        turbulence_period: 1.0,
+        seed: 0,
+    };
+
+    /// A steady wind of `velocity` m/s, with no gusts and no turbulence.
+    pub fn steady(velocity: Vec3) -> Self {
+        Self { velocity, ..Self::STILL }
+    }
+
+    /// A wind of mean `velocity` m/s that gusts by 40% every few seconds, with turbulence of a
+    /// fifth of its speed in eddies of 2 m.
+    pub fn gusty(velocity: Vec3) -> Self {
+        Self { velocity, gust_strength: 0.4, gust_period: 3.0, turbulence: 0.2 * velocity.length(), ..Self::STILL }
+    }
+
+    /// Checks every field.
+    pub fn validate(&self) -> Result<(), ClothError> {
+        if !self.velocity.is_finite() {
+            return Err(ClothError::NotFinite { field: "wind.velocity" });
+        }
+        in_range("wind.velocity", self.velocity.length(), 0.0, MAX_WIND_SPEED)?;
+        in_range("wind.density", self.density, 0.0, MAX_AIR_DENSITY)?;
+        in_range("wind.gust_strength", self.gust_strength, 0.0, 1.0)?;
+        positive("wind.gust_period", self.gust_period)?;
+        in_range("wind.turbulence", self.turbulence, 0.0, MAX_WIND_SPEED)?;
+        positive("wind.turbulence_scale", self.turbulence_scale)?;
+        positive("wind.turbulence_period", self.turbulence_period)
+    }
+
+    /// The gust factor and the turbulence's lattice time at `time` seconds: what one tick's
+    /// sampling needs of the clock (see [`AirModel::new`]).
+    pub fn clock(&self, time: f64) -> [f32; 2] {
+        let period = f64::from(NOISE_TIME_PERIOD);
+        let gust_time = (time / f64::from(self.gust_period)).rem_euclid(period) as f32;
+        let gust = 1.0 + self.gust_strength * value_noise_1d(gust_time, self.seed);
+        [gust, (time / f64::from(self.turbulence_period)).rem_euclid(period) as f32]
+    }
+}
+
+/// A local source of wind. Sources add to the ambient wind of every cloth in reach.
+#[derive(Clone, Copy, Debug, PartialEq)]
+#[cfg_attr(feature = "bevy_reflect", derive(bevy_reflect::Reflect), reflect(Debug, PartialEq))]
+pub enum WindSource {
+    /// A fan at `origin` blowing along `direction` in a cone of half-angle `spread`: the air
+    /// leaves it radially at `speed`, weakening linearly to nothing at `range` metres and
+    /// smoothly to nothing at the cone's edge.
+    Fan {
+        /// Where the air comes from.
+        origin: Vec3,
+        /// The cone's axis (any length above zero).
+        direction: Vec3,
+        /// Speed on the axis at the origin in m/s, at most [`MAX_WIND_SPEED`]; a negative speed
+        /// sucks.
+        speed: f32,
+        /// Reach in metres, above 0.
+        range: f32,
+        /// The cone's half-angle in radians, in `(0, π]`.
+        spread: f32,
+    },
+    /// Air pushed out of `center` in every direction: `speed` at the centre, weakening linearly
+    /// to nothing at `radius` metres (an explosion's blast, a helicopter's downwash seen from
+    /// below).
+    Blast {
+        /// Where the air comes from.
+        center: Vec3,
+        /// Speed at the centre in m/s, at most [`MAX_WIND_SPEED`]; a negative speed sucks.
+        speed: f32,
+        /// Reach in metres, above 0.
+        radius: f32,
+    },
+}
+
+impl WindSource {
+    /// Checks every field.
+    pub fn validate(&self) -> Result<(), ClothError> {
+        match *self {
+            Self::Fan { origin, direction, speed, range, spread } => {
+                if !origin.is_finite() {
+                    return Err(ClothError::NotFinite { field: "fan.origin" });
+                }
+                if !(direction.is_finite() && direction.length_squared() > 0.0) {
+                    return Err(ClothError::NotFinite { field: "fan.direction" });
+                }
+                in_range("fan.speed", speed, -MAX_WIND_SPEED, MAX_WIND_SPEED)?;
+                positive("fan.range", range)?;
+                in_range("fan.spread", spread, f32::MIN_POSITIVE, core::f32::consts::PI)
+            }
+            Self::Blast { center, speed, radius } => {
+                if !center.is_finite() {
+                    return Err(ClothError::NotFinite { field: "blast.center" });
+                }
+                in_range("blast.speed", speed, -MAX_WIND_SPEED, MAX_WIND_SPEED)?;
+                positive("blast.radius", radius)
+            }
+        }
+    }
+
+    /// The source as the samplers read it: three rows of four numbers (see [`AirSource`]).
+    pub fn prepare(&self) -> AirSource {
+        match *self {
+            Self::Fan { origin, direction, speed, range, spread } => AirSource {
+                origin: origin.extend(SOURCE_FAN as f32).to_array(),
+                axis: direction.normalize_or_zero().extend(speed).to_array(),
+                reach: [range, spread.cos(), 0.0, 0.0],
+            },
+            Self::Blast { center, speed, radius } => AirSource {
+                origin: center.extend(SOURCE_BLAST as f32).to_array(),
+                axis: [0.0, 0.0, 0.0, speed],
+                reach: [radius, -1.0, 0.0, 0.0],
+            },
+        }
+    }
+}
+
+/// [`AirSource`]'s kind (in `origin[3]`) of a fan.
+pub const SOURCE_FAN: u32 = 0;
+/// [`AirSource`]'s kind of a blast.
+pub const SOURCE_BLAST: u32 = 1;
+
+/// A [`WindSource`] ready to sample, as both backends read it (the GPU's `WindSource`, 48
+/// bytes): `origin` (`w`: [`SOURCE_FAN`] or [`SOURCE_BLAST`]), `axis` (the fan's unit axis;
+/// `w`: the speed) and `reach` (the range or radius, and the cosine of the fan's spread).
+#[repr(C)]
+#[derive(Clone, Copy, Debug, Default, PartialEq, bytemuck::Pod, bytemuck::Zeroable)]
+pub struct AirSource {
+    /// Origin, and the kind.
+    pub origin: [f32; 4],
+    /// Unit axis, and the speed.
+    pub axis: [f32; 4],
+    /// Range, cosine of the spread, and two unused words.
+    pub reach: [f32; 4],
+}
+
+impl AirSource {
+    /// The source's wind at `p`. The GPU's `source_wind` repeats this arithmetic.
+    pub fn velocity_at(&self, p: Vec3) -> Vec3 {
+        let origin = Vec3::new(self.origin[0], self.origin[1], self.origin[2]);
+        let d = p - origin;
+        let dist = d.length();
+        let range = self.reach[0];
+        if !(dist > 0.0 && dist < range) {
+            return Vec3::ZERO;
+        }
+        let inv = 1.0 / dist;
+        let mut strength = self.axis[3] * (1.0 - dist * (1.0 / range));
+        if self.origin[3] == SOURCE_FAN as f32 {
+            let axis = Vec3::new(self.axis[0], self.axis[1], self.axis[2]);
+            let cos_spread = self.reach[1];
+            let c = d.dot(axis) * inv;
+            if c <= cos_spread {
+                return Vec3::ZERO;
+            }
+            let s = (c - cos_spread) / (1.0 - cos_spread);
+            strength *= s * s * (3.0 - 2.0 * s);
+        }
+        d * (strength * inv)
+    }
+}
+
+/// One tick's air for one cloth: the wind's constants and clock, and the cloth's drag and lift
+/// per unit of `A |u|²`, over three times its mass.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct AirModel {
+    /// The mean wind times the gust factor of this tick.
+    pub ambient: Vec3,
+    /// Turbulence in m/s.
+    pub turbulence: f32,
+    /// One over the eddy size, 1/m.
+    pub inv_scale: f32,
+    /// The turbulence's lattice time this tick, in `[0, NOISE_TIME_PERIOD)`.
+    pub lattice_time: f32,
+    /// The noise's seed.
+    pub seed: u32,
+    /// `½ ρ C_d / (3 m)`: a corner's share of drag per unit of `A |u|² |cos θ|`, over the
+    /// cloth's mass (a particle's acceleration is this times its inverse mass share).
+    pub drag: f32,
+    /// `½ ρ C_l / (3 m)`, as `drag`.
+    pub lift: f32,
+}
+
+impl AirModel {
+    /// The air of a cloth of `mass` kg with `aerodynamics`, in `wind`, for the tick that starts
+    /// at `time` seconds.
+    pub fn new(aerodynamics: Aerodynamics, mass: f32, wind: &Wind, time: f64) -> Self {
+        let [gust, lattice_time] = wind.clock(time);
+        let per_corner = 0.5 * wind.density / (3.0 * mass);
+        Self {
+            ambient: wind.velocity * gust,
+            turbulence: wind.turbulence,
+            inv_scale: 1.0 / wind.turbulence_scale,
+            lattice_time,
+            seed: wind.seed,
+            drag: per_corner * aerodynamics.drag,
+            lift: per_corner * aerodynamics.lift,
+        }
+    }
+
+    /// The wind at `p`: the ambient wind, the turbulence and every source. The GPU's
+    /// `air_sample` repeats this arithmetic.
+    pub fn wind_at(&self, p: Vec3, sources: &[AirSource]) -> Vec3 {
+        let mut w = self.ambient;
+        if self.turbulence > 0.0 {
+            w += self.turbulence * value_noise_4d(p * self.inv_scale, self.lattice_time, self.seed);
+        }
+        for source in sources {
+            w += source.velocity_at(p);
+        }
+        w
+    }
+
+    /// The aerodynamic force on one triangle (corners `x`, velocities `v`, winds `w`), per
+    /// corner and over the cloth's mass: a corner's acceleration is the sum over its triangles
+    /// times its inverse mass share. The GPU's `triangle_air` repeats this arithmetic.
+    #[inline]
+    pub fn triangle_force(&self, x: [Vec3; 3], v: [Vec3; 3], w: [Vec3; 3]) -> Vec3 {
+        let n2 = (x[1] - x[0]).cross(x[2] - x[0]);
+        let len2 = n2.dot(n2);
+        let u = ((w[0] + w[1] + w[2]) - (v[0] + v[1] + v[2])) * (1.0 / 3.0);
+        let speed2 = u.dot(u);
+        if !(len2 > 0.0 && speed2 > 0.0) {
+            return Vec3::ZERO;
+        }
+        let len = len2.sqrt();
+        let speed = speed2.sqrt();
+        let n = n2 / len;
+        let flow = u / speed;
+        let c = n.dot(flow);
+        // A |u|², the area being half the cross product's length.
+        let q = 0.5 * len * speed2;
+        flow * (self.drag * q * c.abs()) + (n - flow * c) * (self.lift * q * c)
+    }
+}
+
+/// A cloth's working state for aerodynamics: the wind at each particle this tick, and each
+/// triangle's force this substep.
+#[derive(Clone, Debug, Default)]
+pub struct Air {
+    /// The wind at each particle, sampled at the tick's start.
+    pub wind: Vec<Vec3>,
+    /// Each triangle's force per corner (see [`AirModel::triangle_force`]).
+    forces: Vec<Vec3>,
+}
+
+impl Air {
+    /// Samples the wind at every particle of `x`.
+    pub fn sample(&mut self, model: &AirModel, sources: &[AirSource], x: &[Vec3A]) {
+        self.wind.resize(x.len(), Vec3::ZERO);
+        self.wind
+            .par_iter_mut()
+            .zip(x.par_iter())
+            .with_min_len(MIN_TASK)
+            .for_each(|(w, &p)| *w = model.wind_at(p.into(), sources));
+    }
+
+    /// One substep's kick: every free particle's velocity changes by `h` times its aerodynamic
+    /// acceleration from its triangles, summed in the order of its triangle list, at most by
+    /// its speed relative to the wind (see the [module docs](self)). Needs [`Self::sample`]
+    /// first.
+    pub fn kick(
+        &mut self,
+        model: &AirModel,
+        topology: &ClothTopology,
+        free: &[f32],
+        h: f32,
+        x: &[Vec3A],
+        v: &mut [Vec3A],
+    ) {
+        let wind = &self.wind;
+        self.forces.resize(topology.triangles().len(), Vec3::ZERO);
+        {
+            let velocities: &[Vec3A] = v;
+            self.forces.par_iter_mut().zip(topology.triangles().par_iter()).with_min_len(MIN_TASK).for_each(
+                |(f, t)| {
+                    let [a, b, c] = t.map(|k| k as usize);
+                    *f = model.triangle_force(
+                        [x[a].into(), x[b].into(), x[c].into()],
+                        [velocities[a].into(), velocities[b].into(), velocities[c].into()],
+                        [wind[a], wind[b], wind[c]],
+                    );
+                },
+            );
+        }
+        let forces = &self.forces;
+        let inv_share = topology.inv_mass_share();
+        v.par_iter_mut().enumerate().with_min_len(MIN_TASK).for_each(|(i, v)| {
+            if free[i] == 0.0 {
+                return;
+            }
+            let mut f = Vec3::ZERO;
+            for &t in topology.triangles_of(i) {
+                f += forces[t as usize];
+            }
+            let dv = f * (h * inv_share[i]);
+            *v += Vec3A::from(capped_kick(dv, wind[i] - Vec3::from(*v)));
+        });
+    }
+}
+
+/// `dv`, shortened to the length of `relative` (the particle's velocity relative to the wind)
+/// where it is longer. The GPU's `air_kick` repeats this arithmetic.
+#[inline]
+pub fn capped_kick(dv: Vec3, relative: Vec3) -> Vec3 {
+    let dv2 = dv.dot(dv);
+    let rel2 = relative.dot(relative);
+    if dv2 > rel2 { dv * (rel2 / dv2).sqrt() } else { dv }
+}
+
+/// The integer hash behind the noise (Wellons' `lowbias32`): every input bit flips about half
+/// of the output bits.
+#[inline]
+pub fn hash(mut x: u32) -> u32 {
+    x ^= x >> 16;
+    x = x.wrapping_mul(0x7feb_352d);
+    x ^= x >> 15;
+    x = x.wrapping_mul(0x846c_a68b);
+    x ^= x >> 16;
+    x
+}
+
+/// One lattice value in `[-1, 1]` from 10 bits of a hash.
+#[inline]
+fn unit(bits: u32) -> f32 {
+    ((bits & 0x3ff) as f32 - 511.5) * (1.0 / 511.5)
+}
+
+/// Smoothstep weight of a fraction in `[0, 1)`.
+#[inline]
+fn smooth(f: f32) -> f32 {
+    f * f * (3.0 - 2.0 * f)
+}
+
+/// A one-dimensional value noise in `[-1, 1]` at lattice time `t` (`0 <= t`), repeating every
+/// [`NOISE_TIME_PERIOD`] steps.
+pub fn value_noise_1d(t: f32, seed: u32) -> f32 {
+    let cell = t.floor();
+    let i = cell as u32;
+    let s = smooth(t - cell);
+    let key = |k: u32| hash((k % NOISE_TIME_PERIOD) ^ seed.wrapping_mul(0x9e37_79b9));
+    let (a, b) = (unit(key(i)), unit(key(i.wrapping_add(1))));
+    a + (b - a) * s
+}
+
+/// The hash of one corner of the four-dimensional lattice.
+#[inline]
+fn corner(x: i32, y: i32, z: i32, t: u32, seed: u32) -> u32 {
+    hash(
+        (x as u32).wrapping_mul(0x8da6_b343)
+            ^ (y as u32).wrapping_mul(0xd816_3841)
+            ^ (z as u32).wrapping_mul(0xcb1a_b31f)
+            ^ (t % NOISE_TIME_PERIOD).wrapping_mul(0x1656_67b1)
+            ^ seed,
+    )
+}
+
+/// A corner's vector: three lattice values from one hash.
+#[inline]
+fn corner_vector(h: u32) -> Vec3 {
+    Vec3::new(unit(h), unit(h >> 10), unit(h >> 20))
+}
+
+/// A vector value noise in space and time, each component in `[-1, 1]`: at `q` (lattice
+/// units) and lattice time `t` (`0 <= t`), smoothstep-blended over the 16 corners of its cell.
+/// The GPU's `value_noise_4d` repeats this arithmetic.
+pub fn value_noise_4d(q: Vec3, t: f32, seed: u32) -> Vec3 {
+    let cell = q.floor();
+    let tc = t.floor();
+    let [x, y, z] = [cell.x as i32, cell.y as i32, cell.z as i32];
+    let ti = tc as u32;
+    let f = q - cell;
+    let (sx, sy, sz, st) = (smooth(f.x), smooth(f.y), smooth(f.z), smooth(t - tc));
+    let lerp = |a: Vec3, b: Vec3, s: f32| a + (b - a) * s;
+    let mut by_time = [Vec3::ZERO; 2];
+    for (k, slice) in by_time.iter_mut().enumerate() {
+        let tk = ti.wrapping_add(k as u32);
+        let mut by_z = [Vec3::ZERO; 2];
+        for (dz, plane) in by_z.iter_mut().enumerate() {
+            let zk = z.wrapping_add(dz as i32);
+            let mut by_y = [Vec3::ZERO; 2];
+            for (dy, row) in by_y.iter_mut().enumerate() {
+                let yk = y.wrapping_add(dy as i32);
+                let a = corner_vector(corner(x, yk, zk, tk, seed));
+                let b = corner_vector(corner(x.wrapping_add(1), yk, zk, tk, seed));
+                *row = lerp(a, b, sx);
+            }
+            *plane = lerp(by_y[0], by_y[1], sy);
+        }
+        *slice = lerp(by_z[0], by_z[1], sz);
+    }
+    lerp(by_time[0], by_time[1], st)
+}
+
+fn in_range(field: &'static str, value: f32, min: f32, max: f32) -> Result<(), ClothError> {
+    if value >= min && value <= max { Ok(()) } else { Err(ClothError::OutOfRange { field, value, min, max }) }
+}
+
+fn positive(field: &'static str, value: f32) -> Result<(), ClothError> {
+    if value.is_finite() && value > 0.0 { Ok(()) } else { Err(ClothError::NotPositive { field, value }) }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn model(aerodynamics: Aerodynamics, wind: &Wind) -> AirModel {
+        AirModel::new(aerodynamics, 3.0, wind, 0.0)
+    }
+
+    /// A unit right triangle in the XZ plane (area 0.5, normal ±Y), at rest.
+    fn plate() -> [Vec3; 3] {
+        [Vec3::ZERO, Vec3::X, Vec3::Z]
+    }
+
+    #[test]
+    fn drag_square_to_the_flow_is_half_rho_cd_a_u_squared() {
+        let wind = Wind::steady(Vec3::new(0.0, -10.0, 0.0));
+        let m = model(Aerodynamics { drag: 1.2, lift: 0.7 }, &wind);
+        let w = [wind.velocity; 3];
+        let f = m.triangle_force(plate(), [Vec3::ZERO; 3], w);
+        // Per corner over the mass: ½ 1.225 1.2 0.5 100 / (3 * 3), all along the flow; no lift
+        // square to it.
+        let want = 0.5 * 1.225 * 1.2 * 0.5 * 100.0 / 9.0;
+        assert!((f - Vec3::new(0.0, -want, 0.0)).length() < 1e-5 * want, "{f}");
+        // Edge-on: neither drag nor lift.
+        let edge_on = m.triangle_force(plate(), [Vec3::ZERO; 3], [Vec3::new(10.0, 0.0, 0.0); 3]);
+        assert!(edge_on.length() < 1e-6, "{edge_on}");
+    }
+
+    #[test]
+    fn lift_at_45_degrees_pushes_away_from_the_struck_side() {
+        // Air from above and behind at 45°: cos θ = sin θ = √½.
+        let u = Vec3::new(1.0, -1.0, 0.0).normalize() * 10.0;
+        let m = model(Aerodynamics { drag: 0.0, lift: 1.0 }, &Wind::steady(u));
+        let f = m.triangle_force(plate(), [Vec3::ZERO; 3], [u; 3]);
+        let q = 0.5 * 100.0;
+        let want = 0.5 * 1.225 / 9.0 * q * 0.5;
+        assert!((f.length() - want).abs() < 1e-4 * want, "{} vs {want}", f.length());
+        assert!(f.dot(u).abs() < 1e-4 * want, "lift is across the flow");
+        assert!(f.y < 0.0, "air striking the top pushes the plate down: {f}");
+        // The winding does not matter.
+        let [a, b, c] = plate();
+        let flipped = m.triangle_force([a, c, b], [Vec3::ZERO; 3], [u; 3]);
+        assert!((flipped - f).length() < 1e-6 * want);
+    }
+
+    #[test]
+    fn a_triangle_moving_with_the_air_feels_nothing() {
+        let wind = Wind::steady(Vec3::new(3.0, 1.0, -2.0));
+        let m = model(Aerodynamics::FABRIC, &wind);
+        assert_eq!(m.triangle_force(plate(), [wind.velocity; 3], [wind.velocity; 3]), Vec3::ZERO);
+        // A degenerate triangle neither.
+        let line = [Vec3::ZERO, Vec3::X, 2.0 * Vec3::X];
+        assert_eq!(m.triangle_force(line, [Vec3::ZERO; 3], [wind.velocity; 3]), Vec3::ZERO);
+    }
+
+    #[test]
+    fn a_kick_never_takes_a_particle_past_the_wind() {
+        let dv = capped_kick(Vec3::new(50.0, 0.0, 0.0), Vec3::new(2.0, 0.0, 0.0));
+        assert!((dv - Vec3::new(2.0, 0.0, 0.0)).length() < 1e-6, "{dv}");
+        assert_eq!(capped_kick(Vec3::new(0.5, 0.0, 0.0), Vec3::new(2.0, 0.0, 0.0)), Vec3::new(0.5, 0.0, 0.0));
+    }
+
+    #[test]
+    fn noise_is_smooth_bounded_and_repeats_in_time() {
+        let mut max = 0.0f32;
+        let mut mean = Vec3::ZERO;
+        let n = 4000;
+        for i in 0..n {
+            let q = Vec3::new(i as f32 * 0.173, i as f32 * 0.071 - 30.0, (i % 97) as f32 * 0.31);
+            let t = i as f32 * 0.013;
+            let v = value_noise_4d(q, t, 7);
+            max = max.max(v.abs().max_element());
+            mean += v;
+            // A small step moves the value a little: the noise is continuous.
+            let near = value_noise_4d(q + Vec3::splat(1e-3), t + 1e-3, 7);
+            assert!((near - v).abs().max_element() < 0.02, "{q} {t}: {v} -> {near}");
+        }
+        assert!(max <= 1.0 && max > 0.5, "{max}");
+        assert!((mean / n as f32).abs().max_element() < 0.1, "{mean}");
+        // The lattice time repeats with no seam.
+        let q = Vec3::new(0.3, 1.7, -2.2);
+        let a = value_noise_4d(q, 0.25, 3);
+        let b = value_noise_4d(q, NOISE_TIME_PERIOD as f32 + 0.25, 3);
+        assert!((a - b).length() < 1e-3, "{a} vs {b}");
+        assert!((value_noise_1d(0.5, 9) - value_noise_1d(NOISE_TIME_PERIOD as f32 + 0.5, 9)).abs() < 1e-3);
+        // Another seed, another field.
+        assert_ne!(value_noise_4d(q, 0.25, 4), a);
+    }
+
+    #[test]
+    fn a_fan_blows_inside_its_cone_and_reach_only() {
+        let fan = WindSource::Fan {
+            origin: Vec3::ZERO,
+            direction: Vec3::new(0.0, 0.0, 2.0),
+            speed: 10.0,
+            range: 5.0,
+            spread: 0.5,
+        }
+        .prepare();
+        let on_axis = fan.velocity_at(Vec3::new(0.0, 0.0, 1.0));
+        assert!((on_axis - Vec3::new(0.0, 0.0, 8.0)).length() < 1e-5, "{on_axis}");
+        assert_eq!(fan.velocity_at(Vec3::new(0.0, 0.0, 6.0)), Vec3::ZERO, "past its range");
+        assert_eq!(fan.velocity_at(Vec3::new(1.0, 0.0, 1.0)), Vec3::ZERO, "outside its cone");
+        assert_eq!(fan.velocity_at(Vec3::new(0.0, 0.0, -1.0)), Vec3::ZERO, "behind it");
+        let blast = WindSource::Blast { center: Vec3::ONE, speed: 20.0, radius: 4.0 }.prepare();
+        let v = blast.velocity_at(Vec3::new(1.0, 3.0, 1.0));
+        assert!((v - Vec3::new(0.0, 10.0, 0.0)).length() < 1e-5, "{v}");
+    }
+
+    #[test]
+    fn absurd_air_is_refused_naming_the_field() {
+        let field = |e: ClothError| match e {
+            ClothError::OutOfRange { field, .. }
+            | ClothError::NotFinite { field }
+            | ClothError::NotPositive { field, .. } => field,
+            other => panic!("{other}"),
+        };
+        let wind = Wind::STILL;
+        let cases = [
+            (Wind { velocity: Vec3::new(f32::NAN, 0.0, 0.0), ..wind }, "wind.velocity"),
+            (Wind { velocity: Vec3::new(400.0, 0.0, 0.0), ..wind }, "wind.velocity"),
+            (Wind { density: -1.0, ..wind }, "wind.density"),
+            (Wind { gust_strength: 2.0, ..wind }, "wind.gust_strength"),
+            (Wind { gust_period: 0.0, ..wind }, "wind.gust_period"),
+            (Wind { turbulence: f32::INFINITY, ..wind }, "wind.turbulence"),
+            (Wind { turbulence_scale: f32::NAN, ..wind }, "wind.turbulence_scale"),
+        ];
+        for (wind, name) in cases {
+            assert_eq!(field(wind.validate().unwrap_err()), name);
+        }
+        Wind::gusty(Vec3::new(8.0, 0.0, 0.0)).validate().unwrap();
+        assert_eq!(field(Aerodynamics { drag: f32::NAN, lift: 0.0 }.validate().unwrap_err()), "aerodynamics.drag");
+        assert_eq!(field(Aerodynamics { drag: 1.0, lift: 50.0 }.validate().unwrap_err()), "aerodynamics.lift");
+        let fan = |speed, spread| WindSource::Fan { origin: Vec3::ZERO, direction: Vec3::X, speed, range: 1.0, spread };
+        assert_eq!(field(fan(1e6, 0.5).validate().unwrap_err()), "fan.speed");
+        assert_eq!(field(fan(5.0, 0.0).validate().unwrap_err()), "fan.spread");
+        let zero_axis =
+            WindSource::Fan { origin: Vec3::ZERO, direction: Vec3::ZERO, speed: 1.0, range: 1.0, spread: 1.0 };
+        assert_eq!(field(zero_axis.validate().unwrap_err()), "fan.direction");
+        let blast = WindSource::Blast { center: Vec3::ZERO, speed: 1.0, radius: -2.0 };
+        assert_eq!(field(blast.validate().unwrap_err()), "blast.radius");
+    }
+}

@@ -1,0 +1,231 @@
+//! Aerodynamics on the GPU: the buffers, bind groups and dispatches of `air.wgsl` for the
+//! cloths of a batch that have drag or lift.
+//!
+//! Per tick, `air_sample` samples the wind at every particle of those cloths; per substep,
+//! before the integrators, `air_forces` gathers each particle's drag and lift from its
+//! triangles and `air_kick` adds the change of velocity, as
+//! [`bvh_cloth_core::ClothSim::tick`] does on the CPU.
+//!
+//! What changes per frame (each cloth's constants, the wind sources, each tick's ambient wind
+//! and lattice time, which the host computes from the wind clock as the CPU does) is written by
+//! [`AirPlan::write`]; the buffers are replaced only when they must grow.
+
+use bvh_cloth_core::aerodynamics::AirSource;
+use bvh_cloth_core::gpu_layout::GpuAirCloth;
+use wgpu::{BindGroup, Buffer, ComputePass, Device, Queue};
+
+use crate::batch::{Kernel, UNIFORM_STRIDE, storage_buffer};
+use crate::kernels::ClothKernels;
+
+/// What one frame of air needs written: each cloth slot's constants (zero for a cloth without
+/// aerodynamics), the wind sources, and per tick each cloth slot's ambient wind and lattice time.
+pub(crate) struct AirFrame {
+    pub cloths: Vec<GpuAirCloth>,
+    pub sources: Vec<AirSource>,
+    pub ticks: Vec<Vec<[f32; 4]>>,
+    /// Most substeps of a cloth with aerodynamics.
+    pub substeps: u32,
+}
+
+/// What the air bind groups bind besides the plan's own buffers.
+pub(crate) struct SharedBuffers<'a> {
+    pub frame: &'a Buffer,
+    pub steps: &'a Buffer,
+    pub particles: &'a Buffer,
+    pub info: &'a Buffer,
+    pub cloths: &'a Buffer,
+    pub surface: &'a Buffer,
+}
+
+/// The air buffers of a batch.
+#[derive(Debug)]
+pub(crate) struct AirPlan {
+    /// Particle slots and cloth slots the buffers have room for.
+    pub particle_capacity: u32,
+    cloth_capacity: u32,
+    source_capacity: u32,
+    tick_capacity: u32,
+    /// Bytes between two ticks' words.
+    tick_stride: u64,
+    cloths: Buffer,
+    sources: Buffer,
+    ticks: Buffer,
+    wind: Buffer,
+    kicks: Buffer,
+    /// Ticks written this frame, and the substeps the air cloths run.
+    ticks_written: u32,
+    pub substeps: u32,
+}
+
+impl AirPlan {
+    /// Buffers for `particles` particle slots and `cloths` cloth slots.
+    pub fn new(device: &Device, particles: u32, cloths: u32) -> Self {
+        let particle_bytes = u64::from(particles) * 16;
+        let mut plan = Self {
+            particle_capacity: particles,
+            cloth_capacity: cloths,
+            source_capacity: 0,
+            tick_capacity: 0,
+            tick_stride: 0,
+            cloths: storage_buffer(device, "bvh_cloth_air_cloths", u64::from(cloths) * size_of::<GpuAirCloth>() as u64),
+            sources: storage_buffer(device, "bvh_cloth_wind_sources", 16),
+            ticks: storage_buffer(device, "bvh_cloth_air_ticks", 16),
+            wind: storage_buffer(device, "bvh_cloth_wind", particle_bytes),
+            kicks: storage_buffer(device, "bvh_cloth_air_kicks", particle_bytes),
+            ticks_written: 0,
+            substeps: 0,
+        };
+        plan.grow_sources(device, 4);
+        plan.grow_ticks(device, 4);
+        plan
+    }
+
+    /// Whether the plan still fits a batch of `particles` and `cloths` slots.
+    pub fn fits(&self, particles: u32, cloths: u32) -> bool {
+        self.particle_capacity == particles && self.cloth_capacity >= cloths
+    }
+
+    fn grow_sources(&mut self, device: &Device, count: u32) {
+        self.source_capacity = count.max(4);
+        let bytes = u64::from(self.source_capacity) * size_of::<AirSource>() as u64;
+        self.sources = storage_buffer(device, "bvh_cloth_wind_sources", bytes);
+    }
+
+    fn grow_ticks(&mut self, device: &Device, ticks: u32) {
+        let align = u64::from(device.limits().min_storage_buffer_offset_alignment);
+        self.tick_stride = (u64::from(self.cloth_capacity) * 16).div_ceil(align) * align;
+        self.tick_capacity = ticks.max(4);
+        self.ticks = storage_buffer(device, "bvh_cloth_air_ticks", self.tick_stride * u64::from(self.tick_capacity));
+    }
+
+    /// Writes `frame`. Returns whether a buffer was replaced (the bind groups must be made
+    /// again).
+    pub fn write(&mut self, device: &Device, queue: &Queue, frame: &AirFrame) -> bool {
+        let mut replaced = false;
+        if frame.sources.len() as u32 > self.source_capacity {
+            self.grow_sources(device, 2 * frame.sources.len() as u32);
+            replaced = true;
+        }
+        let ticks = frame.ticks.len().max(1) as u32;
+        if ticks > self.tick_capacity {
+            self.grow_ticks(device, 2 * ticks);
+            replaced = true;
+        }
+        queue.write_buffer(&self.cloths, 0, bytemuck::cast_slice(&frame.cloths));
+        if !frame.sources.is_empty() {
+            queue.write_buffer(&self.sources, 0, bytemuck::cast_slice(&frame.sources));
+        }
+        let stride_words = (self.tick_stride / 16) as usize;
+        let mut words = vec![[0.0f32; 4]; stride_words * frame.ticks.len()];
+        for (k, tick) in frame.ticks.iter().enumerate() {
+            words[k * stride_words..k * stride_words + tick.len()].copy_from_slice(tick);
+        }
+        if !words.is_empty() {
+            queue.write_buffer(&self.ticks, 0, bytemuck::cast_slice(&words));
+        }
+        self.ticks_written = frame.ticks.len() as u32;
+        self.substeps = frame.substeps;
+        replaced
+    }
+
+    /// The bind groups of [`crate::kernels::AIR_KERNELS`].
+    pub fn bind_groups(&self, device: &Device, kernels: &ClothKernels, shared: &SharedBuffers<'_>) -> [BindGroup; 3] {
+        fn buffer(binding: u32, buffer: &Buffer) -> wgpu::BindGroupEntry<'_> {
+            wgpu::BindGroupEntry { binding, resource: buffer.as_entire_binding() }
+        }
+        fn sized(binding: u32, buffer: &Buffer, size: u64) -> wgpu::BindGroupEntry<'_> {
+            let binding_size = wgpu::BufferSize::new(size);
+            let resource = wgpu::BindingResource::Buffer(wgpu::BufferBinding { buffer, offset: 0, size: binding_size });
+            wgpu::BindGroupEntry { binding, resource }
+        }
+        let step = sized(1, shared.steps, size_of::<bvh_cloth_core::gpu_layout::GpuBatchStep>() as u64);
+        let group = |k: usize, entries: &[wgpu::BindGroupEntry<'_>]| {
+            device.create_bind_group(&wgpu::BindGroupDescriptor {
+                label: Some(crate::kernels::AIR_KERNELS[k]),
+                layout: &kernels.air_layouts[k],
+                entries,
+            })
+        };
+        [
+            group(
+                0,
+                &[
+                    buffer(0, shared.frame),
+                    buffer(6, shared.info),
+                    sized(41, &self.ticks, self.tick_stride),
+                    buffer(42, &self.cloths),
+                    buffer(43, &self.sources),
+                    buffer(44, &self.wind),
+                    buffer(46, shared.particles),
+                ],
+            ),
+            group(
+                1,
+                &[
+                    buffer(0, shared.frame),
+                    step.clone(),
+                    buffer(6, shared.info),
+                    buffer(8, shared.cloths),
+                    buffer(42, &self.cloths),
+                    buffer(44, &self.wind),
+                    buffer(45, &self.kicks),
+                    buffer(46, shared.particles),
+                    buffer(47, shared.surface),
+                ],
+            ),
+            group(
+                2,
+                &[
+                    buffer(0, shared.frame),
+                    step,
+                    buffer(6, shared.info),
+                    buffer(8, shared.cloths),
+                    buffer(42, &self.cloths),
+                    buffer(45, &self.kicks),
+                    buffer(46, shared.particles),
+                ],
+            ),
+        ]
+    }
+
+    /// Calls `each` with tick `tick`'s wind sampling (a tick past those written takes the last
+    /// written one's air).
+    pub fn sample(
+        &self,
+        kernels: &ClothKernels,
+        groups: &[BindGroup; 3],
+        workgroups: (u32, u32),
+        tick: u32,
+        each: &mut impl FnMut(Kernel, &dyn Fn(&mut ComputePass<'_>)),
+    ) {
+        let tick = tick.min(self.ticks_written.saturating_sub(1));
+        let offset = [(u64::from(tick) * self.tick_stride) as u32];
+        each(Kernel::AirSample, &|pass| {
+            pass.set_pipeline(&kernels.air[0]);
+            pass.set_bind_group(0, &groups[0], &offset);
+            pass.dispatch_workgroups(workgroups.0, workgroups.1, 1);
+        });
+    }
+
+    /// Calls `each` with substep `k`'s forces and kick, when an air cloth runs that substep.
+    pub fn kick(
+        &self,
+        kernels: &ClothKernels,
+        groups: &[BindGroup; 3],
+        workgroups: (u32, u32),
+        k: u32,
+        each: &mut impl FnMut(Kernel, &dyn Fn(&mut ComputePass<'_>)),
+    ) {
+        if k >= self.substeps {
+            return;
+        }
+        let offset = [(u64::from(3 * k) * UNIFORM_STRIDE) as u32];
+        for (kernel, index) in [(Kernel::AirForces, 1), (Kernel::AirKick, 2)] {
+            each(kernel, &|pass| {
+                pass.set_pipeline(&kernels.air[index]);
+                pass.set_bind_group(0, &groups[index], &offset);
+                pass.dispatch_workgroups(workgroups.0, workgroups.1, 1);
+            });
+        }
+    }
+}

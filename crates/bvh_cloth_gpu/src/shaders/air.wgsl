@@ -1,0 +1,238 @@
+// Aerodynamics (bvh_cloth_core::aerodynamics) for every cloth of the batch with drag or lift:
+// - air_sample, once per tick, one thread per particle slot: the wind at the particle (the
+//   cloth's ambient wind for the tick, its turbulence, every wind source);
+// - air_forces, once per substep before the integrators: each free particle gathers the drag
+//   and lift of its triangles (in its triangle list's order, no atomics) and keeps its capped
+//   change of velocity;
+// - air_kick: adds that change to the particle's velocity. A separate pass, since air_forces
+//   reads its neighbours' velocities.
+// A cloth past its own substeps sits the substep out.
+//
+// Bindings 41-47 (see types.wgsl).
+
+#define_import_path bvh_cloth::air
+#import bvh_cloth::types::{GpuParticle, NO_CLOTH, frame, step, thread_index}
+#import bvh_cloth::springs::{particle_info, cloths}
+
+struct AirCloth {
+    surface_start: u32,
+    vertex_count: u32,
+    seed: u32,
+    source_count: u32,
+    turbulence: f32,
+    inv_scale: f32,
+    drag: f32,
+    lift: f32,
+}
+
+struct WindSource {
+    origin: vec4<f32>,  // w: SOURCE_FAN or SOURCE_BLAST
+    axis: vec4<f32>,    // the fan's unit axis; w: speed
+    reach: vec4<f32>,   // range (or radius), cosine of the fan's spread
+}
+
+const NOISE_TIME_PERIOD: u32 = 4096u;  // bvh_cloth_core::aerodynamics::NOISE_TIME_PERIOD
+const SOURCE_FAN: f32 = 0.0;           // bvh_cloth_core::aerodynamics::SOURCE_FAN
+
+// Per cloth, this tick: the ambient wind (gusts included) and the turbulence's lattice time
+// (bound at the tick's dynamic offset).
+@group(0) @binding(41) var<storage, read> air_ticks: array<vec4<f32>>;
+@group(0) @binding(42) var<storage, read> air_cloths: array<AirCloth>;
+@group(0) @binding(43) var<storage, read> wind_sources: array<WindSource>;
+@group(0) @binding(44) var<storage, read_write> wind: array<vec4<f32>>;
+@group(0) @binding(45) var<storage, read_write> air_kicks: array<vec4<f32>>;
+@group(0) @binding(46) var<storage, read_write> air_particles: array<GpuParticle>;
+@group(0) @binding(47) var<storage, read> air_surface: array<u32>;
+
+// The cloth slot i belongs to if it has aerodynamics, else NO_CLOTH.
+fn air_cloth(i: u32) -> u32 {
+    if (i >= frame.particle_slots) {
+        return NO_CLOTH;
+    }
+    let c = particle_info[i].w;
+    if (c == NO_CLOTH || (air_cloths[c].drag == 0.0 && air_cloths[c].lift == 0.0)) {
+        return NO_CLOTH;
+    }
+    return c;
+}
+
+// bvh_cloth_core::aerodynamics::hash (lowbias32).
+fn noise_hash(v: u32) -> u32 {
+    var x = v;
+    x ^= x >> 16u;
+    x *= 0x7feb352du;
+    x ^= x >> 15u;
+    x *= 0x846ca68bu;
+    x ^= x >> 16u;
+    return x;
+}
+
+fn noise_unit(bits: u32) -> f32 {
+    return (f32(bits & 0x3ffu) - 511.5) * (1.0 / 511.5);
+}
+
+fn noise_smooth(f: f32) -> f32 {
+    return f * f * (3.0 - 2.0 * f);
+}
+
+fn noise_corner(x: i32, y: i32, z: i32, t: u32, seed: u32) -> vec3<f32> {
+    let h = noise_hash(
+        (bitcast<u32>(x) * 0x8da6b343u)
+            ^ (bitcast<u32>(y) * 0xd8163841u)
+            ^ (bitcast<u32>(z) * 0xcb1ab31fu)
+            ^ ((t % NOISE_TIME_PERIOD) * 0x165667b1u)
+            ^ seed
+    );
+    return vec3(noise_unit(h), noise_unit(h >> 10u), noise_unit(h >> 20u));
+}
+
+fn noise_lerp(a: vec3<f32>, b: vec3<f32>, s: f32) -> vec3<f32> {
+    return a + (b - a) * s;
+}
+
+// bvh_cloth_core::aerodynamics::value_noise_4d, with the same arithmetic in the same order.
+fn value_noise_4d(q: vec3<f32>, t: f32, seed: u32) -> vec3<f32> {
+    let cell = floor(q);
+    let tc = floor(t);
+    let x = i32(cell.x);
+    let y = i32(cell.y);
+    let z = i32(cell.z);
+    let ti = u32(tc);
+    let f = q - cell;
+    let sx = noise_smooth(f.x);
+    let sy = noise_smooth(f.y);
+    let sz = noise_smooth(f.z);
+    let st = noise_smooth(t - tc);
+    var by_time: array<vec3<f32>, 2>;
+    for (var k = 0u; k < 2u; k++) {
+        let tk = ti + k;
+        var by_z: array<vec3<f32>, 2>;
+        for (var dz = 0; dz < 2; dz++) {
+            let zk = z + dz;
+            var by_y: array<vec3<f32>, 2>;
+            for (var dy = 0; dy < 2; dy++) {
+                let yk = y + dy;
+                let a = noise_corner(x, yk, zk, tk, seed);
+                let b = noise_corner(x + 1, yk, zk, tk, seed);
+                by_y[dy] = noise_lerp(a, b, sx);
+            }
+            by_z[dz] = noise_lerp(by_y[0], by_y[1], sy);
+        }
+        by_time[k] = noise_lerp(by_z[0], by_z[1], sz);
+    }
+    return noise_lerp(by_time[0], by_time[1], st);
+}
+
+// bvh_cloth_core::aerodynamics::AirSource::velocity_at.
+fn source_wind(s: WindSource, p: vec3<f32>) -> vec3<f32> {
+    let d = p - s.origin.xyz;
+    let dist = sqrt(dot(d, d));
+    let range = s.reach.x;
+    if (!(dist > 0.0 && dist < range)) {
+        return vec3(0.0);
+    }
+    let inv = 1.0 / dist;
+    var strength = s.axis.w * (1.0 - dist * (1.0 / range));
+    if (s.origin.w == SOURCE_FAN) {
+        let cos_spread = s.reach.y;
+        let c = dot(d, s.axis.xyz) * inv;
+        if (c <= cos_spread) {
+            return vec3(0.0);
+        }
+        let f = (c - cos_spread) / (1.0 - cos_spread);
+        strength *= f * f * (3.0 - 2.0 * f);
+    }
+    return d * (strength * inv);
+}
+
+@compute @workgroup_size(8, 8, 1)
+fn air_sample(@builtin(global_invocation_id) id: vec3<u32>) {
+    let i = thread_index(id, frame.dispatch_width);
+    let c = air_cloth(i);
+    if (c == NO_CLOTH) {
+        return;
+    }
+    let air = air_cloths[c];
+    let tick = air_ticks[c];
+    let p = air_particles[i].position.xyz;
+    var w = tick.xyz;
+    if (air.turbulence > 0.0) {
+        w += air.turbulence * value_noise_4d(p * air.inv_scale, tick.w, air.seed);
+    }
+    for (var s = 0u; s < air.source_count; s++) {
+        w += source_wind(wind_sources[s], p);
+    }
+    wind[i] = vec4(w, 0.0);
+}
+
+// bvh_cloth_core::aerodynamics::AirModel::triangle_force: corner k of triangle t of cloth c.
+fn triangle_air(air: AirCloth, start: u32, corners: u32, t: u32) -> vec3<f32> {
+    let a = start + air_surface[corners + 3u * t];
+    let b = start + air_surface[corners + 3u * t + 1u];
+    let cc = start + air_surface[corners + 3u * t + 2u];
+    let xa = air_particles[a].position.xyz;
+    let n2 = cross(air_particles[b].position.xyz - xa, air_particles[cc].position.xyz - xa);
+    let len2 = dot(n2, n2);
+    let w = (wind[a].xyz + wind[b].xyz) + wind[cc].xyz;
+    let v = (air_particles[a].velocity.xyz + air_particles[b].velocity.xyz) + air_particles[cc].velocity.xyz;
+    let u = (w - v) * (1.0 / 3.0);
+    let speed2 = dot(u, u);
+    if (!(len2 > 0.0 && speed2 > 0.0)) {
+        return vec3(0.0);
+    }
+    let len = sqrt(len2);
+    let speed = sqrt(speed2);
+    let n = n2 / len;
+    let flow = u / speed;
+    let cos_theta = dot(n, flow);
+    let q = 0.5 * len * speed2;
+    return flow * (air.drag * q * abs(cos_theta)) + (n - flow * cos_theta) * (air.lift * q * cos_theta);
+}
+
+// bvh_cloth_core::aerodynamics::capped_kick.
+fn capped_kick(dv: vec3<f32>, relative: vec3<f32>) -> vec3<f32> {
+    let dv2 = dot(dv, dv);
+    let rel2 = dot(relative, relative);
+    if (dv2 > rel2) {
+        return dv * sqrt(rel2 / dv2);
+    }
+    return dv;
+}
+
+@compute @workgroup_size(8, 8, 1)
+fn air_forces(@builtin(global_invocation_id) id: vec3<u32>) {
+    let i = thread_index(id, frame.dispatch_width);
+    let c = air_cloth(i);
+    if (c == NO_CLOTH || step.substep >= cloths[c].substeps) {
+        return;
+    }
+    let me = air_particles[i];
+    if (me.position.w == 0.0) {
+        air_kicks[i] = vec4(0.0);
+        return;
+    }
+    let air = air_cloths[c];
+    let start = cloths[c].particle_start;
+    let count = cloths[c].particle_count;
+    let offsets = air.surface_start + air.vertex_count;
+    let lists = offsets + count + 1u;
+    let corners = lists + air_surface[offsets + count];
+    let local = i - start;
+    var f = vec3(0.0);
+    for (var k = air_surface[offsets + local]; k < air_surface[offsets + local + 1u]; k++) {
+        f += triangle_air(air, start, corners, air_surface[lists + k]);
+    }
+    let dv = f * (cloths[c].h * bitcast<f32>(particle_info[i].z));
+    air_kicks[i] = vec4(capped_kick(dv, wind[i].xyz - me.velocity.xyz), 0.0);
+}
+
+@compute @workgroup_size(8, 8, 1)
+fn air_kick(@builtin(global_invocation_id) id: vec3<u32>) {
+    let i = thread_index(id, frame.dispatch_width);
+    let c = air_cloth(i);
+    if (c == NO_CLOTH || step.substep >= cloths[c].substeps || air_particles[i].position.w == 0.0) {
+        return;
+    }
+    let v = air_particles[i].velocity;
+    air_particles[i].velocity = vec4(v.xyz + air_kicks[i].xyz, v.w);
+}
