@@ -1,6 +1,6 @@
 //! A flag on a swaying pole: a mesh built in code (Bevy's subdivided `Plane3d`; a loaded glTF or
 //! OBJ works the same) becomes cloth with `Cloth::mesh()`, held along its pole edge by vertex
-//! index, and flaps in a gusting wind (External Force).
+//! index, and flutters in a gusty, turbulent wind: drag and lift on each of its triangles.
 //!
 //! `cargo run --release -p bevy_bvh_cloth --features egui --example flag`
 //!
@@ -17,7 +17,12 @@ const FLAG: Vec2 = Vec2::new(1.5, 1.0);
 const SUBDIVISIONS: u32 = 30;
 
 fn main() {
-    common::example_app("bevy_bvh_cloth: flag").add_systems(Startup, setup).add_systems(Update, (sway, gusts)).run();
+    common::example_app("bevy_bvh_cloth: flag")
+        // 8 m/s along +X, gusting by 40% and turbulent: see `Wind::gusty`. The panel changes it.
+        .insert_resource(AmbientWind(Wind::gusty(Vec3::new(8.0, 0.0, 0.0))))
+        .add_systems(Startup, setup)
+        .add_systems(Update, sway)
+        .run();
 }
 
 /// The pole the flag hangs from; it sways, and the flag's entity with it.
@@ -43,7 +48,14 @@ fn setup(mut commands: Commands, mut meshes: ResMut<Assets<Mesh>>, mut materials
     commands.spawn((
         Mesh3d(meshes.add(flag)),
         Cloth {
-            params: ClothParams { damping: 0.3, spring_k: 400.0, mass: 0.3, looper: 24, ..default() },
+            params: ClothParams {
+                damping: 0.3,
+                spring_k: 400.0,
+                mass: 0.3,
+                looper: 24,
+                aerodynamics: Aerodynamics::FABRIC,
+                ..default()
+            },
             ..Cloth::mesh()
         }
         .with_pins(ClothPins::Indices(pole_edge)),
@@ -76,14 +88,5 @@ fn sway(time: Res<Time>, mut poles: Query<&mut Transform, With<Pole>>) {
     for mut transform in &mut poles {
         transform.rotation =
             Quat::from_rotation_z(0.08 * (1.3 * t).sin()) * Quat::from_rotation_y(0.6 * (0.4 * t).sin());
-    }
-}
-
-/// A wind along +X that gusts, with a little lift and sideways push.
-fn gusts(time: Res<Time>, mut cloths: Query<&mut Cloth>) {
-    let t = time.elapsed_secs();
-    for mut cloth in &mut cloths {
-        let gust = 1.0 + 0.5 * (0.9 * t).sin() + 0.25 * (2.3 * t).sin();
-        cloth.params.external_force = Vec3::new(2.5 * gust, 0.4, 0.6 * (1.7 * t).sin());
     }
 }

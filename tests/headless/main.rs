@@ -16,3 +16,4 @@ mod self_contact;
 mod skinned;
 #[path = "../common/skinned_arm.rs"]
 mod skinned_arm;
+mod wind;

@@ -48,7 +48,7 @@ use bevy::render::renderer::{RenderContext, RenderDevice, RenderGraph, RenderQue
 use bevy::render::{Extract, ExtractSchedule, MainWorld, Render, RenderSystems};
 use bevy::shader::Shader;
 use bvh_cloth_core::gpu_layout::GpuMeshWriteback;
-use bvh_cloth_core::{Affine3A, ClothParams, ClothSim, Collider, Lbvh, SkinnedSpheres};
+use bvh_cloth_core::{Affine3A, ClothParams, ClothSim, Collider, Lbvh, SkinnedSpheres, Wind, WindSource};
 use bvh_cloth_gpu::{
     ClothBatch, ClothId, ClothKernels, FaultReadback, GpuColliders, KERNEL_COUNT, ParticleReadback, SHADER_FILES,
     SkinRefit, wgpu,
@@ -59,6 +59,7 @@ use crate::collider::ClothCollider;
 use crate::messages::ClothMessage;
 use crate::readback::{ClothReadback, GpuClothState};
 use crate::simulation::{ClothSimulation, rigid_pose};
+use crate::wind::WindSources;
 
 /// The kernels' WGSL files as shader assets, one per [`SHADER_FILES`] entry, held for the
 /// app's lifetime: the pipeline cache compiles the kernels from them, resolving their imports.
@@ -201,6 +202,8 @@ struct ExtractedCloth {
     /// The whole state, when the render world does not have this generation yet.
     fresh: Option<ClothSim>,
     params: ClothParams,
+    /// Its ambient wind (the sources are the world's).
+    wind: Wind,
     /// Where the pins go in each of this frame's ticks.
     anchor_targets: Vec<Vec<(u32, Vec3)>>,
     mesh: AssetId<Mesh>,
@@ -245,6 +248,8 @@ pub(crate) struct GpuClothWorld {
     /// Ticks run since start-up, this frame's included.
     total_ticks: u64,
     tick_seconds: f32,
+    /// This frame's wind sources.
+    wind_sources: Vec<WindSource>,
     extracted: Vec<ExtractedCloth>,
     extracted_colliders: Vec<Collider>,
     /// Their entities, in the same order.
@@ -281,10 +286,12 @@ fn extract_cloths(
     render_ticks: Extract<Res<RenderTicks>>,
     cloths: Extract<Query<ClothToExtract>>,
     colliders: Extract<Query<(Entity, &ClothCollider)>>,
+    sources: Extract<Res<WindSources>>,
 ) {
     world.extracted_skin_poses.clear();
     let poses = colliders.iter().map(|(_, c)| c.gpu_skin_pose().cloned());
     world.extracted_skin_poses.extend(poses);
+    world.wind_sources.clone_from(&sources.0);
     world.ticks = render_ticks.ticks;
     world.total_ticks = clock.total_ticks;
     world.tick_seconds = clock.tick_seconds;
@@ -298,6 +305,7 @@ fn extract_cloths(
                 generation: state.generation,
                 fresh: (known != Some(state.generation)).then(|| sim.clone()),
                 params: sim.params().clone(),
+                wind: *sim.wind(),
                 anchor_targets: render_ticks.anchor_targets.get(&entity).cloned().unwrap_or_default(),
                 mesh: mesh.id(),
                 mesh_to_world: transform.affine(),
@@ -408,6 +416,11 @@ fn prepare_cloths(
     }
     prepare_skin_refits(world, device, &queue, !rewritten);
     let batch = world.batch.get_or_insert_with(|| ClothBatch::new(device, &queue));
+    // The sources were checked in the main world (`gather_wind`); the clock is the CPU
+    // backend's: this frame's first tick starts at its index times the tick length.
+    let _ = batch.set_wind_sources(&world.wind_sources);
+    let first_tick = world.total_ticks.saturating_sub(u64::from(world.ticks));
+    batch.set_wind_clock(first_tick as f64 * f64::from(world.tick_seconds), world.tick_seconds, world.ticks);
 
     // Cloths that are gone leave the batch.
     let present: bevy::ecs::entity::EntityHashSet = world.extracted.iter().map(|c| c.entity).collect();
@@ -469,6 +482,8 @@ fn prepare_cloths(
         batch.set_params(&queue, render.id, &cloth.params, world.tick_seconds.max(f32::MIN_POSITIVE));
         render.self_contact = cloth.params.self_contact.is_some();
         batch.set_anchor_targets(render.id, &cloth.anchor_targets);
+        // Checked in the main world (`gather_wind`): it cannot be refused here.
+        let _ = batch.set_wind(render.id, cloth.wind);
 
         // Where the mesh's vertices are this frame (slabs can move).
         let layout = render_meshes.get(cloth.mesh).and_then(vertex_words);

@@ -5,7 +5,9 @@
 //! arranged in a Morton-code LBVH, after Mei, Fan, Zhang and Liu, *A Collision Detection and
 //! Cloth Simulation Method Based on Parallel BVH*. On an entity without a mesh (a glTF scene
 //! root, a character) it covers every mesh under it. [`PrimitiveCollider`] adds exact spheres,
-//! capsules, boxes and a ground that follow their entity (and so a bone). The math lives in
+//! capsules, boxes and a ground that follow their entity (and so a bone). A cloth with
+//! [`Aerodynamics`] catches the air: the [`AmbientWind`], its own [`LocalWind`], and
+//! [`WindFan`]s and [`WindBlast`]s that follow their entity. The math lives in
 //! [`bvh_cloth_core`], which knows nothing of Bevy.
 //!
 //! ## Getting started
@@ -75,7 +77,7 @@
 //!
 //! | feature | what it adds |
 //! |---|---|
-//! | `egui` | [`ClothPanelPlugin`](panel::ClothPanelPlugin): a live panel for Looper, SpringK, Damping, External Force, the collider resolution, pause, reset and the debug view |
+//! | `egui` | [`ClothPanelPlugin`](panel::ClothPanelPlugin): a live panel for Looper, SpringK, Damping, External Force, the wind, each cloth's integrator, self-contact and drag and lift, the collider resolution, pause, reset and the debug view |
 //!
 //! ## When things go wrong
 //!
@@ -104,6 +106,7 @@ mod readback;
 mod settings;
 mod simulation;
 mod stats;
+mod wind;
 
 use bevy::app::PluginGroupBuilder;
 use bevy::camera::visibility::{NoFrustumCulling, VisibilitySystems};
@@ -119,7 +122,9 @@ use bevy::transform::systems::{mark_dirty_trees, propagate_parent_transforms, sy
 
 pub use backend::{ActiveClothBackend, ClothBackend};
 pub use bvh_cloth_core;
-pub use bvh_cloth_core::{ClothParams, ClothPins, ColorChannel, Integrator, SelfContact, SpringStiffness};
+pub use bvh_cloth_core::{
+    Aerodynamics, ClothParams, ClothPins, ColorChannel, Integrator, SelfContact, SpringStiffness, Wind,
+};
 pub use clock::ClothClock;
 pub use cloth::{Cloth, ClothAnchor, ClothShape};
 pub use collider::{ASYNC_BUILD_MIN_VERTICES, AutoCollider, ClothCollider, ColliderContact, ColliderStatus};
@@ -132,17 +137,19 @@ pub use readback::ClothReadback;
 pub use settings::ClothSettings;
 pub use simulation::ClothSimulation;
 pub use stats::ClothStats;
+pub use wind::{AmbientWind, LocalWind, WindBlast, WindFan};
 
 /// Everything a game needs, in one `use`.
 pub mod prelude {
     #[cfg(feature = "egui")]
     pub use crate::panel::ClothPanelPlugin;
     pub use crate::{
-        ActiveClothBackend, AnchorLost, AutoCollider, BvhClothPlugin, BvhClothPlugins, Cloth, ClothAnchor,
-        ClothBackend, ClothClock, ClothDebugViewPlugin, ClothDiverged, ClothMessage, ClothParams, ClothPins,
-        ClothReadback, ClothRejected, ClothSettings, ClothShape, ClothSimulation, ClothStats, ClothSystems,
+        ActiveClothBackend, Aerodynamics, AmbientWind, AnchorLost, AutoCollider, BvhClothPlugin, BvhClothPlugins,
+        Cloth, ClothAnchor, ClothBackend, ClothClock, ClothDebugViewPlugin, ClothDiverged, ClothMessage, ClothParams,
+        ClothPins, ClothReadback, ClothRejected, ClothSettings, ClothShape, ClothSimulation, ClothStats, ClothSystems,
         ColliderContact, ColliderFailed, ColliderHierarchy, ColliderReady, ColliderStatus, ColorChannel, Integrator,
-        PrimitiveCollider, PrimitiveShape, ResetCloth, SelfContact, SpringStiffness,
+        LocalWind, PrimitiveCollider, PrimitiveShape, ResetCloth, SelfContact, SpringStiffness, Wind, WindBlast,
+        WindFan,
     };
 }
 
@@ -253,9 +260,15 @@ impl Plugin for BvhClothPlugin {
             .register_type::<ClothReadback>()
             .register_type::<ClothBackend>()
             .register_type::<ActiveClothBackend>()
+            .register_type::<AmbientWind>()
+            .register_type::<LocalWind>()
+            .register_type::<WindFan>()
+            .register_type::<WindBlast>()
             .init_resource::<ClothSettings>()
             .init_resource::<ClothClock>()
             .init_resource::<ClothStats>()
+            .init_resource::<AmbientWind>()
+            .init_resource::<wind::WindSources>()
             .init_resource::<ClothBackend>()
             .init_resource::<ActiveClothBackend>()
             .init_resource::<gpu_backend::RenderTicks>()
@@ -291,6 +304,7 @@ impl Plugin for BvhClothPlugin {
                         .chain()
                         .in_set(ClothSystems::Prepare),
                     (
+                        wind::gather_wind,
                         simulation::plan_anchors,
                         cpu_backend::step_cloths.run_if(backend::cpu_backend_active),
                         gpu_backend::queue_render_ticks.run_if(not(backend::cpu_backend_active)),

@@ -1,6 +1,7 @@
 //! The live parameter panel (feature `egui`): the paper's Looper, SpringK, Damping and
-//! External Force, plus pause, reset, the integrator, self-contact, the collider resolution (or
-//! voxel size) and contact, the debug view and live figures.
+//! External Force, plus pause, reset, the wind, each cloth's integrator, self-contact and
+//! aerodynamics, the collider resolution (or voxel size) and contact, the debug view and live
+//! figures.
 
 use core::ops::DerefMut;
 
@@ -10,8 +11,8 @@ use bvh_cloth_core::params::MAX_ITERATIONS;
 use bvh_cloth_core::self_contact::particle_spacing;
 
 use crate::{
-    AutoCollider, Cloth, ClothSettings, ClothShape, ClothSimulation, ClothStats, ColliderContact, ColliderStatus,
-    Integrator, ResetCloth, SelfContact,
+    Aerodynamics, AmbientWind, AutoCollider, Cloth, ClothSettings, ClothShape, ClothSimulation, ClothStats,
+    ColliderContact, ColliderStatus, Integrator, ResetCloth, SelfContact,
 };
 
 /// Adds the panel (and [`EguiPlugin`] if the app has none).
@@ -39,6 +40,7 @@ fn edit_in_place<T: Clone + PartialEq>(value: &mut impl DerefMut<Target = T>, ed
 fn cloth_panel(
     mut contexts: EguiContexts,
     mut settings: ResMut<ClothSettings>,
+    mut wind: ResMut<AmbientWind>,
     stats: Res<ClothStats>,
     mut cloths: Query<(Entity, &mut Cloth, Option<&ClothSimulation>)>,
     mut colliders: Query<(Entity, &mut AutoCollider, &ColliderStatus)>,
@@ -70,6 +72,24 @@ fn cloth_panel(
         if ui.button("Reset cloth (R)").clicked() {
             resets.write(ResetCloth::All);
         }
+        ui.separator();
+        edit_in_place(&mut wind, |w| {
+            let wind = &mut w.0;
+            // Speed and heading in the horizontal plane; the vertical part is kept.
+            // The velocity is rewritten only when a slider moves, so that the round trip through
+            // the angle does not change an idle wind every frame.
+            let horizontal = Vec2::new(wind.velocity.x, wind.velocity.z);
+            let mut speed = horizontal.length();
+            let mut heading = horizontal.y.atan2(horizontal.x).to_degrees();
+            let moved = ui.add(egui::Slider::new(&mut speed, 0.0..=30.0).text("Wind (m/s)")).changed()
+                | ui.add(egui::Slider::new(&mut heading, -180.0..=180.0).text("Wind heading (°)")).changed();
+            if moved {
+                let (sin, cos) = heading.to_radians().sin_cos();
+                wind.velocity = Vec3::new(speed * cos, wind.velocity.y, speed * sin);
+            }
+            ui.add(egui::Slider::new(&mut wind.gust_strength, 0.0..=1.0).text("Gusts"));
+            ui.add(egui::Slider::new(&mut wind.turbulence, 0.0..=10.0).text("Turbulence (m/s)"));
+        });
 
         for (entity, mut cloth, simulation) in &mut cloths {
             // The thickest self-contact the cloth accepts: its particle spacing (5 cm until the
@@ -104,8 +124,16 @@ fn cloth_panel(
                 if let Integrator::BlockDescent { iterations } = &mut c.params.integrator {
                     ui.add(egui::Slider::new(iterations, 1..=MAX_ITERATIONS).text("Iterations per substep"));
                 }
+                let mut air = c.params.aerodynamics.is_active();
+                if ui.checkbox(&mut air, "Aerodynamics (feels the wind)").changed() {
+                    c.params.aerodynamics = if air { Aerodynamics::FABRIC } else { Aerodynamics::NONE };
+                }
+                if air {
+                    ui.add(egui::Slider::new(&mut c.params.aerodynamics.drag, 0.0..=3.0).text("Drag coefficient"));
+                    ui.add(egui::Slider::new(&mut c.params.aerodynamics.lift, 0.0..=3.0).text("Lift coefficient"));
+                }
                 let mut contact = c.params.self_contact.is_some();
-                if ui.checkbox(&mut contact, "Self-contact (CPU backend)").changed() {
+                if ui.checkbox(&mut contact, "Self-contact").changed() {
                     c.params.self_contact = contact.then_some(SelfContact { thickness: 0.5 * spacing, friction: 0.3 });
                 }
                 if let Some(contact) = &mut c.params.self_contact {

@@ -17,12 +17,14 @@
 //! 10. Exact contact against sphere contact: the resting air gap, queries and build.
 //! 11. Self-contact: a cloth folding over a bar and two cloths on the bunny, checked with an
 //!     exact triangle–triangle test, and its cost.
+//! 12. Wind: a flag's flutter in steady wind (the free edge's spectral peak) and its energy on
+//!     both backends, GPU against CPU in gusty wind, and what drag and lift cost.
 //!
 //! `WGPU_BACKEND=vulkan cargo bench -p bvh_cloth_bench --bench report`
 //! (without a GPU adapter the GPU columns say so and the rest still runs). Append `-- NAME` to
 //! run only the sections whose name contains NAME: `table_vii`, `queries`, `fidelity`,
 //! `step_scaling`, `topology`, `gpu_profile`, `many_cloths`, `build_scaling`, `far_from_origin`,
-//! `solver`, `primitives`, `skinned_refit`, `exact_contact`, `self_contact`.
+//! `solver`, `primitives`, `skinned_refit`, `exact_contact`, `self_contact`, `wind`.
 
 use std::fmt::Write as _;
 use std::sync::Arc;
@@ -34,12 +36,13 @@ use bvh_cloth_bench::{
 use bvh_cloth_core::obj::ObjMesh;
 
 use bvh_cloth_core::collision::{CONTACT_BAND, ColliderFrame};
+use bvh_cloth_core::gpu_layout::{GpuParticle, load_gpu_particles};
 use bvh_cloth_core::self_contact::{ContactSolver, SelfContact};
 use bvh_cloth_core::skinning::{SkinRef, SkinScratch, SkinnedVertices};
 use bvh_cloth_core::triangles::crossing_pairs;
 use bvh_cloth_core::{
-    Affine3A, ClothGrid, ClothParams, ClothSim, ClothTopology, Collider, ColliderPose, Integrator, Primitive, Quat,
-    UVec2, Vec2, Vec3,
+    Aerodynamics, Affine3A, ClothGrid, ClothParams, ClothSim, ClothTopology, Collider, ColliderPose, Integrator,
+    Primitive, Quat, UVec2, Vec2, Vec3, Wind,
 };
 use bvh_cloth_gpu::{ClothBatch, ClothKernels, GpuColliders, Kernel, SkinRefit, headless, wgpu};
 use parry3d::math::Vector;
@@ -129,6 +132,9 @@ fn main() {
     }
     if run("self_contact") {
         self_contact(&meshes[0], &single, threads, gpu.as_ref());
+    }
+    if run("wind") {
+        wind(&meshes[0], &single, threads, gpu.as_ref());
     }
     println!("\nCSV written to docs/benchmarks/ (plot: python3 scripts/plot_benchmarks.py)");
 }
@@ -296,6 +302,7 @@ fn kernel_column(kernel: Kernel) -> usize {
         | Kernel::ContactScatter
         | Kernel::ContactFind
         | Kernel::ContactApply => 6,
+        Kernel::AirSample | Kernel::AirForces | Kernel::AirKick => 7,
     }
 }
 
@@ -304,7 +311,7 @@ fn kernel_column(kernel: Kernel) -> usize {
 /// dispatch in a compute pass of its own, after a second of falling (10 ticks on a software
 /// adapter). `None` without timestamp queries, or when a tick has more dispatches than a query
 /// set holds.
-fn kernel_ms(gpu: &Gpu, c: &Collider, cloths: &[ClothSim]) -> Option<([f64; 7], f64)> {
+fn kernel_ms(gpu: &Gpu, c: &Collider, cloths: &[ClothSim]) -> Option<([f64; 8], f64)> {
     if !gpu.device.features().contains(wgpu::Features::TIMESTAMP_QUERY) {
         return None;
     }
@@ -333,7 +340,7 @@ fn kernel_ms(gpu: &Gpu, c: &Collider, cloths: &[ClothSim]) -> Option<([f64; 7], 
         mapped_at_creation: false,
     });
     let period_ns = f64::from(gpu.queue.get_timestamp_period());
-    let mut samples: Vec<[f64; 7]> = Vec::new();
+    let mut samples: Vec<[f64; 8]> = Vec::new();
     for _ in 0..9 {
         let mut encoder = gpu.device.create_command_encoder(&Default::default());
         let kernels = batch.encode_ticks_timed(&mut encoder, &gpu.kernels, 1, &queries, capacity)?;
@@ -341,7 +348,7 @@ fn kernel_ms(gpu: &Gpu, c: &Collider, cloths: &[ClothSim]) -> Option<([f64; 7], 
         encoder.resolve_query_set(&queries, 0..used, &resolved, 0);
         gpu.queue.submit([encoder.finish()]);
         let stamps: Vec<u64> = headless::read(&gpu.device, &gpu.queue, &resolved);
-        let mut ms = [0.0f64; 7];
+        let mut ms = [0.0f64; 8];
         for (k, &kernel) in kernels.iter().enumerate() {
             ms[kernel_column(kernel)] += stamps[2 * k + 1].saturating_sub(stamps[2 * k]) as f64 * period_ns * 1e-6;
         }
@@ -1406,4 +1413,196 @@ fn bent_pose() -> Vec<Affine3A> {
         matrices.push(parent);
     }
     matrices
+}
+
+/// The flag of the wind section: 1.5 m x 1 m, 48 x 32 particles, 0.3 kg, SpringK 400, held
+/// along its hoist (a vertical pole at the origin), standing in the XY plane, with
+/// [`Aerodynamics::FABRIC`].
+fn flag(integrator: Integrator) -> ClothSim {
+    let (cols, rows) = (48u32, 32u32);
+    let grid = ClothGrid::new(Vec2::new(1.5, 1.0), UVec2::new(cols, rows));
+    let pole: Vec<u32> = (0..rows).map(|r| r * cols).collect();
+    let params = ClothParams {
+        mass: 0.3,
+        spring_k: 400.0,
+        damping: 0.3,
+        integrator,
+        aerodynamics: Aerodynamics::FABRIC,
+        ..Default::default()
+    };
+    let pose =
+        Affine3A::from_translation(Vec3::new(0.75, 2.0, 0.0)) * Affine3A::from_rotation_x(std::f32::consts::FRAC_PI_2);
+    let topology = Arc::new(ClothTopology::grid(grid).expect("a valid grid"));
+    ClothSim::new(params, topology, pose, &pole).expect("a valid flag")
+}
+
+/// The particle at the middle of the flag's free edge.
+const FLAG_PROBE: usize = 16 * 48 + 47;
+
+/// The largest peak of the spectrum of `x` (sampled every `dt` seconds, its mean removed)
+/// away from zero frequency: `(frequency in Hz, amplitude)`, by a plain DFT.
+fn spectral_peak(x: &[f32], dt: f32) -> (f64, f64) {
+    let n = x.len();
+    let mean = x.iter().map(|&v| f64::from(v)).sum::<f64>() / n as f64;
+    (1..n / 2)
+        .map(|k| {
+            let (re, im) = x.iter().enumerate().fold((0.0f64, 0.0f64), |(re, im), (j, &v)| {
+                let angle = -std::f64::consts::TAU * (k * j) as f64 / n as f64;
+                (re + (f64::from(v) - mean) * angle.cos(), im + (f64::from(v) - mean) * angle.sin())
+            });
+            (k as f64 / (n as f64 * f64::from(dt)), 2.0 * re.hypot(im) / n as f64)
+        })
+        .fold((0.0, 0.0), |best, peak| if peak.1 > best.1 { peak } else { best })
+}
+
+/// Kinetic energy in joules.
+fn kinetic_energy(sim: &ClothSim) -> f64 {
+    sim.velocities().iter().enumerate().map(|(i, v)| 0.5 * f64::from(sim.particle_mass(i) * v.length_squared())).sum()
+}
+
+fn wind(bunny: &ObjMesh, single: &rayon::ThreadPool, threads: usize, gpu: Option<&Gpu>) {
+    const SETTLE: u32 = 240;
+    const SAMPLES: usize = 360;
+    println!("\n## Wind: drag and lift\n");
+    println!(
+        "A flag of 1.5 m x 1 m (48 x 32 particles, 0.3 kg, SpringK 400, Looper 16, drag 1.2, lift 0.8) held along a vertical pole, in a steady 8 m/s wind along its plane. After {:.0} s, the cross-wind (z) position of the middle of its free edge is sampled every tick for {:.0} s; its spectrum's largest peak away from zero frequency is the flutter, and the mean kinetic energy of the two halves of that window shows whether it grows.\n",
+        SETTLE as f32 * TICK,
+        SAMPLES as f32 * TICK
+    );
+    println!("| backend | integrator | flutter Hz | amplitude mm | kinetic energy, first half J | second half J |");
+    println!("|---|---|---|---|---|---|");
+    let steady = Wind::steady(Vec3::new(8.0, 0.0, 0.0));
+    let report = |backend: &str, integrator: Integrator, z: &[f32], energy: &[f64]| {
+        let (hz, amplitude) = spectral_peak(z, TICK);
+        let half = energy.len() / 2;
+        let mean = |e: &[f64]| e.iter().sum::<f64>() / e.len() as f64;
+        println!(
+            "| {backend} | {integrator:?} | {hz:.2} | {:.1} | {:.4} | {:.4} |",
+            amplitude * 1e3,
+            mean(&energy[..half]),
+            mean(&energy[half..])
+        );
+    };
+    for integrator in [Integrator::BLOCK_DESCENT, Integrator::Rk4] {
+        let mut sim = flag(integrator);
+        sim.set_wind(steady, &[]).expect("a valid wind");
+        let (mut z, mut energy) = (Vec::new(), Vec::new());
+        for tick in 0..SETTLE as usize + SAMPLES {
+            sim.tick(TICK, &[]);
+            if tick >= SETTLE as usize {
+                z.push(sim.position(FLAG_PROBE).z);
+                energy.push(kinetic_energy(&sim));
+            }
+        }
+        report("CPU", integrator, &z, &energy);
+    }
+    let none = gpu.map(|gpu| GpuColliders::new(&gpu.device, &[]));
+    if let (Some(gpu), Some(none)) = (gpu, &none) {
+        for integrator in [Integrator::BLOCK_DESCENT, Integrator::Rk4] {
+            let mut sim = flag(integrator);
+            sim.set_wind(steady, &[]).expect("a valid wind");
+            let mut batch = ClothBatch::new(&gpu.device, &gpu.queue);
+            let id = batch.insert(&gpu.device, &gpu.queue, &sim).expect("the flag fits the device");
+            batch.set_params(&gpu.queue, id, sim.params(), TICK);
+            let (mut z, mut energy) = (Vec::new(), Vec::new());
+            let tick = |batch: &mut ClothBatch, ticks: u32| {
+                batch.prepare(&gpu.device, &gpu.queue, &gpu.kernels, none);
+                let mut encoder = gpu.device.create_command_encoder(&Default::default());
+                batch.encode_ticks(&mut encoder, &gpu.kernels, ticks);
+                gpu.queue.submit([encoder.finish()]);
+            };
+            tick(&mut batch, SETTLE);
+            for _ in 0..SAMPLES {
+                tick(&mut batch, 1);
+                let (buffer, offset, size) = batch.particles(id).expect("the flag is in the batch");
+                let all: Vec<GpuParticle> = headless::read(&gpu.device, &gpu.queue, buffer);
+                let first = (offset / size_of::<GpuParticle>() as u64) as usize;
+                load_gpu_particles(&mut sim, &all[first..first + (size / size_of::<GpuParticle>() as u64) as usize]);
+                z.push(sim.position(FLAG_PROBE).z);
+                energy.push(kinetic_energy(&sim));
+            }
+            report(&format!("GPU ({})", gpu.name), integrator, &z, &energy);
+        }
+    }
+
+    println!("\n### GPU against CPU in gusty wind\n");
+    match (gpu, &none) {
+        (Some(gpu), Some(none)) => {
+            println!(
+                "The flag (block descent) in `Wind::gusty` (8 m/s, 40% gusts, 1.6 m/s turbulence), 90 ticks; before each tick the GPU takes the CPU's state, and both sample the wind at the same clock time. Largest distance between the two after one tick:\n"
+            );
+            let mut sim = flag(Integrator::BLOCK_DESCENT);
+            sim.set_wind(Wind { seed: 3, ..Wind::gusty(Vec3::new(8.0, 0.0, 1.0)) }, &[]).expect("a valid wind");
+            let mut batch = ClothBatch::new(&gpu.device, &gpu.queue);
+            let id = batch.insert(&gpu.device, &gpu.queue, &sim).expect("the flag fits the device");
+            batch.set_params(&gpu.queue, id, sim.params(), TICK);
+            let mut worst = 0.0f32;
+            for _ in 0..90 {
+                batch.upload_state(&gpu.queue, id, &sim);
+                batch.set_wind_clock(sim.wind_time(), TICK, 1);
+                sim.tick(TICK, &[]);
+                batch.prepare(&gpu.device, &gpu.queue, &gpu.kernels, none);
+                let mut encoder = gpu.device.create_command_encoder(&Default::default());
+                batch.encode_ticks(&mut encoder, &gpu.kernels, 1);
+                gpu.queue.submit([encoder.finish()]);
+                let (buffer, offset, _) = batch.particles(id).expect("the flag is in the batch");
+                let all: Vec<GpuParticle> = headless::read(&gpu.device, &gpu.queue, buffer);
+                let first = (offset / size_of::<GpuParticle>() as u64) as usize;
+                for (i, p) in all[first..first + sim.len()].iter().enumerate() {
+                    let on_gpu = Vec3::new(p.position[0], p.position[1], p.position[2]);
+                    worst = worst.max(on_gpu.distance(sim.position(i)));
+                }
+            }
+            println!("| adapter | largest gap m |\n|---|---|\n| {} | {worst:.1e} |", gpu.name);
+        }
+        _ => println!("No GPU adapter."),
+    }
+
+    println!("\n### Cost: a 64 x 64 cloth (1.4 m) hanging from two corners in gusty wind\n");
+    println!(
+        "After 1 s in `Wind::gusty` (8 m/s), the same state ticks with and without drag and lift, alternating, best of 9 each (ms per 60 Hz tick, block descent, Looper 16): the wind sampled once a tick, drag and lift once a substep.\n"
+    );
+    println!("| threads | tick without aerodynamics ms | tick with ms | aerodynamics / rest of the tick |");
+    println!("|---|---|---|---|");
+    let grid = Arc::new(ClothTopology::grid(square_grid(64)).expect("a valid grid"));
+    let params = ClothParams { aerodynamics: Aerodynamics::FABRIC, ..Default::default() };
+    let pose = Affine3A::from_translation(Vec3::new(0.0, 2.0, 0.0)) * Affine3A::from_rotation_x(0.3);
+    let mut with = ClothSim::new(params, grid, pose, &[0, 63]).expect("a valid cloth");
+    with.set_wind(Wind::gusty(Vec3::new(8.0, 0.0, 2.0)), &[]).expect("a valid wind");
+    for _ in 0..(1.0 / TICK).round() as u32 {
+        with.tick(TICK, &[]);
+    }
+    let mut without = with.clone();
+    without.set_params(ClothParams { aerodynamics: Aerodynamics::NONE, ..with.params().clone() }).expect("valid");
+    let measure = || {
+        (0..9).fold((f64::INFINITY, f64::INFINITY), |(off, on), _| {
+            let mut a = without.clone();
+            let mut b = with.clone();
+            let t_off = time(|| _ = a.tick(TICK, &[]));
+            let t_on = time(|| _ = b.tick(TICK, &[]));
+            (off.min(t_off), on.min(t_on))
+        })
+    };
+    for (label, (off, on)) in [("1", single.install(measure)), (&*threads.to_string(), measure())] {
+        println!("| {label} | {:.2} | {:.2} | {:.0}% |", off * 1e3, on * 1e3, (on - off) / off * 100.0);
+    }
+    let Some(gpu) = gpu else { return };
+    println!(
+        "\nOn the GPU, the same cloth from the same state: GPU ms per tick by timestamp queries, each dispatch in a compute pass of its own, median of 9 ticks (the cloth stays clear of the bunny, which is only there because the profile needs a collider).\n"
+    );
+    println!("| adapter | aerodynamics ms | rest of the tick ms | aerodynamics / rest |");
+    println!("|---|---|---|---|");
+    let far_away =
+        collider(bunny, 5).with_pose(ColliderPose { translation: Vec3::new(50.0, 0.0, 0.0), ..Default::default() });
+    match kernel_ms(gpu, &far_away, std::slice::from_ref(&with)) {
+        Some((column, total)) => {
+            let air = column[kernel_column(Kernel::AirForces)];
+            let rest = total - air;
+            println!("| {} | {air:.3} | {rest:.3} | {:.0}% |", gpu.name, air / rest * 100.0);
+        }
+        None => println!("| {} | no timestamp queries | | |", gpu.name),
+    }
+    if gpu.software {
+        println!("\nThe GPU here is a software adapter on the same CPU cores: its times are not GPU figures.");
+    }
 }

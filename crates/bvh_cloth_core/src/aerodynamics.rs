@@ -56,8 +56,10 @@ pub const MAX_AIR_DENSITY: f32 = 10.0;
 /// Lattice steps after which the noise's time axis repeats.
 pub const NOISE_TIME_PERIOD: u32 = 4096;
 
-/// Particles one rayon task handles at least.
-const MIN_TASK: usize = 2048;
+/// Particles (or triangles) one rayon task handles at least: below that a pass is not split,
+/// since a fork and join costs more than the work it would share (a 64x64 cloth's 7,938
+/// triangles are not split).
+const MIN_TASK: usize = 8192;
 
 /// How a cloth catches the air: its drag and lift coefficients.
 ///
@@ -348,21 +350,28 @@ impl AirModel {
     /// times its inverse mass share. The GPU's `triangle_air` repeats this arithmetic.
     #[inline]
     pub fn triangle_force(&self, x: [Vec3; 3], v: [Vec3; 3], w: [Vec3; 3]) -> Vec3 {
-        let n2 = (x[1] - x[0]).cross(x[2] - x[0]);
-        let len2 = n2.dot(n2);
+        self.triangle_force_simd(x.map(Vec3A::from), v.map(Vec3A::from), w.map(Vec3A::from)).into()
+    }
+
+    /// [`Self::triangle_force`] on SIMD vectors.
+    ///
+    /// With the cross product `m = 2 A n` and `d = m · u` (so `cos θ = d / (|m| |u|)`), the drag
+    /// `½ ρ C_d A |u|² |cos θ| û` is `½ ρ C_d |d| u / 2` and the lift
+    /// `½ ρ C_l A |u|² cos θ (n - cos θ û)` is `½ ρ C_l d (|u| / |m|) (m - (d / |u|²) u) / 2`:
+    /// one square root and two divisions, the factor `½ ρ C / (3 m)` being in `drag` and `lift`.
+    #[inline]
+    fn triangle_force_simd(&self, x: [Vec3A; 3], v: [Vec3A; 3], w: [Vec3A; 3]) -> Vec3A {
+        let m = (x[1] - x[0]).cross(x[2] - x[0]);
+        let m2 = m.dot(m);
         let u = ((w[0] + w[1] + w[2]) - (v[0] + v[1] + v[2])) * (1.0 / 3.0);
-        let speed2 = u.dot(u);
-        if !(len2 > 0.0 && speed2 > 0.0) {
-            return Vec3::ZERO;
+        let u2 = u.dot(u);
+        if !(m2 > 0.0 && u2 > 0.0) {
+            return Vec3A::ZERO;
         }
-        let len = len2.sqrt();
-        let speed = speed2.sqrt();
-        let n = n2 / len;
-        let flow = u / speed;
-        let c = n.dot(flow);
-        // A |u|², the area being half the cross product's length.
-        let q = 0.5 * len * speed2;
-        flow * (self.drag * q * c.abs()) + (n - flow * c) * (self.lift * q * c)
+        let d = m.dot(u);
+        let drag = (0.5 * self.drag * d.abs()) * u;
+        let lift = (0.5 * self.lift * d * (u2 / m2).sqrt()) * (m - u * (d / u2));
+        drag + lift
     }
 }
 
@@ -371,20 +380,22 @@ impl AirModel {
 #[derive(Clone, Debug, Default)]
 pub struct Air {
     /// The wind at each particle, sampled at the tick's start.
-    pub wind: Vec<Vec3>,
-    /// Each triangle's force per corner (see [`AirModel::triangle_force`]).
-    forces: Vec<Vec3>,
+    pub wind: Vec<Vec3A>,
+    /// Each triangle's force per corner (see [`AirModel::triangle_force`]), and each
+    /// particle's sum of them.
+    forces: Vec<Vec3A>,
+    sums: Vec<Vec3A>,
 }
 
 impl Air {
     /// Samples the wind at every particle of `x`.
     pub fn sample(&mut self, model: &AirModel, sources: &[AirSource], x: &[Vec3A]) {
-        self.wind.resize(x.len(), Vec3::ZERO);
+        self.wind.resize(x.len(), Vec3A::ZERO);
         self.wind
             .par_iter_mut()
             .zip(x.par_iter())
             .with_min_len(MIN_TASK)
-            .for_each(|(w, &p)| *w = model.wind_at(p.into(), sources));
+            .for_each(|(w, &p)| *w = model.wind_at(p.into(), sources).into());
     }
 
     /// One substep's kick: every free particle's velocity changes by `h` times its aerodynamic
@@ -400,34 +411,51 @@ impl Air {
         x: &[Vec3A],
         v: &mut [Vec3A],
     ) {
+        let triangles = topology.triangles();
         let wind = &self.wind;
-        self.forces.resize(topology.triangles().len(), Vec3::ZERO);
+        let inv_share = topology.inv_mass_share();
+        let apply = |i: usize, f: Vec3A, v: &mut Vec3A| {
+            if free[i] != 0.0 {
+                let dv = f * (h * inv_share[i]);
+                *v += capped_kick_simd(dv, wind[i] - *v);
+            }
+        };
+        let force = |t: &[u32; 3], v: &[Vec3A]| {
+            let [a, b, c] = t.map(|k| k as usize);
+            model.triangle_force_simd([x[a], x[b], x[c]], [v[a], v[b], v[c]], [wind[a], wind[b], wind[c]])
+        };
+        self.forces.resize(triangles.len(), Vec3A::ZERO);
         {
             let velocities: &[Vec3A] = v;
-            self.forces.par_iter_mut().zip(topology.triangles().par_iter()).with_min_len(MIN_TASK).for_each(
-                |(f, t)| {
-                    let [a, b, c] = t.map(|k| k as usize);
-                    *f = model.triangle_force(
-                        [x[a].into(), x[b].into(), x[c].into()],
-                        [velocities[a].into(), velocities[b].into(), velocities[c].into()],
-                        [wind[a], wind[b], wind[c]],
-                    );
-                },
-            );
+            self.forces
+                .par_iter_mut()
+                .zip(triangles.par_iter())
+                .with_min_len(MIN_TASK)
+                .for_each(|(f, t)| *f = force(t, velocities));
         }
         let forces = &self.forces;
-        let inv_share = topology.inv_mass_share();
-        v.par_iter_mut().enumerate().with_min_len(MIN_TASK).for_each(|(i, v)| {
-            if free[i] == 0.0 {
-                return;
+        if v.len() < MIN_TASK {
+            // Scattered in triangle order, each particle's sum takes its triangles in the order
+            // of its triangle list (ascending), as the gather below and the GPU's do.
+            self.sums.clear();
+            self.sums.resize(v.len(), Vec3A::ZERO);
+            for (t, f) in triangles.iter().zip(forces) {
+                for &k in t {
+                    self.sums[k as usize] += *f;
+                }
             }
-            let mut f = Vec3::ZERO;
-            for &t in topology.triangles_of(i) {
-                f += forces[t as usize];
+            for (i, (v, &f)) in v.iter_mut().zip(&self.sums).enumerate() {
+                apply(i, f, v);
             }
-            let dv = f * (h * inv_share[i]);
-            *v += Vec3A::from(capped_kick(dv, wind[i] - Vec3::from(*v)));
-        });
+        } else {
+            v.par_iter_mut().enumerate().with_min_len(MIN_TASK).for_each(|(i, v)| {
+                let mut f = Vec3A::ZERO;
+                for &t in topology.triangles_of(i) {
+                    f += forces[t as usize];
+                }
+                apply(i, f, v);
+            });
+        }
     }
 }
 
@@ -435,6 +463,12 @@ impl Air {
 /// where it is longer. The GPU's `air_kick` repeats this arithmetic.
 #[inline]
 pub fn capped_kick(dv: Vec3, relative: Vec3) -> Vec3 {
+    capped_kick_simd(dv.into(), relative.into()).into()
+}
+
+/// [`capped_kick`] on SIMD vectors.
+#[inline]
+fn capped_kick_simd(dv: Vec3A, relative: Vec3A) -> Vec3A {
     let dv2 = dv.dot(dv);
     let rel2 = relative.dot(relative);
     if dv2 > rel2 { dv * (rel2 / dv2).sqrt() } else { dv }
@@ -475,22 +509,22 @@ pub fn value_noise_1d(t: f32, seed: u32) -> f32 {
     a + (b - a) * s
 }
 
-/// The hash of one corner of the four-dimensional lattice.
+/// One coordinate's key in a lattice corner's hash: the coordinate times its own odd constant.
+/// A corner's hash is that of its four keys and the seed, XORed.
 #[inline]
-fn corner(x: i32, y: i32, z: i32, t: u32, seed: u32) -> u32 {
-    hash(
-        (x as u32).wrapping_mul(0x8da6_b343)
-            ^ (y as u32).wrapping_mul(0xd816_3841)
-            ^ (z as u32).wrapping_mul(0xcb1a_b31f)
-            ^ (t % NOISE_TIME_PERIOD).wrapping_mul(0x1656_67b1)
-            ^ seed,
-    )
+fn lattice_key(coordinate: i32, prime: u32) -> u32 {
+    (coordinate as u32).wrapping_mul(prime)
+}
+
+#[inline]
+fn time_key(t: u32) -> u32 {
+    (t % NOISE_TIME_PERIOD).wrapping_mul(0x1656_67b1)
 }
 
 /// A corner's vector: three lattice values from one hash.
 #[inline]
-fn corner_vector(h: u32) -> Vec3 {
-    Vec3::new(unit(h), unit(h >> 10), unit(h >> 20))
+fn corner_vector(h: u32) -> Vec3A {
+    Vec3A::new(unit(h), unit(h >> 10), unit(h >> 20))
 }
 
 /// A vector value noise in space and time, each component in `[-1, 1]`: at `q` (lattice
@@ -503,25 +537,28 @@ pub fn value_noise_4d(q: Vec3, t: f32, seed: u32) -> Vec3 {
     let ti = tc as u32;
     let f = q - cell;
     let (sx, sy, sz, st) = (smooth(f.x), smooth(f.y), smooth(f.z), smooth(t - tc));
-    let lerp = |a: Vec3, b: Vec3, s: f32| a + (b - a) * s;
-    let mut by_time = [Vec3::ZERO; 2];
-    for (k, slice) in by_time.iter_mut().enumerate() {
-        let tk = ti.wrapping_add(k as u32);
-        let mut by_z = [Vec3::ZERO; 2];
-        for (dz, plane) in by_z.iter_mut().enumerate() {
-            let zk = z.wrapping_add(dz as i32);
-            let mut by_y = [Vec3::ZERO; 2];
-            for (dy, row) in by_y.iter_mut().enumerate() {
-                let yk = y.wrapping_add(dy as i32);
-                let a = corner_vector(corner(x, yk, zk, tk, seed));
-                let b = corner_vector(corner(x.wrapping_add(1), yk, zk, tk, seed));
+    let lerp = |a: Vec3A, b: Vec3A, s: f32| a + (b - a) * s;
+    // The corners' hashes XOR one key per coordinate (as `corner` does): each key is found once.
+    let xs = [lattice_key(x, 0x8da6_b343), lattice_key(x.wrapping_add(1), 0x8da6_b343)];
+    let ys = [lattice_key(y, 0xd816_3841), lattice_key(y.wrapping_add(1), 0xd816_3841)];
+    let zs = [lattice_key(z, 0xcb1a_b31f), lattice_key(z.wrapping_add(1), 0xcb1a_b31f)];
+    let ts = [time_key(ti) ^ seed, time_key(ti.wrapping_add(1)) ^ seed];
+    let mut by_time = [Vec3A::ZERO; 2];
+    for (slice, tk) in by_time.iter_mut().zip(ts) {
+        let mut by_z = [Vec3A::ZERO; 2];
+        for (plane, zk) in by_z.iter_mut().zip(zs) {
+            let mut by_y = [Vec3A::ZERO; 2];
+            for (row, yk) in by_y.iter_mut().zip(ys) {
+                let key = yk ^ zk ^ tk;
+                let a = corner_vector(hash(xs[0] ^ key));
+                let b = corner_vector(hash(xs[1] ^ key));
                 *row = lerp(a, b, sx);
             }
             *plane = lerp(by_y[0], by_y[1], sy);
         }
         *slice = lerp(by_z[0], by_z[1], sz);
     }
-    lerp(by_time[0], by_time[1], st)
+    lerp(by_time[0], by_time[1], st).into()
 }
 
 fn in_range(field: &'static str, value: f32, min: f32, max: f32) -> Result<(), ClothError> {

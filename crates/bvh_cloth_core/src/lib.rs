@@ -78,7 +78,7 @@ pub mod voxel_spheres;
 pub use aerodynamics::{Aerodynamics, Wind, WindSource};
 pub use collider::{Collider, ColliderPose, ColliderShape};
 pub use error::{ClothError, ColliderError};
-pub use glam::{Affine3A, Quat, UVec2, UVec3, Vec2, Vec3};
+pub use glam::{Affine3A, Quat, UVec2, UVec3, Vec2, Vec3, Vec3A};
 pub use grid::{ClothGrid, MAX_PARTICLES};
 pub use lbvh::{BvhNode, Lbvh, Sphere};
 pub use params::{ClothParams, Integrator, SpringStiffness};

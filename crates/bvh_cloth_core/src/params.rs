@@ -104,7 +104,8 @@ pub struct ClothParams {
     /// every resolution.
     pub damping: f32,
     /// A non-gravity force on the whole cloth, in newtons ("External Force"), shared by the
-    /// particles in proportion to their mass (wind, a push).
+    /// particles in proportion to their mass: a push that ignores the cloth's shape (for wind that
+    /// catches the cloth by its area and orientation, see [`Self::aerodynamics`]).
     pub external_force: Vec3,
     /// Gravitational acceleration in m/s².
     pub gravity: Vec3,

@@ -222,7 +222,7 @@ impl ClothSim {
 
     /// The wind at each particle, as last sampled (at the start of the last tick), or `None`
     /// when the cloth has no aerodynamics.
-    pub fn sampled_wind(&self) -> Option<&[Vec3]> {
+    pub fn sampled_wind(&self) -> Option<&[Vec3A]> {
         self.air_model.map(|_| &self.air.wind[..])
     }
 

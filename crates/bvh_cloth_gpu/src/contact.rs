@@ -196,7 +196,7 @@ impl ContactPlan {
             }
         };
         let descriptors = ClothKernels::descriptors();
-        let contact = &descriptors[descriptors.len() - 8..];
+        let contact: Vec<_> = descriptors.iter().filter(|d| d.file == "self_contact.wgsl").collect();
         core::array::from_fn(|k| {
             let entries: Vec<wgpu::BindGroupEntry<'_>> = contact[k]
                 .layout

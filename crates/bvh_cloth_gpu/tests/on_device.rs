@@ -1418,7 +1418,7 @@ fn self_contact_on_the_gpu_keeps_two_cloths_apart() {
 ///
 /// Tolerance: 1e-5 m per tick, as for the hanging cloth: the wind is smooth in space and time
 /// (the noise and the fan's edges blend with smoothstep), so the two differ by f32 rounding
-/// only. Measured on lavapipe: 4e-7 m (RK4) and 3e-6 m (block descent). Negative controls,
+/// only. Measured on lavapipe: 4e-7 m (RK4) and 1.5e-6 m (block descent). Negative controls,
 /// each by hand: with the GPU's wind clock held at zero the RK4 flag differs by 26 mm after one
 /// tick, and without the GPU's fan by 33 mm.
 #[test]

@@ -171,22 +171,19 @@ fn triangle_air(air: AirCloth, start: u32, corners: u32, t: u32) -> vec3<f32> {
     let b = start + air_surface[corners + 3u * t + 1u];
     let cc = start + air_surface[corners + 3u * t + 2u];
     let xa = air_particles[a].position.xyz;
-    let n2 = cross(air_particles[b].position.xyz - xa, air_particles[cc].position.xyz - xa);
-    let len2 = dot(n2, n2);
+    let m = cross(air_particles[b].position.xyz - xa, air_particles[cc].position.xyz - xa);
+    let m2 = dot(m, m);
     let w = (wind[a].xyz + wind[b].xyz) + wind[cc].xyz;
     let v = (air_particles[a].velocity.xyz + air_particles[b].velocity.xyz) + air_particles[cc].velocity.xyz;
     let u = (w - v) * (1.0 / 3.0);
-    let speed2 = dot(u, u);
-    if (!(len2 > 0.0 && speed2 > 0.0)) {
+    let u2 = dot(u, u);
+    if (!(m2 > 0.0 && u2 > 0.0)) {
         return vec3(0.0);
     }
-    let len = sqrt(len2);
-    let speed = sqrt(speed2);
-    let n = n2 / len;
-    let flow = u / speed;
-    let cos_theta = dot(n, flow);
-    let q = 0.5 * len * speed2;
-    return flow * (air.drag * q * abs(cos_theta)) + (n - flow * cos_theta) * (air.lift * q * cos_theta);
+    let d = dot(m, u);
+    let drag = (0.5 * air.drag * abs(d)) * u;
+    let lift = (0.5 * air.lift * d * sqrt(u2 / m2)) * (m - u * (d / u2));
+    return drag + lift;
 }
 
 // bvh_cloth_core::aerodynamics::capped_kick.

@@ -1,0 +1,159 @@
+//! Wind: the ambient wind every cloth is in ([`AmbientWind`]), a cloth's own ([`LocalWind`]),
+//! and local sources that follow their entity ([`WindFan`], [`WindBlast`]). Only a cloth whose
+//! [`ClothParams::aerodynamics`](crate::ClothParams) has drag or lift feels any of them.
+
+use bevy::prelude::*;
+use bvh_cloth_core::{ClothError, Wind, WindSource};
+
+use crate::clock::ClothClock;
+use crate::messages::ClothMessage;
+use crate::simulation::ClothSimulation;
+
+/// The wind every cloth is in, unless it has a [`LocalWind`]: a mean velocity in m/s, gusts and
+/// turbulence (see [`Wind`]). Still air by default.
+///
+/// ```
+/// # use bevy::prelude::*;
+/// # use bevy_bvh_cloth::prelude::*;
+/// # let mut app = App::new();
+/// app.insert_resource(AmbientWind(Wind::gusty(Vec3::new(8.0, 0.0, 0.0))));
+/// ```
+#[derive(Resource, Clone, Copy, Debug, Default, PartialEq, Reflect)]
+#[reflect(Resource, Default, Debug, PartialEq)]
+pub struct AmbientWind(pub Wind);
+
+/// A cloth's own wind, in place of the [`AmbientWind`] (a curtain indoors, a banner in a
+/// draught). [`WindFan`]s and [`WindBlast`]s still reach it.
+#[derive(Component, Clone, Copy, Debug, Default, PartialEq, Reflect)]
+#[reflect(Component, Default, Debug, PartialEq)]
+pub struct LocalWind(pub Wind);
+
+/// A fan at its entity's position, blowing along the entity's forward (`-Z`) in a cone: the
+/// air leaves it at `speed`, weakening linearly to nothing at `range` and smoothly to nothing
+/// at the cone's edge.
+#[derive(Component, Clone, Copy, Debug, PartialEq, Reflect)]
+#[reflect(Component, Default, Debug, PartialEq)]
+#[require(Transform)]
+pub struct WindFan {
+    /// Speed on the axis at the fan, in m/s; a negative speed sucks.
+    pub speed: f32,
+    /// Reach in metres.
+    pub range: f32,
+    /// The cone's half-angle in radians, up to π.
+    pub spread: f32,
+}
+
+impl Default for WindFan {
+    fn default() -> Self {
+        Self { speed: 10.0, range: 5.0, spread: 0.5 }
+    }
+}
+
+/// A blast at its entity's position: air pushed out in every direction at `speed`, weakening
+/// linearly to nothing at `radius`, and over `duration` seconds of cloth time to nothing. Spawn
+/// one for an explosion; it stops blowing once it has run its course, and the entity is left to
+/// the game.
+#[derive(Component, Clone, Copy, Debug, PartialEq, Reflect)]
+#[reflect(Component, Default, Debug, PartialEq)]
+#[require(Transform)]
+pub struct WindBlast {
+    /// Speed at the centre when the blast starts, in m/s; a negative speed sucks.
+    pub speed: f32,
+    /// Reach in metres.
+    pub radius: f32,
+    /// Seconds over which it dies down.
+    pub duration: f32,
+    /// Seconds of cloth time since it started.
+    pub age: f32,
+}
+
+impl Default for WindBlast {
+    fn default() -> Self {
+        Self { speed: 30.0, radius: 4.0, duration: 0.5, age: 0.0 }
+    }
+}
+
+impl WindBlast {
+    /// A blast of `speed` m/s reaching `radius` metres, dying down over `duration` seconds.
+    pub fn new(speed: f32, radius: f32, duration: f32) -> Self {
+        Self { speed, radius, duration, age: 0.0 }
+    }
+
+    /// Its speed at the centre now: `speed` falling linearly to zero over `duration`.
+    pub fn current_speed(&self) -> f32 {
+        if self.duration > 0.0 { self.speed * (1.0 - self.age / self.duration).max(0.0) } else { 0.0 }
+    }
+}
+
+/// This frame's wind sources, as [`gather_wind`] found them (the invalid ones left out).
+#[derive(Resource, Clone, Debug, Default)]
+pub(crate) struct WindSources(pub(crate) Vec<WindSource>);
+
+/// Collects the fans and blasts into [`WindSources`] (a source whose values are invalid is
+/// left out, with an error when it changes), ages the blasts by this frame's ticks, and gives
+/// every cloth its wind, its sources and the wind clock of this frame's first tick. A cloth
+/// whose wind is invalid keeps its last one, and the error is sent as
+/// [`ClothMessage::Rejected`] (once per change).
+pub(crate) fn gather_wind(
+    clock: Res<ClothClock>,
+    ambient: Res<AmbientWind>,
+    mut sources: ResMut<WindSources>,
+    fans: Query<(Entity, Ref<WindFan>, &GlobalTransform)>,
+    mut blasts: Query<(Entity, &mut WindBlast, &GlobalTransform)>,
+    mut cloths: Query<(Entity, &mut ClothSimulation, Option<Ref<LocalWind>>)>,
+    mut messages: MessageWriter<ClothMessage>,
+) {
+    sources.0.clear();
+    let mut keep = |entity: Entity, changed: bool, source: WindSource| match source.validate() {
+        Ok(()) => sources.0.push(source),
+        Err(error) if changed => error!("Wind source on {entity}: {error}; it does not blow until fixed"),
+        Err(_) => {}
+    };
+    for (entity, fan, transform) in &fans {
+        let source = WindSource::Fan {
+            origin: transform.translation(),
+            direction: transform.forward().into(),
+            speed: fan.speed,
+            range: fan.range,
+            spread: fan.spread,
+        };
+        keep(entity, fan.is_changed(), source);
+    }
+    let elapsed = clock.ticks as f32 * clock.tick_seconds;
+    for (entity, mut blast, transform) in &mut blasts {
+        let changed = blast.is_added();
+        if blast.current_speed() != 0.0 {
+            let source = WindSource::Blast {
+                center: transform.translation(),
+                speed: blast.current_speed(),
+                radius: blast.radius,
+            };
+            keep(entity, changed, source);
+        }
+        if elapsed > 0.0 && blast.age < blast.duration {
+            blast.age += elapsed;
+        }
+    }
+    let first_tick = clock.total_ticks.saturating_sub(u64::from(clock.ticks)) as f64 * f64::from(clock.tick_seconds);
+    let ambient_changed = ambient.is_changed();
+    for (entity, mut state, local) in &mut cloths {
+        let changed = ambient_changed || local.as_ref().is_some_and(|l| l.is_changed());
+        let wind = local.map_or(ambient.0, |l| l.0);
+        state.sim.set_wind_time(first_tick);
+        let result = state.sim.set_wind(wind, &sources.0);
+        if let Err(error) = result {
+            // The sources were checked above: the cloth's own wind is at fault. Keep the last
+            // wind, with this frame's sources.
+            let last = *state.sim.wind();
+            let _ = state.sim.set_wind(last, &sources.0);
+            if changed {
+                report(entity, error, &mut messages);
+            }
+        }
+    }
+}
+
+fn report(entity: Entity, error: ClothError, messages: &mut MessageWriter<ClothMessage>) {
+    error!("Cloth on {entity}: {error}; keeping its last valid wind");
+    messages.write(ClothMessage::Rejected { entity, error });
+}
