@@ -59,6 +59,21 @@ impl Rig {
         OneCloth { batch, id }
     }
 
+    /// A batch of every cloth of `cloths`, each with its parameters for ticks of `tick` seconds,
+    /// and their ids in the same order.
+    fn batch(&self, cloths: &[(&str, ClothSim)], tick: f32) -> (ClothBatch, Vec<ClothId>) {
+        let mut batch = ClothBatch::new(&self.device, &self.queue);
+        let ids = cloths
+            .iter()
+            .map(|(_, sim)| {
+                let id = batch.insert(&self.device, &self.queue, sim).unwrap();
+                batch.set_params(&self.queue, id, sim.params(), tick);
+                id
+            })
+            .collect();
+        (batch, ids)
+    }
+
     /// Runs `ticks` ticks of every cloth of `batch`.
     fn run(&self, batch: &mut ClothBatch, colliders: &GpuColliders, ticks: u32) {
         batch.prepare(&self.device, &self.queue, &self.kernels, colliders);
@@ -951,14 +966,8 @@ fn a_batch_of_cloths_agrees_with_each_alone_on_the_cpu_as_cloths_come_and_go() {
         ("euler 24x20 onto the ball", grid_cloth(grid(1.2, 1.0, 24, 20), euler, at(3.0, 1.0), &[])),
         ("stiff 12x12", grid_cloth(grid(0.6, 0.6, 12, 12), stiff, at(-3.0, 1.0), &(0..12).collect::<Vec<_>>())),
     ];
-    let mut batch = ClothBatch::new(&rig.device, &rig.queue);
     let tick = 1.0 / 60.0;
-    let mut ids = Vec::new();
-    for (_, sim) in &cloths {
-        let id = batch.insert(&rig.device, &rig.queue, sim).unwrap();
-        batch.set_params(&rig.queue, id, sim.params(), tick);
-        ids.push(id);
-    }
+    let (mut batch, mut ids) = rig.batch(&cloths, tick);
     assert!(
         batch.substeps(ids[2]) > batch.substeps(ids[0]),
         "the stiff cloth needs more substeps than the others, and sits out none of its own"
@@ -1124,14 +1133,8 @@ fn block_descent_agrees_with_the_cpu_in_a_mixed_batch() {
         ("descent 32x32", grid_cloth(square(1.0, 32), descent(1, 8), at(0.0, 1.0), &[0, 31])),
         ("descent flag onto the ball", ClothSim::new(descent(3, 6), Arc::new(flag), flat, &[]).unwrap()),
     ];
-    let mut batch = ClothBatch::new(&rig.device, &rig.queue);
     let tick = 1.0 / 60.0;
-    let mut ids = Vec::new();
-    for (_, sim) in &cloths {
-        let id = batch.insert(&rig.device, &rig.queue, sim).unwrap();
-        batch.set_params(&rig.queue, id, sim.params(), tick);
-        ids.push(id);
-    }
+    let (mut batch, mut ids) = rig.batch(&cloths, tick);
     let mut worst = vec![0.0f32; 3];
     for t in 0..60 {
         let carry_on = t == 20 || t == 30;
@@ -1335,15 +1338,7 @@ fn self_contact_agrees_with_the_cpu() {
     let Some(rig) = rig() else { return };
     let (mut cloths, colliders) = contact_scene();
     let gpu_colliders = GpuColliders::new(&rig.device, &colliders);
-    let mut batch = ClothBatch::new(&rig.device, &rig.queue);
-    let ids: Vec<ClothId> = cloths
-        .iter()
-        .map(|(_, sim)| {
-            let id = batch.insert(&rig.device, &rig.queue, sim).unwrap();
-            batch.set_params(&rig.queue, id, sim.params(), 1.0 / 60.0);
-            id
-        })
-        .collect();
+    let (mut batch, ids) = rig.batch(&cloths, 1.0 / 60.0);
     let mut solver = ContactSolver::default();
     let (mut worst, mut most_off, mut cpu_contacts, mut gpu_contacts) = (vec![0.0f32; 3], vec![0; 3], 0, 0);
     for t in 0..90 {
@@ -1384,17 +1379,10 @@ fn self_contact_on_the_gpu_keeps_two_cloths_apart() {
     for contact in [true, false] {
         let (mut cloths, colliders) = contact_scene();
         let gpu_colliders = GpuColliders::new(&rig.device, &colliders);
-        let mut batch = ClothBatch::new(&rig.device, &rig.queue);
-        let mut ids = Vec::new();
-        for (_, sim) in &mut cloths {
-            if !contact {
-                let params = ClothParams { self_contact: None, ..sim.params().clone() };
-                sim.set_params(params).unwrap();
-            }
-            let id = batch.insert(&rig.device, &rig.queue, sim).unwrap();
-            batch.set_params(&rig.queue, id, sim.params(), 1.0 / 60.0);
-            ids.push(id);
+        for (_, sim) in cloths.iter_mut().filter(|_| !contact) {
+            sim.set_params(ClothParams { self_contact: None, ..sim.params().clone() }).unwrap();
         }
+        let (mut batch, ids) = rig.batch(&cloths, 1.0 / 60.0);
         rig.run(&mut batch, &gpu_colliders, 180);
         let x: Vec<Vec<Vec3>> =
             ids.iter().map(|&id| rig.batch_particles(&batch, id).iter().map(position).collect()).collect();
@@ -1413,8 +1401,9 @@ fn self_contact_on_the_gpu_keeps_two_cloths_apart() {
 }
 
 /// Three flags, 24 x 16 each, held along one edge, in a gusty, turbulent wind square to them
-/// with a fan behind them: one stepped by RK4, one by block descent, and one without aerodynamics. Each tick the
-/// GPU starts from the CPU's state, and both sample the wind at the same clock time.
+/// with a fan behind them: one stepped by RK4, one by block descent, and one without
+/// aerodynamics. Each tick the GPU starts from the CPU's state, and both sample the wind at the
+/// same clock time.
 ///
 /// Tolerance: 1e-5 m per tick, as for the hanging cloth: the wind is smooth in space and time
 /// (the noise and the fan's edges blend with smoothstep), so the two differ by f32 rounding
@@ -1453,16 +1442,8 @@ fn flags_in_gusty_wind_agree_with_the_cpu() {
             (name, sim)
         })
         .collect();
-    let mut batch = ClothBatch::new(&rig.device, &rig.queue);
+    let (mut batch, ids) = rig.batch(&cloths, 1.0 / 60.0);
     batch.set_wind_sources(&[fan]).unwrap();
-    let ids: Vec<ClothId> = cloths
-        .iter()
-        .map(|(_, sim)| {
-            let id = batch.insert(&rig.device, &rig.queue, sim).unwrap();
-            batch.set_params(&rig.queue, id, sim.params(), 1.0 / 60.0);
-            id
-        })
-        .collect();
     let none = GpuColliders::new(&rig.device, &[]);
     let mut worst = [0.0f32; 3];
     // How far each flag's free edge has gone downwind, along +Z.
