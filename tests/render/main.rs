@@ -111,19 +111,25 @@ fn gpu_backend_app_with(plugins: BvhClothPlugins) -> Option<App> {
     }
     let mut app = render_app_with(ClothBackend::Gpu, plugins);
     assert_eq!(*app.world().resource::<ActiveClothBackend>(), ActiveClothBackend::Gpu);
+    wait_for_kernels(&mut app);
+    Some(app)
+}
+
+/// Waits until the GPU backend's kernels are compiled: a probe cloth is read back until it has
+/// run a tick (at most five minutes), then despawned.
+fn wait_for_kernels(app: &mut App) {
     let probe = app.world_mut().spawn((Cloth::grid(Vec2::ONE, UVec2::splat(4)), ClothReadback::default())).id();
     let ran = |app: &App| app.world().get::<ClothReadback>(probe).unwrap().ticks_run.is_some_and(|t| t > 0);
     // Compiling the kernels takes lavapipe tens of seconds, longer with other tests compiling
     // beside it: wait on the clock, not on a count of frames.
     let start = std::time::Instant::now();
-    while !ran(&app) && start.elapsed() < Duration::from_secs(300) {
+    while !ran(app) && start.elapsed() < Duration::from_secs(300) {
         app.update();
         std::thread::sleep(Duration::from_millis(5));
     }
-    assert!(ran(&app), "the GPU kernels never became ready");
+    assert!(ran(app), "the GPU kernels never became ready");
     app.world_mut().despawn(probe);
     app.update();
-    Some(app)
 }
 
 #[test]
@@ -135,6 +141,11 @@ fn the_gpu_backend_drapes_the_cloth_over_the_bunny() {
     let backend = *app.world().resource::<ActiveClothBackend>();
     if std::env::var_os("BVH_CLOTH_REQUIRE_GPU").is_some() {
         assert_eq!(backend, ActiveClothBackend::Gpu, "lavapipe runs compute shaders: Auto must pick the GPU");
+    }
+    // The scene counts frames: the kernels, compiled in the background (slowly beside other
+    // tests compiling theirs), must be ready before its cloth is spawned.
+    if backend == ActiveClothBackend::Gpu {
+        wait_for_kernels(&mut app);
     }
     assert_draped(&render_bunny_scene(&mut app), "gpu");
 }
