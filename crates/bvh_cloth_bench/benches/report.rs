@@ -1436,6 +1436,30 @@ fn flag(integrator: Integrator) -> ClothSim {
     ClothSim::new(params, topology, pose, &pole).expect("a valid flag")
 }
 
+/// A batch holding `sim` alone, with its parameters for 60 Hz ticks.
+fn alone_on_gpu(gpu: &Gpu, sim: &ClothSim) -> (ClothBatch, bvh_cloth_gpu::ClothId) {
+    let mut batch = ClothBatch::new(&gpu.device, &gpu.queue);
+    let id = batch.insert(&gpu.device, &gpu.queue, sim).expect("the cloth fits the device");
+    batch.set_params(&gpu.queue, id, sim.params(), TICK);
+    (batch, id)
+}
+
+/// Runs `ticks` ticks of `batch` against `colliders`, submitted without waiting.
+fn run_on_gpu(gpu: &Gpu, batch: &mut ClothBatch, colliders: &GpuColliders, ticks: u32) {
+    batch.prepare(&gpu.device, &gpu.queue, &gpu.kernels, colliders);
+    let mut encoder = gpu.device.create_command_encoder(&Default::default());
+    batch.encode_ticks(&mut encoder, &gpu.kernels, ticks);
+    gpu.queue.submit([encoder.finish()]);
+}
+
+/// Cloth `id`'s particles as the GPU has them (a blocking read).
+fn particles_on_gpu(gpu: &Gpu, batch: &ClothBatch, id: bvh_cloth_gpu::ClothId) -> Vec<GpuParticle> {
+    let (buffer, offset, size) = batch.particles(id).expect("the cloth is in the batch");
+    let all: Vec<GpuParticle> = headless::read(&gpu.device, &gpu.queue, buffer);
+    let first = (offset / size_of::<GpuParticle>() as u64) as usize;
+    all[first..first + (size / size_of::<GpuParticle>() as u64) as usize].to_vec()
+}
+
 /// The particle at the middle of the flag's free edge.
 const FLAG_PROBE: usize = 16 * 48 + 47;
 
@@ -1501,23 +1525,12 @@ fn wind(bunny: &ObjMesh, single: &rayon::ThreadPool, threads: usize, gpu: Option
         for integrator in [Integrator::BLOCK_DESCENT, Integrator::Rk4] {
             let mut sim = flag(integrator);
             sim.set_wind(steady, &[]).expect("a valid wind");
-            let mut batch = ClothBatch::new(&gpu.device, &gpu.queue);
-            let id = batch.insert(&gpu.device, &gpu.queue, &sim).expect("the flag fits the device");
-            batch.set_params(&gpu.queue, id, sim.params(), TICK);
+            let (mut batch, id) = alone_on_gpu(gpu, &sim);
             let (mut z, mut energy) = (Vec::new(), Vec::new());
-            let tick = |batch: &mut ClothBatch, ticks: u32| {
-                batch.prepare(&gpu.device, &gpu.queue, &gpu.kernels, none);
-                let mut encoder = gpu.device.create_command_encoder(&Default::default());
-                batch.encode_ticks(&mut encoder, &gpu.kernels, ticks);
-                gpu.queue.submit([encoder.finish()]);
-            };
-            tick(&mut batch, SETTLE);
+            run_on_gpu(gpu, &mut batch, none, SETTLE);
             for _ in 0..SAMPLES {
-                tick(&mut batch, 1);
-                let (buffer, offset, size) = batch.particles(id).expect("the flag is in the batch");
-                let all: Vec<GpuParticle> = headless::read(&gpu.device, &gpu.queue, buffer);
-                let first = (offset / size_of::<GpuParticle>() as u64) as usize;
-                load_gpu_particles(&mut sim, &all[first..first + (size / size_of::<GpuParticle>() as u64) as usize]);
+                run_on_gpu(gpu, &mut batch, none, 1);
+                load_gpu_particles(&mut sim, &particles_on_gpu(gpu, &batch, id));
                 z.push(sim.position(FLAG_PROBE).z);
                 energy.push(kinetic_energy(&sim));
             }
@@ -1533,22 +1546,14 @@ fn wind(bunny: &ObjMesh, single: &rayon::ThreadPool, threads: usize, gpu: Option
             );
             let mut sim = flag(Integrator::BLOCK_DESCENT);
             sim.set_wind(Wind { seed: 3, ..Wind::gusty(Vec3::new(8.0, 0.0, 1.0)) }, &[]).expect("a valid wind");
-            let mut batch = ClothBatch::new(&gpu.device, &gpu.queue);
-            let id = batch.insert(&gpu.device, &gpu.queue, &sim).expect("the flag fits the device");
-            batch.set_params(&gpu.queue, id, sim.params(), TICK);
+            let (mut batch, id) = alone_on_gpu(gpu, &sim);
             let mut worst = 0.0f32;
             for _ in 0..90 {
                 batch.upload_state(&gpu.queue, id, &sim);
                 batch.set_wind_clock(sim.wind_time(), TICK, 1);
                 sim.tick(TICK, &[]);
-                batch.prepare(&gpu.device, &gpu.queue, &gpu.kernels, none);
-                let mut encoder = gpu.device.create_command_encoder(&Default::default());
-                batch.encode_ticks(&mut encoder, &gpu.kernels, 1);
-                gpu.queue.submit([encoder.finish()]);
-                let (buffer, offset, _) = batch.particles(id).expect("the flag is in the batch");
-                let all: Vec<GpuParticle> = headless::read(&gpu.device, &gpu.queue, buffer);
-                let first = (offset / size_of::<GpuParticle>() as u64) as usize;
-                for (i, p) in all[first..first + sim.len()].iter().enumerate() {
+                run_on_gpu(gpu, &mut batch, none, 1);
+                for (i, p) in particles_on_gpu(gpu, &batch, id).iter().enumerate() {
                     let on_gpu = Vec3::new(p.position[0], p.position[1], p.position[2]);
                     worst = worst.max(on_gpu.distance(sim.position(i)));
                 }
