@@ -24,6 +24,11 @@
 //! wind, so drag can bring a particle up to the wind's speed but never past it, and a light
 //! cloth in a gale stays stable at any substep length.
 //!
+//! On the CPU the triangles' forces are found three at a time, one triangle per SIMD lane
+//! ([`AirModel::triangle_forces`]), and a tick's sampling hashes each corner of the noise's
+//! lattice round the cloth once, not once per particle in its cells. Both give the bits of the
+//! one-at-a-time arithmetic that the GPU repeats.
+//!
 //! ## The wind
 //! At a point `p` and time `t`, the air moves at
 //! `velocity (1 + gust_strength g(t / gust_period)) + turbulence N(p / turbulence_scale, t / turbulence_period)`
@@ -33,7 +38,7 @@
 //! The time lattice repeats every [`NOISE_TIME_PERIOD`] steps, which keeps the lattice time in
 //! `f32` precise however long a game runs, with no seam.
 
-use glam::{Vec3, Vec3A};
+use glam::{Mat3A, Vec3, Vec3A};
 use rayon::prelude::*;
 
 #[cfg(feature = "bevy_reflect")]
@@ -335,9 +340,15 @@ impl AirModel {
     /// The wind at `p`: the ambient wind, the turbulence and every source. The GPU's
     /// `air_sample` repeats this arithmetic.
     pub fn wind_at(&self, p: Vec3, sources: &[AirSource]) -> Vec3 {
+        self.wind_with(p, sources, |q| value_noise_4d(q, self.lattice_time, self.seed))
+    }
+
+    /// [`Self::wind_at`] with the turbulence's noise at `q` (lattice units) from `noise`.
+    #[inline]
+    fn wind_with(&self, p: Vec3, sources: &[AirSource], noise: impl Fn(Vec3) -> Vec3) -> Vec3 {
         let mut w = self.ambient;
         if self.turbulence > 0.0 {
-            w += self.turbulence * value_noise_4d(p * self.inv_scale, self.lattice_time, self.seed);
+            w += self.turbulence * noise(p * self.inv_scale);
         }
         for source in sources {
             w += source.velocity_at(p);
@@ -347,23 +358,25 @@ impl AirModel {
 
     /// The aerodynamic force on one triangle (corners `x`, velocities `v`, winds `w`), per
     /// corner and over the cloth's mass: a corner's acceleration is the sum over its triangles
-    /// times its inverse mass share. The GPU's `triangle_air` repeats this arithmetic.
+    /// times its inverse mass share. The relative flow is the mean of the corners' relative
+    /// velocities, `((w₀ - v₀) + (w₁ - v₁) + (w₂ - v₂)) / 3`. The GPU's `triangle_air` repeats
+    /// this arithmetic.
     #[inline]
     pub fn triangle_force(&self, x: [Vec3; 3], v: [Vec3; 3], w: [Vec3; 3]) -> Vec3 {
-        self.triangle_force_simd(x.map(Vec3A::from), v.map(Vec3A::from), w.map(Vec3A::from)).into()
+        let relative = [0, 1, 2].map(|k| Vec3A::from(w[k]) - Vec3A::from(v[k]));
+        self.triangle_force_simd(x.map(Vec3A::from), mean_flow(relative)).into()
     }
 
-    /// [`Self::triangle_force`] on SIMD vectors.
+    /// [`Self::triangle_force`] on SIMD vectors, from the corners and the relative flow `u`.
     ///
     /// With the cross product `m = 2 A n` and `d = m · u` (so `cos θ = d / (|m| |u|)`), the drag
     /// `½ ρ C_d A |u|² |cos θ| û` is `½ ρ C_d |d| u / 2` and the lift
     /// `½ ρ C_l A |u|² cos θ (n - cos θ û)` is `½ ρ C_l d (|u| / |m|) (m - (d / |u|²) u) / 2`:
     /// one square root and two divisions, the factor `½ ρ C / (3 m)` being in `drag` and `lift`.
     #[inline]
-    fn triangle_force_simd(&self, x: [Vec3A; 3], v: [Vec3A; 3], w: [Vec3A; 3]) -> Vec3A {
+    fn triangle_force_simd(&self, x: [Vec3A; 3], u: Vec3A) -> Vec3A {
         let m = (x[1] - x[0]).cross(x[2] - x[0]);
         let m2 = m.dot(m);
-        let u = ((w[0] + w[1] + w[2]) - (v[0] + v[1] + v[2])) * (1.0 / 3.0);
         let u2 = u.dot(u);
         if !(m2 > 0.0 && u2 > 0.0) {
             return Vec3A::ZERO;
@@ -373,6 +386,71 @@ impl AirModel {
         let lift = (0.5 * self.lift * d * (u2 / m2).sqrt()) * (m - u * (d / u2));
         drag + lift
     }
+
+    /// [`Self::triangle_force`] for every triangle of `triangles` (corners indexing `x`, and
+    /// `relative`, each particle's wind less its velocity), bit for bit: `each(k, force)` for
+    /// triangle `k` of the slice, in order.
+    ///
+    /// Three triangles at a time, one per SIMD lane: their edges and flows are transposed so
+    /// that each vector holds one coordinate of the three, and the arithmetic of
+    /// [`Self::triangle_force_simd`] runs lane-wise, its square root and divisions shared. The
+    /// operations and their order are the same, so the lanes give the same bits.
+    #[inline]
+    pub fn triangle_forces(
+        &self,
+        triangles: &[[u32; 3]],
+        x: &[Vec3A],
+        relative: &[Vec3A],
+        mut each: impl FnMut(usize, Vec3A),
+    ) {
+        let (half_drag, half_lift) = (Vec3A::splat(0.5 * self.drag), Vec3A::splat(0.5 * self.lift));
+        let mut groups = triangles.chunks_exact(3);
+        let mut first = 0;
+        for group in &mut groups {
+            let mut e1 = [Vec3A::ZERO; 3];
+            let mut e2 = [Vec3A::ZERO; 3];
+            let mut flow = [Vec3A::ZERO; 3];
+            for (lane, t) in group.iter().enumerate() {
+                let [a, b, c] = t.map(|k| k as usize);
+                e1[lane] = x[b] - x[a];
+                e2[lane] = x[c] - x[a];
+                flow[lane] = mean_flow([relative[a], relative[b], relative[c]]);
+            }
+            // Row k of a transposed matrix is coordinate k of the three triangles.
+            let lanes = |v: [Vec3A; 3]| {
+                let t = Mat3A::from_cols(v[0], v[1], v[2]).transpose();
+                [t.x_axis, t.y_axis, t.z_axis]
+            };
+            let ([ax, ay, az], [bx, by, bz], u) = (lanes(e1), lanes(e2), lanes(flow));
+            // The cross product, coordinate by coordinate as `Vec3A::cross` forms it.
+            let m = [ay * bz - az * by, az * bx - ax * bz, ax * by - ay * bx];
+            let dot = |p: [Vec3A; 3], q: [Vec3A; 3]| (p[0] * q[0] + p[1] * q[1]) + p[2] * q[2];
+            let (m2, u2, d) = (dot(m, m), dot(u, u), dot(m, u));
+            let live = m2.cmpgt(Vec3A::ZERO) & u2.cmpgt(Vec3A::ZERO);
+            let drag = half_drag * d.abs();
+            let lift = half_lift * d * (u2 / m2).sqrt();
+            let along = d / u2;
+            let force = |k: usize| Vec3A::select(live, drag * u[k] + lift * (m[k] - u[k] * along), Vec3A::ZERO);
+            let [f0, f1, f2] = lanes([force(0), force(1), force(2)]);
+            each(first, f0);
+            each(first + 1, f1);
+            each(first + 2, f2);
+            first += 3;
+        }
+        for (k, t) in groups.remainder().iter().enumerate() {
+            let [a, b, c] = t.map(|k| k as usize);
+            each(
+                first + k,
+                self.triangle_force_simd([x[a], x[b], x[c]], mean_flow([relative[a], relative[b], relative[c]])),
+            );
+        }
+    }
+}
+
+/// The relative flow over a triangle: the mean of its corners' relative velocities.
+#[inline]
+fn mean_flow([a, b, c]: [Vec3A; 3]) -> Vec3A {
+    ((a + b) + c) * (1.0 / 3.0)
 }
 
 /// A cloth's working state for aerodynamics: the wind at each particle this tick, and each
@@ -381,6 +459,8 @@ impl AirModel {
 pub struct Air {
     /// The wind at each particle, sampled at the tick's start.
     pub wind: Vec<Vec3A>,
+    /// Each particle's wind less its velocity this substep.
+    relative: Vec<Vec3A>,
     /// Each triangle's force per corner (see [`AirModel::triangle_force`]), and each
     /// particle's sum of them.
     forces: Vec<Vec3A>,
@@ -391,11 +471,22 @@ impl Air {
     /// Samples the wind at every particle of `x`.
     pub fn sample(&mut self, model: &AirModel, sources: &[AirSource], x: &[Vec3A]) {
         self.wind.resize(x.len(), Vec3A::ZERO);
+        let (t, seed) = (model.lattice_time, model.seed);
+        let lattice = if model.turbulence > 0.0 {
+            let q = x.iter().map(|&p| Vec3::from(p) * model.inv_scale);
+            NoiseLattice::around(q, t, seed, x.len())
+        } else {
+            None
+        };
+        let noise = |q: Vec3| match &lattice {
+            Some(lattice) => lattice.noise(q, t, seed),
+            None => value_noise_4d(q, t, seed),
+        };
         self.wind
             .par_iter_mut()
             .zip(x.par_iter())
             .with_min_len(MIN_TASK)
-            .for_each(|(w, &p)| *w = model.wind_at(p.into(), sources).into());
+            .for_each(|(w, &p)| *w = model.wind_with(p.into(), sources, noise).into());
     }
 
     /// One substep's kick: every free particle's velocity changes by `h` times its aerodynamic
@@ -412,27 +503,23 @@ impl Air {
         v: &mut [Vec3A],
     ) {
         let triangles = topology.triangles();
-        let wind = &self.wind;
         let inv_share = topology.inv_mass_share();
+        self.relative.clear();
+        self.relative.extend(self.wind.iter().zip(v.iter()).map(|(&w, &v)| w - v));
+        let relative = &self.relative;
         let apply = |i: usize, f: Vec3A, v: &mut Vec3A| {
             if free[i] != 0.0 {
                 let dv = f * (h * inv_share[i]);
-                *v += capped_kick_simd(dv, wind[i] - *v);
+                *v += capped_kick_simd(dv, relative[i]);
             }
         };
-        let force = |t: &[u32; 3], v: &[Vec3A]| {
-            let [a, b, c] = t.map(|k| k as usize);
-            model.triangle_force_simd([x[a], x[b], x[c]], [v[a], v[b], v[c]], [wind[a], wind[b], wind[c]])
-        };
         self.forces.resize(triangles.len(), Vec3A::ZERO);
-        {
-            let velocities: &[Vec3A] = v;
-            self.forces
-                .par_iter_mut()
-                .zip(triangles.par_iter())
-                .with_min_len(MIN_TASK)
-                .for_each(|(f, t)| *f = force(t, velocities));
-        }
+        // Tasks of a multiple of three triangles, so that each groups its triangles as one task
+        // over all of them would.
+        const TASK: usize = MIN_TASK / 3 * 3;
+        self.forces.par_chunks_mut(TASK).zip(triangles.par_chunks(TASK)).for_each(|(out, triangles)| {
+            model.triangle_forces(triangles, x, relative, |t, f| out[t] = f);
+        });
         let forces = &self.forces;
         if v.len() < MIN_TASK {
             // Scattered in triangle order, each particle's sum takes its triangles in the order
@@ -535,30 +622,118 @@ pub fn value_noise_4d(q: Vec3, t: f32, seed: u32) -> Vec3 {
     let tc = t.floor();
     let [x, y, z] = [cell.x as i32, cell.y as i32, cell.z as i32];
     let ti = tc as u32;
-    let f = q - cell;
-    let (sx, sy, sz, st) = (smooth(f.x), smooth(f.y), smooth(f.z), smooth(t - tc));
-    let lerp = |a: Vec3A, b: Vec3A, s: f32| a + (b - a) * s;
     // The corners' hashes XOR one key per coordinate (as `corner` does): each key is found once.
-    let xs = [lattice_key(x, 0x8da6_b343), lattice_key(x.wrapping_add(1), 0x8da6_b343)];
-    let ys = [lattice_key(y, 0xd816_3841), lattice_key(y.wrapping_add(1), 0xd816_3841)];
-    let zs = [lattice_key(z, 0xcb1a_b31f), lattice_key(z.wrapping_add(1), 0xcb1a_b31f)];
+    let xs = [lattice_key(x, X_KEY), lattice_key(x.wrapping_add(1), X_KEY)];
+    let ys = [lattice_key(y, Y_KEY), lattice_key(y.wrapping_add(1), Y_KEY)];
+    let zs = [lattice_key(z, Z_KEY), lattice_key(z.wrapping_add(1), Z_KEY)];
     let ts = [time_key(ti) ^ seed, time_key(ti.wrapping_add(1)) ^ seed];
+    blend_cell(q - cell, t - tc, |[i, j, k, l]| corner_vector(hash(xs[i] ^ ys[j] ^ zs[k] ^ ts[l])))
+}
+
+/// The odd constants of the lattice's x, y and z keys.
+const X_KEY: u32 = 0x8da6_b343;
+const Y_KEY: u32 = 0xd816_3841;
+const Z_KEY: u32 = 0xcb1a_b31f;
+
+/// The smoothstep blend of a cell's 16 corner vectors, `corner([x, y, z, t])` with each index 0
+/// or 1, at the fractions `f` in space and `ft` in time: along x, then y, then z, then time.
+#[inline(always)]
+fn blend_cell(f: Vec3, ft: f32, corner: impl Fn([usize; 4]) -> Vec3A) -> Vec3 {
+    let (sx, sy, sz, st) = (smooth(f.x), smooth(f.y), smooth(f.z), smooth(ft));
+    let lerp = |a: Vec3A, b: Vec3A, s: f32| a + (b - a) * s;
     let mut by_time = [Vec3A::ZERO; 2];
-    for (slice, tk) in by_time.iter_mut().zip(ts) {
+    for (l, slice) in by_time.iter_mut().enumerate() {
         let mut by_z = [Vec3A::ZERO; 2];
-        for (plane, zk) in by_z.iter_mut().zip(zs) {
+        for (k, plane) in by_z.iter_mut().enumerate() {
             let mut by_y = [Vec3A::ZERO; 2];
-            for (row, yk) in by_y.iter_mut().zip(ys) {
-                let key = yk ^ zk ^ tk;
-                let a = corner_vector(hash(xs[0] ^ key));
-                let b = corner_vector(hash(xs[1] ^ key));
-                *row = lerp(a, b, sx);
+            for (j, row) in by_y.iter_mut().enumerate() {
+                *row = lerp(corner([0, j, k, l]), corner([1, j, k, l]), sx);
             }
             *plane = lerp(by_y[0], by_y[1], sy);
         }
         *slice = lerp(by_z[0], by_z[1], sz);
     }
     lerp(by_time[0], by_time[1], st).into()
+}
+
+/// The most corner vectors a [`NoiseLattice`] holds per particle it serves (and 4,096 at
+/// least): eddies far smaller than the cloth are sampled corner by corner instead.
+const LATTICE_PER_PARTICLE: usize = 2;
+
+/// The turbulence's corner vectors over the cells a cloth's particles lie in, at one lattice
+/// time: one tick's [`value_noise_4d`] for every particle, each of the cells' corners hashed
+/// once instead of once for each particle in them. The same corners and the same blend give
+/// the same bits.
+struct NoiseLattice {
+    /// The first corner, in lattice coordinates.
+    lo: [i32; 3],
+    /// Corners along x, y and z.
+    dims: [usize; 3],
+    /// The vectors, x fastest, then y, z, and the two times.
+    vectors: Vec<Vec3A>,
+}
+
+impl NoiseLattice {
+    /// The corners round the cells of every finite `q` (lattice units) at lattice time `t`;
+    /// `None` when there is no finite point or the lattice would be too large.
+    fn around(q: impl Iterator<Item = Vec3>, t: f32, seed: u32, particles: usize) -> Option<Self> {
+        let (lo, hi) = q
+            .filter(|q| q.is_finite())
+            .map(Vec3::floor)
+            .fold((Vec3::INFINITY, Vec3::NEG_INFINITY), |(lo, hi), c| (lo.min(c), hi.max(c)));
+        if !(lo.is_finite() && hi.is_finite())
+            || lo.min_element() < i32::MIN as f32 / 2.0
+            || hi.max_element() > i32::MAX as f32 / 2.0
+        {
+            return None;
+        }
+        let span = hi - lo + 2.0;
+        let count = f64::from(span.x) * f64::from(span.y) * f64::from(span.z) * 2.0;
+        if count > (LATTICE_PER_PARTICLE * particles).max(4096) as f64 {
+            return None;
+        }
+        let lo = [lo.x as i32, lo.y as i32, lo.z as i32];
+        let dims = [span.x as usize, span.y as usize, span.z as usize];
+        let tc = t.floor() as u32;
+        let mut vectors = Vec::with_capacity(count as usize);
+        for ti in [tc, tc.wrapping_add(1)] {
+            let tk = time_key(ti) ^ seed;
+            for z in 0..dims[2] as i32 {
+                let zk = lattice_key(lo[2].wrapping_add(z), Z_KEY);
+                for y in 0..dims[1] as i32 {
+                    let yk = lattice_key(lo[1].wrapping_add(y), Y_KEY);
+                    for x in 0..dims[0] as i32 {
+                        let xk = lattice_key(lo[0].wrapping_add(x), X_KEY);
+                        vectors.push(corner_vector(hash(xk ^ yk ^ zk ^ tk)));
+                    }
+                }
+            }
+        }
+        Some(Self { lo, dims, vectors })
+    }
+
+    /// [`value_noise_4d`] at `q` and the lattice's time `t`: from the stored corners when `q`'s
+    /// cell is among them, else hashed.
+    #[inline]
+    fn noise(&self, q: Vec3, t: f32, seed: u32) -> Vec3 {
+        let cell = q.floor();
+        let c = [cell.x as i32, cell.y as i32, cell.z as i32];
+        let mut base = [0usize; 3];
+        for axis in 0..3 {
+            let offset = c[axis].wrapping_sub(self.lo[axis]);
+            if !(0..self.dims[axis] as i32 - 1).contains(&offset) {
+                return value_noise_4d(q, t, seed);
+            }
+            base[axis] = offset as usize;
+        }
+        let [dx, dy, dz] = self.dims;
+        let first = (base[2] * dy + base[1]) * dx + base[0];
+        let strides = [1, dx, dx * dy, dx * dy * dz];
+        let tc = t.floor();
+        blend_cell(q - cell, t - tc, |[i, j, k, l]| {
+            self.vectors[first + i + j * strides[1] + k * strides[2] + l * strides[3]]
+        })
+    }
 }
 
 fn in_range(field: &'static str, value: f32, min: f32, max: f32) -> Result<(), ClothError> {
@@ -612,6 +787,87 @@ mod tests {
         let [a, b, c] = plate();
         let flipped = m.triangle_force([a, c, b], [Vec3::ZERO; 3], [u; 3]);
         assert!((flipped - f).length() < 1e-6 * want);
+    }
+
+    /// The three-lane pass gives every triangle's force bit for bit as one triangle at a time
+    /// does, for every remainder of three, with triangles of no area, corners moving with the
+    /// air, and corners that are not finite among them.
+    #[test]
+    fn lanes_give_the_bits_of_one_triangle_at_a_time() {
+        let m = model(Aerodynamics::FABRIC, &Wind::steady(Vec3::new(6.0, -1.0, 2.0)));
+        let mut seed = 17u32;
+        let mut next = || {
+            seed = hash(seed);
+            unit(seed) * 2.0
+        };
+        let count = 40;
+        let x: Vec<Vec3A> = (0..count).map(|_| Vec3A::new(next(), next(), next())).collect();
+        let mut v: Vec<Vec3A> = (0..count).map(|_| Vec3A::new(next(), next(), next())).collect();
+        let w: Vec<Vec3A> = (0..count).map(|_| Vec3A::new(next(), next(), next()) * 5.0).collect();
+        // Particles 0 to 2 move with their air, and 3 is not finite.
+        v[..3].copy_from_slice(&w[..3]);
+        v[3] = Vec3A::NAN;
+        let relative: Vec<Vec3A> = w.iter().zip(&v).map(|(&w, &v)| w - v).collect();
+        let mut triangles: Vec<[u32; 3]> =
+            (0..count as u32 - 2).map(|i| [i, (i * 7 + 1) % 40, (i * 13 + 2) % 40]).collect();
+        // No area: a corner twice, and three corners in a line.
+        triangles.extend([[5, 5, 9], [0, 1, 2], [0, 1, 3]]);
+        let x = {
+            let mut x = x;
+            x[11] = x[10] * 2.0 - x[9];
+            x
+        };
+        triangles.push([9, 10, 11]);
+        // Three lengths in a row: every remainder of three, after whole groups and alone.
+        for len in [triangles.len(), triangles.len() - 1, triangles.len() - 2, 2, 1, 0] {
+            let mut lanes = vec![Vec3A::splat(7.0); len];
+            m.triangle_forces(&triangles[..len], &x, &relative, |t, f| lanes[t] = f);
+            for (t, (corners, got)) in triangles.iter().zip(&lanes).enumerate() {
+                let [a, b, c] = corners.map(|k| k as usize);
+                let one = m.triangle_force(
+                    [x[a], x[b], x[c]].map(Vec3::from),
+                    [v[a], v[b], v[c]].map(Vec3::from),
+                    [w[a], w[b], w[c]].map(Vec3::from),
+                );
+                let got = Vec3::from(*got);
+                assert!(
+                    got.to_array().map(f32::to_bits) == one.to_array().map(f32::to_bits),
+                    "triangle {t} of {len}: {got} in lanes, {one} alone"
+                );
+            }
+        }
+    }
+
+    /// A tick's sampling, which hashes each lattice corner once, gives every particle the bits
+    /// of [`AirModel::wind_at`]: in eddies larger than the cloth, in eddies so small that the
+    /// corners are hashed point by point, and with a point that is not finite among them.
+    #[test]
+    fn sampling_gives_the_bits_of_the_wind_at_each_point() {
+        let mut seed = 5u32;
+        let mut next = || {
+            seed = hash(seed);
+            unit(seed)
+        };
+        let mut x: Vec<Vec3A> = (0..3000).map(|_| Vec3A::new(next(), next() + 3.0, next()) * 1.5).collect();
+        x[17] = Vec3A::new(f32::NAN, 0.0, 0.0);
+        let sources = [WindSource::Blast { center: Vec3::ZERO, speed: 4.0, radius: 3.0 }.prepare()];
+        for (scale, corners) in [(2.0, true), (0.3, true), (0.001, false)] {
+            let wind = Wind { turbulence_scale: scale, ..Wind::gusty(Vec3::new(7.0, 0.0, 3.0)) };
+            let model = AirModel::new(Aerodynamics::FABRIC, 0.3, &wind, 1234.5);
+            let q = x.iter().map(|&p| Vec3::from(p) * model.inv_scale);
+            let lattice = NoiseLattice::around(q, model.lattice_time, model.seed, x.len());
+            assert_eq!(lattice.is_some(), corners, "eddies of {scale} m");
+            let mut air = Air::default();
+            air.sample(&model, &sources, &x);
+            for (i, (&p, &got)) in x.iter().zip(&air.wind).enumerate() {
+                let want = model.wind_at(p.into(), &sources);
+                let same = Vec3::from(got).to_array().map(f32::to_bits) == want.to_array().map(f32::to_bits);
+                assert!(
+                    same || (got.is_nan() && want.is_nan()),
+                    "eddies of {scale} m, particle {i}: {got} sampled, {want} at the point"
+                );
+            }
+        }
     }
 
     #[test]

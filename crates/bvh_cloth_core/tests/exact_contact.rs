@@ -250,10 +250,6 @@ fn a_box_edge_with_duplicated_degenerate_and_intersecting_triangles() {
     assert!(touching > 100 && least > 0.9 * THICKNESS);
 }
 
-/// A particle far faster than anything a cloth reaches (1 km/s, 17 m in one substep) straight at
-/// a plate of zero thickness stops on its near side, the thickness off; one that starts on the
-/// plate's surface (closer than the thickness) is lifted to the thickness on its own side; and a
-/// mesh with no area is refused.
 /// The nearest-first query against brute force: on a torus of 2,560 triangles, for points
 /// round it and through its hole, the closest point within a reach is at the brute-force
 /// distance, and there is none exactly when every triangle is beyond the reach.
@@ -287,6 +283,10 @@ fn closest_within_agrees_with_brute_force() {
     assert!(found > 500 && missed > 500, "{found} found and {missed} missed: the points do not test both cases");
 }
 
+/// A particle far faster than anything a cloth reaches (1 km/s, 17 m in one substep) straight at
+/// a plate of zero thickness stops on its near side, the thickness off; one that starts on the
+/// plate's surface (closer than the thickness) is lifted to the thickness on its own side; and a
+/// mesh with no area is refused.
 #[test]
 fn direct_responses_at_the_extremes() {
     let positions = [[-1.0, 0.0, -1.0], [1.0, 0.0, -1.0], [1.0, 0.0, 1.0], [-1.0, 0.0, 1.0]];

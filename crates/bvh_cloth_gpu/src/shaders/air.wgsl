@@ -173,9 +173,10 @@ fn triangle_air(air: AirCloth, start: u32, corners: u32, t: u32) -> vec3<f32> {
     let xa = air_particles[a].position.xyz;
     let m = cross(air_particles[b].position.xyz - xa, air_particles[cc].position.xyz - xa);
     let m2 = dot(m, m);
-    let w = (wind[a].xyz + wind[b].xyz) + wind[cc].xyz;
-    let v = (air_particles[a].velocity.xyz + air_particles[b].velocity.xyz) + air_particles[cc].velocity.xyz;
-    let u = (w - v) * (1.0 / 3.0);
+    let ua = wind[a].xyz - air_particles[a].velocity.xyz;
+    let ub = wind[b].xyz - air_particles[b].velocity.xyz;
+    let uc = wind[cc].xyz - air_particles[cc].velocity.xyz;
+    let u = ((ua + ub) + uc) * (1.0 / 3.0);
     let u2 = dot(u, u);
     if (!(m2 > 0.0 && u2 > 0.0)) {
         return vec3(0.0);
