@@ -53,7 +53,7 @@ fn count(
                     tally.divergences.push(line);
                 }
             }
-            ClothMessage::Rejected { .. } => tally.rejected += 1,
+            ClothMessage::Rejected { .. } | ClothMessage::WindSourceRejected { .. } => tally.rejected += 1,
             ClothMessage::ColliderFailed { .. } => tally.collider_failed += 1,
             ClothMessage::AnchorLost { .. } => tally.anchors_lost += 1,
         }

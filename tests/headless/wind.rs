@@ -98,3 +98,52 @@ fn bad_wind_is_refused_and_the_scene_runs_on() {
         ClothMessage::Rejected { entity, error: ClothError::OutOfRange { field: "wind.velocity", .. } } if *entity == cloth
     )));
 }
+
+/// A fan or a blast whose values are refused is reported each time it turns bad, naming it and
+/// the field, both as a message and as an event on its entity, and not every frame it stays
+/// bad; it is left out while the cloth runs on, and blows again once fixed.
+#[test]
+fn bad_wind_sources_are_reported_when_they_turn_bad() {
+    let mut app = app();
+    let cloth = curtain(&mut app, 0.0, Aerodynamics::FABRIC);
+    let fan = app
+        .world_mut()
+        .spawn((WindFan { speed: 1.0e6, range: 4.0, spread: 0.8 }, Transform::from_xyz(0.0, 1.5, -1.0)))
+        .id();
+    let blast = app.world_mut().spawn((WindBlast::new(20.0, 3.0, 5.0), Transform::from_xyz(0.0, 1.5, -0.5))).id();
+    let observed = std::sync::Arc::new(std::sync::atomic::AtomicUsize::new(0));
+    let seen = observed.clone();
+    app.world_mut().entity_mut(blast).observe(move |_: On<WindSourceRejected>| {
+        seen.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
+    });
+    let refused = |app: &App, source: Entity, field: &str| {
+        sent(app)
+            .iter()
+            .filter(|m| {
+                matches!(m, ClothMessage::WindSourceRejected { entity, error: ClothError::OutOfRange { field: f, .. } }
+                    if *entity == source && *f == field)
+            })
+            .count()
+    };
+    run(&mut app, 0.5);
+    assert_eq!(refused(&app, fan, "fan.speed"), 1, "the fan is refused once, naming its speed");
+    assert_eq!(refused(&app, blast, "blast.speed"), 0, "the blast is valid");
+    let pushed = downwind(&app, cloth);
+    assert!(pushed > 0.05, "the valid blast still blows: {pushed} m");
+
+    app.world_mut().get_mut::<WindBlast>(blast).unwrap().speed = f32::NAN;
+    run(&mut app, 0.5);
+    assert_eq!(refused(&app, blast, "blast.speed"), 1, "a blast turned bad after its spawn is refused once");
+    app.world_mut().get_mut::<WindBlast>(blast).unwrap().speed = 20.0;
+    run(&mut app, 0.2);
+    app.world_mut().get_mut::<WindBlast>(blast).unwrap().speed = 1.0e6;
+    run(&mut app, 0.2);
+    assert_eq!(refused(&app, blast, "blast.speed"), 2, "turned bad again, it is refused again");
+    assert_eq!(observed.load(std::sync::atomic::Ordering::Relaxed), 2, "each refusal is triggered on the blast");
+    assert_eq!(refused(&app, fan, "fan.speed"), 1, "the fan, bad all along, is not reported again");
+    assert!(positions(&app, cloth).iter().all(|p| p.is_finite()), "the cloth runs on");
+    assert!(
+        !sent(&app).iter().any(|m| matches!(m, ClothMessage::Rejected { .. })),
+        "the cloth's own wind is not at fault"
+    );
+}

@@ -62,6 +62,15 @@ pub struct AnchorLost {
     pub target: Entity,
 }
 
+/// A wind source's values were refused: [`ClothMessage::WindSourceRejected`] on its entity.
+#[derive(EntityEvent, Clone, Debug, PartialEq)]
+pub struct WindSourceRejected {
+    /// The fan or blast entity.
+    pub entity: Entity,
+    /// What is wrong.
+    pub error: ClothError,
+}
+
 /// Triggers each message of this frame as its entity event.
 pub(crate) fn trigger_message_events(mut commands: Commands, mut messages: MessageReader<ClothMessage>) {
     for message in messages.read() {
@@ -70,6 +79,9 @@ pub(crate) fn trigger_message_events(mut commands: Commands, mut messages: Messa
             ClothMessage::Diverged { entity, particles } => commands.trigger(ClothDiverged { entity, particles }),
             ClothMessage::AnchorLost { entity, target } => commands.trigger(AnchorLost { entity, target }),
             ClothMessage::ColliderFailed { entity, failure } => commands.trigger(ColliderFailed { entity, failure }),
+            ClothMessage::WindSourceRejected { entity, error } => {
+                commands.trigger(WindSourceRejected { entity, error });
+            }
         }
     }
 }

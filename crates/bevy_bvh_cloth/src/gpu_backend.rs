@@ -416,7 +416,7 @@ fn prepare_cloths(
     }
     prepare_skin_refits(world, device, &queue, !rewritten);
     let batch = world.batch.get_or_insert_with(|| ClothBatch::new(device, &queue));
-    // The sources were checked in the main world (`gather_wind`); the clock is the CPU
+    // The sources were checked in the main world (`gather_wind_sources`); the clock is the CPU
     // backend's: this frame's first tick starts at its index times the tick length.
     let _ = batch.set_wind_sources(&world.wind_sources);
     let first_tick = world.total_ticks.saturating_sub(u64::from(world.ticks));

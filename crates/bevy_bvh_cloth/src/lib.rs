@@ -130,7 +130,7 @@ pub use cloth::{Cloth, ClothAnchor, ClothShape};
 pub use collider::{ASYNC_BUILD_MIN_VERTICES, AutoCollider, ClothCollider, ColliderContact, ColliderStatus};
 pub use collider_hierarchy::{ColliderHierarchy, ColliderPart};
 pub use collider_mesh::{ColliderFailure, collider_from_mesh};
-pub use events::{AnchorLost, ClothDiverged, ClothRejected, ColliderFailed, ColliderReady};
+pub use events::{AnchorLost, ClothDiverged, ClothRejected, ColliderFailed, ColliderReady, WindSourceRejected};
 pub use messages::{ClothMessage, ResetCloth};
 pub use primitive_collider::{PrimitiveCollider, PrimitiveShape};
 pub use readback::ClothReadback;
@@ -149,7 +149,7 @@ pub mod prelude {
         ClothPins, ClothReadback, ClothRejected, ClothSettings, ClothShape, ClothSimulation, ClothStats, ClothSystems,
         ColliderContact, ColliderFailed, ColliderHierarchy, ColliderReady, ColliderStatus, ColorChannel, Integrator,
         LocalWind, PrimitiveCollider, PrimitiveShape, ResetCloth, SelfContact, SpringStiffness, Wind, WindBlast,
-        WindFan,
+        WindFan, WindSourceRejected,
     };
 }
 
@@ -304,7 +304,7 @@ impl Plugin for BvhClothPlugin {
                         .chain()
                         .in_set(ClothSystems::Prepare),
                     (
-                        wind::gather_wind,
+                        (wind::gather_wind_sources, wind::gather_wind).chain(),
                         simulation::plan_anchors,
                         cpu_backend::step_cloths.run_if(backend::cpu_backend_active),
                         gpu_backend::queue_render_ticks.run_if(not(backend::cpu_backend_active)),

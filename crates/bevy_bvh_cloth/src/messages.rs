@@ -40,6 +40,15 @@ pub enum ClothMessage {
         /// The anchor's target.
         target: Entity,
     },
+    /// A [`WindFan`](crate::WindFan)'s or [`WindBlast`](crate::WindBlast)'s values were
+    /// refused: it does not blow until they are fixed, and every other source and cloth runs
+    /// on. Sent once each time it turns bad.
+    WindSourceRejected {
+        /// The fan or blast entity.
+        entity: Entity,
+        /// What is wrong, naming the field.
+        error: ClothError,
+    },
     /// An [`AutoCollider`](crate::AutoCollider) could not be built; that entity does not collide.
     ColliderFailed {
         /// The collider entity.

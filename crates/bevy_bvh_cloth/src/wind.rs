@@ -2,6 +2,7 @@
 //! and local sources that follow their entity ([`WindFan`], [`WindBlast`]). Only a cloth whose
 //! [`ClothParams::aerodynamics`](crate::ClothParams) has drag or lift feels any of them.
 
+use bevy::ecs::entity::EntityHashSet;
 use bevy::prelude::*;
 use bvh_cloth_core::{ClothError, Wind, WindSource};
 
@@ -85,29 +86,35 @@ impl WindBlast {
     }
 }
 
-/// This frame's wind sources, as [`gather_wind`] found them (the invalid ones left out).
+/// This frame's wind sources, as [`gather_wind_sources`] found them (the invalid ones left
+/// out).
 #[derive(Resource, Clone, Debug, Default)]
 pub(crate) struct WindSources(pub(crate) Vec<WindSource>);
 
-/// Collects the fans and blasts into [`WindSources`] (a source whose values are invalid is
-/// left out, with an error when it changes), ages the blasts by this frame's ticks, and gives
-/// every cloth its wind, its sources and the wind clock of this frame's first tick. A cloth
-/// whose wind is invalid keeps its last one, and the error is sent as
-/// [`ClothMessage::Rejected`] (once per change).
-pub(crate) fn gather_wind(
+/// Collects the fans and blasts into [`WindSources`] and ages the blasts by this frame's ticks.
+/// A source whose values are invalid is left out, and sent as
+/// [`ClothMessage::WindSourceRejected`] when it turns bad (not every frame it stays bad: a
+/// blast changes every frame, as it ages, so change detection cannot tell).
+pub(crate) fn gather_wind_sources(
     clock: Res<ClothClock>,
-    ambient: Res<AmbientWind>,
     mut sources: ResMut<WindSources>,
-    fans: Query<(Entity, Ref<WindFan>, &GlobalTransform)>,
+    fans: Query<(Entity, &WindFan, &GlobalTransform)>,
     mut blasts: Query<(Entity, &mut WindBlast, &GlobalTransform)>,
-    mut cloths: Query<(Entity, &mut ClothSimulation, Option<Ref<LocalWind>>)>,
     mut messages: MessageWriter<ClothMessage>,
+    mut refused: Local<EntityHashSet>,
 ) {
     sources.0.clear();
-    let mut keep = |entity: Entity, changed: bool, source: WindSource| match source.validate() {
-        Ok(()) => sources.0.push(source),
-        Err(error) if changed => error!("Wind source on {entity}: {error}; it does not blow until fixed"),
-        Err(_) => {}
+    let mut keep = |entity: Entity, source: WindSource| match source.validate() {
+        Ok(()) => {
+            refused.remove(&entity);
+            sources.0.push(source);
+        }
+        Err(error) => {
+            if refused.insert(entity) {
+                error!("Wind source on {entity}: {error}; it does not blow until fixed");
+                messages.write(ClothMessage::WindSourceRejected { entity, error });
+            }
+        }
     };
     for (entity, fan, transform) in &fans {
         let source = WindSource::Fan {
@@ -117,23 +124,35 @@ pub(crate) fn gather_wind(
             range: fan.range,
             spread: fan.spread,
         };
-        keep(entity, fan.is_changed(), source);
+        keep(entity, source);
     }
     let elapsed = clock.ticks as f32 * clock.tick_seconds;
     for (entity, mut blast, transform) in &mut blasts {
-        let changed = blast.is_added();
         if blast.current_speed() != 0.0 {
             let source = WindSource::Blast {
                 center: transform.translation(),
                 speed: blast.current_speed(),
                 radius: blast.radius,
             };
-            keep(entity, changed, source);
+            keep(entity, source);
         }
         if elapsed > 0.0 && blast.age < blast.duration {
             blast.age += elapsed;
         }
     }
+    refused.retain(|&entity| fans.contains(entity) || blasts.contains(entity));
+}
+
+/// Gives every cloth its wind, this frame's [`WindSources`] and the wind clock of this frame's
+/// first tick. A cloth whose wind is invalid keeps its last one, and the error is sent as
+/// [`ClothMessage::Rejected`] (once per change).
+pub(crate) fn gather_wind(
+    clock: Res<ClothClock>,
+    ambient: Res<AmbientWind>,
+    sources: Res<WindSources>,
+    mut cloths: Query<(Entity, &mut ClothSimulation, Option<Ref<LocalWind>>)>,
+    mut messages: MessageWriter<ClothMessage>,
+) {
     let first_tick = clock.total_ticks.saturating_sub(u64::from(clock.ticks)) as f64 * f64::from(clock.tick_seconds);
     let ambient_changed = ambient.is_changed();
     for (entity, mut state, local) in &mut cloths {
@@ -142,8 +161,8 @@ pub(crate) fn gather_wind(
         state.sim.set_wind_time(first_tick);
         let result = state.sim.set_wind(wind, &sources.0);
         if let Err(error) = result {
-            // The sources were checked above: the cloth's own wind is at fault. Keep the last
-            // wind, with this frame's sources.
+            // The sources were checked by `gather_wind_sources`: the cloth's own wind is at
+            // fault. Keep the last wind, with this frame's sources.
             let last = *state.sim.wind();
             let _ = state.sim.set_wind(last, &sources.0);
             if changed {
