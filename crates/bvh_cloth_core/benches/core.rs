@@ -1,4 +1,5 @@
-//! Micro-benchmarks of the core: cloth steps, collider builds and particle queries.
+//! Micro-benchmarks of the core: cloth steps, aerodynamics, collider builds and particle
+//! queries.
 //!
 //! `cargo bench -p bvh_cloth_core --bench core`
 
@@ -6,9 +7,11 @@ use std::hint::black_box;
 
 use std::sync::Arc;
 
+use bvh_cloth_core::aerodynamics::{Air, AirModel};
 use bvh_cloth_core::obj::{ObjMesh, parse_obj};
 use bvh_cloth_core::{
-    Affine3A, ClothGrid, ClothParams, ClothSim, ClothTopology, Collider, Integrator, MeshRef, UVec2, Vec2, Vec3,
+    Aerodynamics, Affine3A, ClothGrid, ClothParams, ClothSim, ClothTopology, Collider, Integrator, MeshRef, UVec2,
+    Vec2, Vec3, Vec3A, Wind,
 };
 use criterion::{BenchmarkId, Criterion, Throughput, criterion_group, criterion_main};
 
@@ -79,6 +82,41 @@ fn step(c: &mut Criterion) {
     group.finish();
 }
 
+/// The parts of aerodynamics at 64 x 64 (the report's `wind` cost scene: hanging from two
+/// corners for 1 s in `Wind::gusty` at 8 m/s), against the block-descent substep they are set
+/// against: the wind's sampling (once a tick), the kick of drag and lift (once a substep), and
+/// a tick without them.
+fn aerodynamics(c: &mut Criterion) {
+    let mut group = c.benchmark_group("aerodynamics");
+    let topology = Arc::new(ClothTopology::grid(ClothGrid::new(Vec2::splat(1.4), UVec2::splat(64))).unwrap());
+    let params = ClothParams { aerodynamics: Aerodynamics::FABRIC, ..Default::default() };
+    let pose = Affine3A::from_translation(Vec3::new(0.0, 2.0, 0.0)) * Affine3A::from_rotation_x(0.3);
+    let wind = Wind::gusty(Vec3::new(8.0, 0.0, 2.0));
+    let mut sim = ClothSim::new(params.clone(), topology.clone(), pose, &[0, 63]).unwrap();
+    sim.set_wind(wind, &[]).unwrap();
+    for _ in 0..60 {
+        sim.tick(1.0 / 60.0, &[]);
+    }
+    let x: Vec<Vec3A> = sim.positions().iter().map(|&p| p.into()).collect();
+    let v: Vec<Vec3A> = sim.velocities().iter().map(|&p| p.into()).collect();
+    let free = vec![1.0f32; x.len()];
+    let model = AirModel::new(params.aerodynamics, params.mass, &wind, 1.0);
+    let mut air = Air::default();
+    group.throughput(Throughput::Elements(64 * 64));
+    group.bench_function("sample/64x64", |b| b.iter(|| air.sample(&model, &[], black_box(&x))));
+    let h = 1.0 / (60.0 * params.looper as f32);
+    group.bench_function("kick/64x64", |b| {
+        let mut v = v.clone();
+        b.iter(|| air.kick(&model, &topology, &free, black_box(h), &x, &mut v))
+    });
+    // A whole tick, whose substeps share one change of layout in and out.
+    sim.set_params(ClothParams { aerodynamics: Aerodynamics::NONE, ..params.clone() }).unwrap();
+    group.bench_function(format!("block descent tick of {} substeps without aerodynamics/64x64", params.looper), |b| {
+        b.iter_batched(|| sim.clone(), |mut sim| sim.tick(black_box(1.0 / 60.0), &[]), criterion::BatchSize::LargeInput)
+    });
+    group.finish();
+}
+
 fn build(c: &mut Criterion) {
     let mut group = c.benchmark_group("collider_build");
     for name in ["bunny.obj", "dragon.obj"] {
@@ -138,6 +176,6 @@ fn query(c: &mut Criterion) {
 criterion_group! {
     name = benches;
     config = Criterion::default().sample_size(20).warm_up_time(std::time::Duration::from_millis(500)).measurement_time(std::time::Duration::from_secs(2));
-    targets = step, topology, build, query
+    targets = step, topology, aerodynamics, build, query
 }
 criterion_main!(benches);
