@@ -101,7 +101,8 @@ fn bad_wind_is_refused_and_the_scene_runs_on() {
 
 /// A fan or a blast whose values are refused is reported each time it turns bad, naming it and
 /// the field, both as a message and as an event on its entity, and not every frame it stays
-/// bad; it is left out while the cloth runs on, and blows again once fixed.
+/// bad; it is left out while the cloth runs on, and blows again once fixed. A blast without a
+/// duration, which could never blow, is refused too.
 #[test]
 fn bad_wind_sources_are_reported_when_they_turn_bad() {
     let mut app = app();
@@ -141,6 +142,17 @@ fn bad_wind_sources_are_reported_when_they_turn_bad() {
     assert_eq!(refused(&app, blast, "blast.speed"), 2, "turned bad again, it is refused again");
     assert_eq!(observed.load(std::sync::atomic::Ordering::Relaxed), 2, "each refusal is triggered on the blast");
     assert_eq!(refused(&app, fan, "fan.speed"), 1, "the fan, bad all along, is not reported again");
+    // A blast that could never blow: no duration.
+    let still_born = app.world_mut().spawn((WindBlast::new(20.0, 3.0, f32::NAN), Transform::default())).id();
+    run(&mut app, 0.2);
+    let no_duration = sent(&app)
+        .iter()
+        .filter(|m| {
+            matches!(m, ClothMessage::WindSourceRejected { entity, error: ClothError::NotPositive { field: "blast.duration", .. } }
+                if *entity == still_born)
+        })
+        .count();
+    assert_eq!(no_duration, 1, "a blast without a duration is refused once, naming it");
     assert!(positions(&app, cloth).iter().all(|p| p.is_finite()), "the cloth runs on");
     assert!(
         !sent(&app).iter().any(|m| matches!(m, ClothMessage::Rejected { .. })),

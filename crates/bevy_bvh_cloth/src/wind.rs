@@ -80,6 +80,19 @@ impl WindBlast {
         Self { speed, radius, duration, age: 0.0 }
     }
 
+    /// Checks the fields a [`WindSource::Blast`] does not hold: a positive, finite duration and
+    /// a finite age of at least 0. (The speed and the radius are checked with the blast's
+    /// position, as a wind source.)
+    pub fn validate(&self) -> Result<(), ClothError> {
+        if !(self.duration.is_finite() && self.duration > 0.0) {
+            return Err(ClothError::NotPositive { field: "blast.duration", value: self.duration });
+        }
+        if !(self.age.is_finite() && self.age >= 0.0) {
+            return Err(ClothError::Negative { field: "blast.age", value: self.age });
+        }
+        Ok(())
+    }
+
     /// Its speed at the centre now: `speed` falling linearly to zero over `duration`.
     pub fn current_speed(&self) -> f32 {
         if self.duration > 0.0 { self.speed * (1.0 - self.age / self.duration).max(0.0) } else { 0.0 }
@@ -104,8 +117,8 @@ pub(crate) fn gather_wind_sources(
     mut refused: Local<EntityHashSet>,
 ) {
     sources.0.clear();
-    let mut keep = |entity: Entity, source: WindSource| match source.validate() {
-        Ok(()) => {
+    let mut keep = |entity: Entity, checked: Result<WindSource, ClothError>| match checked {
+        Ok(source) => {
             refused.remove(&entity);
             sources.0.push(source);
         }
@@ -124,17 +137,23 @@ pub(crate) fn gather_wind_sources(
             range: fan.range,
             spread: fan.spread,
         };
-        keep(entity, source);
+        keep(entity, source.validate().map(|()| source));
     }
     let elapsed = clock.ticks as f32 * clock.tick_seconds;
     for (entity, mut blast, transform) in &mut blasts {
-        if blast.current_speed() != 0.0 {
-            let source = WindSource::Blast {
-                center: transform.translation(),
-                speed: blast.current_speed(),
-                radius: blast.radius,
-            };
-            keep(entity, source);
+        // A blast that has run its course blows no more, and is not checked again; one whose
+        // duration or age is not valid would never blow, so it is refused.
+        match blast.validate() {
+            Ok(()) if blast.current_speed() == 0.0 => {}
+            Ok(()) => {
+                let source = WindSource::Blast {
+                    center: transform.translation(),
+                    speed: blast.current_speed(),
+                    radius: blast.radius,
+                };
+                keep(entity, source.validate().map(|()| source));
+            }
+            Err(error) => keep(entity, Err(error)),
         }
         if elapsed > 0.0 && blast.age < blast.duration {
             blast.age += elapsed;
