@@ -306,6 +306,48 @@ fn kernel_column(kernel: Kernel) -> usize {
     }
 }
 
+/// The rows of a with/without cost table: `with` and `without` (the same state, one feature
+/// on and off) tick once each from clones, alternating, best of `reps` each, on one thread and
+/// on the whole pool of `threads`; ms per tick and the feature's share of the rest.
+fn print_with_and_without(
+    single: &rayon::ThreadPool,
+    threads: usize,
+    without: &ClothSim,
+    with: &ClothSim,
+    colliders: &[Collider],
+    reps: u32,
+) {
+    let measure = || {
+        (0..reps).fold((f64::INFINITY, f64::INFINITY), |(off, on), _| {
+            let mut a = without.clone();
+            let mut b = with.clone();
+            let t_off = time(|| _ = a.tick(TICK, colliders));
+            let t_on = time(|| _ = b.tick(TICK, colliders));
+            (off.min(t_off), on.min(t_on))
+        })
+    };
+    for (label, (off, on)) in [("1", single.install(measure)), (&*threads.to_string(), measure())] {
+        println!("| {label} | {:.2} | {:.2} | {:.0}% |", off * 1e3, on * 1e3, (on - off) / off * 100.0);
+    }
+}
+
+/// The row of a GPU cost table: `cloth` alone in a batch with `c`, the GPU ms per tick of
+/// `kernel`'s column of [`kernel_column`] against the rest of the tick ([`kernel_ms`]), and
+/// the software adapter's caveat.
+fn print_kernel_share(gpu: &Gpu, c: &Collider, cloth: &ClothSim, kernel: Kernel) {
+    match kernel_ms(gpu, c, std::slice::from_ref(cloth)) {
+        Some((column, total)) => {
+            let part = column[kernel_column(kernel)];
+            let rest = total - part;
+            println!("| {} | {part:.3} | {rest:.3} | {:.0}% |", gpu.name, part / rest * 100.0);
+        }
+        None => println!("| {} | no timestamp queries | | |", gpu.name),
+    }
+    if gpu.software {
+        println!("\nThe GPU here is a software adapter on the same CPU cores: its times are not GPU figures.");
+    }
+}
+
 /// GPU ms of one 60 Hz tick of `cloths` (one batch, colliding with `c`) by kernel, in
 /// [`kernel_column`] order, and in all: medians of 9 ticks timed with timestamp queries, each
 /// dispatch in a compute pass of its own, after a second of falling (10 ticks on a software
@@ -1320,18 +1362,7 @@ fn self_contact(bunny: &ObjMesh, single: &rayon::ThreadPool, threads: usize, gpu
     }
     let mut without = with.clone();
     without.set_params(ClothParams { self_contact: None, ..with.params().clone() }).expect("valid parameters");
-    let measure = || {
-        (0..5).fold((f64::INFINITY, f64::INFINITY), |(off, on), _| {
-            let mut a = without.clone();
-            let mut b = with.clone();
-            let t_off = time(|| _ = a.tick(TICK, colliders));
-            let t_on = time(|| _ = b.tick(TICK, colliders));
-            (off.min(t_off), on.min(t_on))
-        })
-    };
-    for (label, (off, on)) in [("1", single.install(measure)), (&*threads.to_string(), measure())] {
-        println!("| {label} | {:.2} | {:.2} | {:.0}% |", off * 1e3, on * 1e3, (on - off) / off * 100.0);
-    }
+    print_with_and_without(single, threads, &without, &with, colliders, 5);
 
     println!("\n### Cost on the GPU: the same 128 x 128 cloth\n");
     let Some(gpu) = gpu else {
@@ -1343,17 +1374,7 @@ fn self_contact(bunny: &ObjMesh, single: &rayon::ThreadPool, threads: usize, gpu
     );
     println!("| adapter | self-contact ms | rest of the tick ms | self-contact / rest |");
     println!("|---|---|---|---|");
-    match kernel_ms(gpu, &surface, std::slice::from_ref(&with)) {
-        Some((column, total)) => {
-            let contact = column[kernel_column(Kernel::ContactFind)];
-            let rest = total - contact;
-            println!("| {} | {contact:.3} | {rest:.3} | {:.0}% |", gpu.name, contact / rest * 100.0);
-        }
-        None => println!("| {} | no timestamp queries | | |", gpu.name),
-    }
-    if gpu.software {
-        println!("\nThe GPU here is a software adapter on the same CPU cores: its times are not GPU figures.");
-    }
+    print_kernel_share(gpu, &surface, &with, Kernel::ContactFind);
 }
 
 /// Pairs of intersecting triangles: within `topology`'s cloth at `x` (pairs sharing no corner),
@@ -1579,18 +1600,7 @@ fn wind(bunny: &ObjMesh, single: &rayon::ThreadPool, threads: usize, gpu: Option
     }
     let mut without = with.clone();
     without.set_params(ClothParams { aerodynamics: Aerodynamics::NONE, ..with.params().clone() }).expect("valid");
-    let measure = || {
-        (0..9).fold((f64::INFINITY, f64::INFINITY), |(off, on), _| {
-            let mut a = without.clone();
-            let mut b = with.clone();
-            let t_off = time(|| _ = a.tick(TICK, &[]));
-            let t_on = time(|| _ = b.tick(TICK, &[]));
-            (off.min(t_off), on.min(t_on))
-        })
-    };
-    for (label, (off, on)) in [("1", single.install(measure)), (&*threads.to_string(), measure())] {
-        println!("| {label} | {:.2} | {:.2} | {:.0}% |", off * 1e3, on * 1e3, (on - off) / off * 100.0);
-    }
+    print_with_and_without(single, threads, &without, &with, &[], 9);
     let Some(gpu) = gpu else { return };
     println!(
         "\nOn the GPU, the same cloth from the same state: GPU ms per tick by timestamp queries, each dispatch in a compute pass of its own, median of 9 ticks (the cloth stays clear of the bunny, which is only there because the profile needs a collider).\n"
@@ -1599,15 +1609,5 @@ fn wind(bunny: &ObjMesh, single: &rayon::ThreadPool, threads: usize, gpu: Option
     println!("|---|---|---|---|");
     let far_away =
         collider(bunny, 5).with_pose(ColliderPose { translation: Vec3::new(50.0, 0.0, 0.0), ..Default::default() });
-    match kernel_ms(gpu, &far_away, std::slice::from_ref(&with)) {
-        Some((column, total)) => {
-            let air = column[kernel_column(Kernel::AirForces)];
-            let rest = total - air;
-            println!("| {} | {air:.3} | {rest:.3} | {:.0}% |", gpu.name, air / rest * 100.0);
-        }
-        None => println!("| {} | no timestamp queries | | |", gpu.name),
-    }
-    if gpu.software {
-        println!("\nThe GPU here is a software adapter on the same CPU cores: its times are not GPU figures.");
-    }
+    print_kernel_share(gpu, &far_away, &with, Kernel::AirForces);
 }
