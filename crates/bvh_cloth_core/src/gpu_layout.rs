@@ -116,7 +116,7 @@ impl GpuBatchCloth {
 }
 
 /// One cloth's aerodynamics as the air kernels read it (an array of these is one storage
-/// buffer, indexed like the [`GpuBatchCloth`] array). 32 bytes. A cloth with zero `drag` and
+/// buffer, indexed like the [`GpuBatchCloth`] array). 48 bytes. A cloth with zero `drag` and
 /// `lift` is left out of the air kernels.
 #[repr(C)]
 #[derive(Clone, Copy, Debug, Default, PartialEq, Pod, Zeroable)]
@@ -137,13 +137,29 @@ pub struct GpuAirCloth {
     pub drag: f32,
     /// [`AirModel::lift`].
     pub lift: f32,
+    /// Where the cloth's triangles start in the air kernels' buffer of triangle forces.
+    pub triangle_start: u32,
+    /// The cloth's triangles.
+    pub triangle_count: u32,
+    /// Padding.
+    pub _pad: [u32; 2],
 }
 
 impl GpuAirCloth {
     /// The constants of a cloth with the air `model` on `topology`, whose surface starts at
-    /// `surface_start`, among `source_count` wind sources.
-    pub fn new(model: &AirModel, topology: &ClothTopology, surface_start: u32, source_count: u32) -> Self {
+    /// `surface_start` and whose triangles' forces start at `triangle_start`, among
+    /// `source_count` wind sources.
+    pub fn new(
+        model: &AirModel,
+        topology: &ClothTopology,
+        surface_start: u32,
+        triangle_start: u32,
+        source_count: u32,
+    ) -> Self {
         Self {
+            triangle_start,
+            triangle_count: topology.triangles().len() as u32,
+            _pad: [0; 2],
             surface_start,
             vertex_count: topology.vertex_particle().len() as u32,
             seed: model.seed,

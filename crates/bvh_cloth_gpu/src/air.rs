@@ -2,9 +2,9 @@
 //! cloths of a batch that have drag or lift.
 //!
 //! Per tick, `air_sample` samples the wind at every particle of those cloths; per substep,
-//! before the integrators, `air_forces` gathers each particle's drag and lift from its
-//! triangles and `air_kick` adds the change of velocity, as
-//! [`bvh_cloth_core::ClothSim::tick`] does on the CPU.
+//! before the integrators, `air_forces` finds the drag and lift of every triangle once (a cloth's
+//! particle threads share its triangles out) and `air_kick` sums each particle's triangles and adds the
+//! change of velocity, as [`bvh_cloth_core::ClothSim::tick`] does on the CPU.
 //!
 //! What changes per frame (each cloth's constants, the wind sources, each tick's ambient wind
 //! and lattice time, which the host computes from the wind clock as the CPU does) is written by
@@ -21,6 +21,8 @@ use crate::kernels::ClothKernels;
 /// aerodynamics), the wind sources, and per tick each cloth slot's ambient wind and lattice time.
 pub(crate) struct AirFrame {
     pub cloths: Vec<GpuAirCloth>,
+    /// Triangles of the cloths with aerodynamics, all together.
+    pub triangles: u32,
     pub sources: Vec<AirSource>,
     pub ticks: Vec<Vec<[f32; 4]>>,
     /// Most substeps of a cloth with aerodynamics.
@@ -44,6 +46,7 @@ pub(crate) struct AirPlan {
     pub particle_capacity: u32,
     cloth_capacity: u32,
     source_capacity: u32,
+    triangle_capacity: u32,
     tick_capacity: u32,
     /// Bytes between two ticks' words.
     tick_stride: u64,
@@ -51,7 +54,8 @@ pub(crate) struct AirPlan {
     sources: Buffer,
     ticks: Buffer,
     wind: Buffer,
-    kicks: Buffer,
+    /// Each triangle's force per corner, over its cloth's mass.
+    triangle_forces: Buffer,
     /// Ticks written this frame, and the substeps the air cloths run.
     ticks_written: u32,
     pub substeps: u32,
@@ -65,13 +69,14 @@ impl AirPlan {
             particle_capacity: particles,
             cloth_capacity: cloths,
             source_capacity: 0,
+            triangle_capacity: 0,
             tick_capacity: 0,
             tick_stride: 0,
             cloths: storage_buffer(device, "bvh_cloth_air_cloths", u64::from(cloths) * size_of::<GpuAirCloth>() as u64),
             sources: storage_buffer(device, "bvh_cloth_wind_sources", 16),
             ticks: storage_buffer(device, "bvh_cloth_air_ticks", 16),
             wind: storage_buffer(device, "bvh_cloth_wind", particle_bytes),
-            kicks: storage_buffer(device, "bvh_cloth_air_kicks", particle_bytes),
+            triangle_forces: storage_buffer(device, "bvh_cloth_triangle_forces", 16),
             ticks_written: 0,
             substeps: 0,
         };
@@ -91,6 +96,12 @@ impl AirPlan {
         self.sources = storage_buffer(device, "bvh_cloth_wind_sources", bytes);
     }
 
+    fn grow_triangles(&mut self, device: &Device, count: u32) {
+        self.triangle_capacity = count.max(64);
+        let bytes = u64::from(self.triangle_capacity) * 16;
+        self.triangle_forces = storage_buffer(device, "bvh_cloth_triangle_forces", bytes);
+    }
+
     fn grow_ticks(&mut self, device: &Device, ticks: u32) {
         let align = u64::from(device.limits().min_storage_buffer_offset_alignment);
         self.tick_stride = (u64::from(self.cloth_capacity) * 16).div_ceil(align) * align;
@@ -104,6 +115,10 @@ impl AirPlan {
         let mut replaced = false;
         if frame.sources.len() as u32 > self.source_capacity {
             self.grow_sources(device, 2 * frame.sources.len() as u32);
+            replaced = true;
+        }
+        if frame.triangles > self.triangle_capacity {
+            self.grow_triangles(device, frame.triangles + frame.triangles / 2);
             replaced = true;
         }
         let ticks = frame.ticks.len().max(1) as u32;
@@ -168,7 +183,7 @@ impl AirPlan {
                     buffer(8, shared.cloths),
                     buffer(42, &self.cloths),
                     buffer(44, &self.wind),
-                    buffer(45, &self.kicks),
+                    buffer(45, &self.triangle_forces),
                     buffer(46, shared.particles),
                     buffer(47, shared.surface),
                 ],
@@ -181,8 +196,10 @@ impl AirPlan {
                     buffer(6, shared.info),
                     buffer(8, shared.cloths),
                     buffer(42, &self.cloths),
-                    buffer(45, &self.kicks),
+                    buffer(44, &self.wind),
+                    buffer(45, &self.triangle_forces),
                     buffer(46, shared.particles),
+                    buffer(47, shared.surface),
                 ],
             ),
         ]

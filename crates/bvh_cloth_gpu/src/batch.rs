@@ -80,9 +80,9 @@ pub enum Kernel {
     ContactApply,
     /// `air_sample`: the wind at every particle of the cloths with aerodynamics, once a tick.
     AirSample,
-    /// `air_forces`: each particle's drag and lift, gathered from its triangles.
+    /// `air_forces`: each triangle's drag and lift.
     AirForces,
-    /// `air_kick`: each particle's velocity changed by its drag and lift.
+    /// `air_kick`: each particle's velocity changed by the drag and lift of its triangles.
     AirKick,
 }
 
@@ -728,6 +728,7 @@ impl ClothBatch {
         let (start, tick_seconds, ticks) = self.wind_clock;
         let mut frame = AirFrame {
             cloths: vec![GpuAirCloth::default(); capacity],
+            triangles: 0,
             sources: self.wind_sources.clone(),
             ticks: vec![vec![[0.0; 4]; capacity]; ticks as usize],
             substeps: 0,
@@ -740,10 +741,12 @@ impl ClothBatch {
                 let model = AirModel::new(slot.aerodynamics, slot.mass, &slot.wind, time);
                 if k == 0 {
                     let sources = self.wind_sources.len() as u32;
-                    frame.cloths[index] = GpuAirCloth::new(&model, &slot.topology, slot.surface_start, sources);
+                    frame.cloths[index] =
+                        GpuAirCloth::new(&model, &slot.topology, slot.surface_start, frame.triangles, sources);
                 }
                 words[index] = GpuAirCloth::tick_word(&model);
             }
+            frame.triangles += slot.topology.triangles().len() as u32;
         }
         if self.air.as_ref().is_none_or(|plan| !plan.fits(self.buffers.particles, self.buffers.cloths)) {
             self.air = Some(AirPlan::new(device, self.buffers.particles, self.buffers.cloths));

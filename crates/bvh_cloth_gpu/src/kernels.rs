@@ -385,8 +385,10 @@ impl ClothKernels {
                     storage(6, true),
                     storage(8, false),
                     storage(42, true),
+                    storage(44, false),
                     storage(45, false),
                     storage(46, false),
+                    storage(47, true),
                 ],
             },
         ]

@@ -170,7 +170,18 @@ fn wgsl_structs_match_the_rust_layouts() {
         &module,
         "AirCloth",
         GpuAirCloth,
-        [surface_start, vertex_count, seed, source_count, turbulence, inv_scale, drag, lift]
+        [
+            surface_start,
+            vertex_count,
+            seed,
+            source_count,
+            turbulence,
+            inv_scale,
+            drag,
+            lift,
+            triangle_start,
+            triangle_count
+        ]
     );
     assert_layout!(&module, "WindSource", AirSource, [origin, axis, reach]);
     assert_layout!(

@@ -1,11 +1,11 @@
 // Aerodynamics (bvh_cloth_core::aerodynamics) for every cloth of the batch with drag or lift:
 // - air_sample, once per tick, one thread per particle slot: the wind at the particle (the
 //   cloth's ambient wind for the tick, its turbulence, every wind source);
-// - air_forces, once per substep before the integrators: each free particle gathers the drag
-//   and lift of its triangles (in its triangle list's order, no atomics) and keeps its capped
-//   change of velocity;
-// - air_kick: adds that change to the particle's velocity. A separate pass, since air_forces
-//   reads its neighbours' velocities.
+// - air_forces, once per substep before the integrators: the drag and lift of every triangle,
+//   each found once (a cloth's particle threads share its triangles out), into triangle_forces;
+// - air_kick: each free particle sums its triangles' forces (in its triangle list's order, no
+//   atomics) and adds its capped change of velocity to its own velocity. A separate pass,
+//   since air_forces reads the velocities of every corner.
 // A cloth past its own substeps sits the substep out.
 //
 // Bindings 41-47 (see types.wgsl).
@@ -23,6 +23,10 @@ struct AirCloth {
     inv_scale: f32,
     drag: f32,
     lift: f32,
+    // Where the cloth's triangles start in triangle_forces, and how many it has (padded to 48
+    // bytes).
+    triangle_start: u32,
+    @size(12) triangle_count: u32,
 }
 
 struct WindSource {
@@ -40,7 +44,7 @@ const SOURCE_FAN: f32 = 0.0;           // bvh_cloth_core::aerodynamics::SOURCE_F
 @group(0) @binding(42) var<storage, read> air_cloths: array<AirCloth>;
 @group(0) @binding(43) var<storage, read> wind_sources: array<WindSource>;
 @group(0) @binding(44) var<storage, read_write> wind: array<vec4<f32>>;
-@group(0) @binding(45) var<storage, read_write> air_kicks: array<vec4<f32>>;
+@group(0) @binding(45) var<storage, read_write> triangle_forces: array<vec4<f32>>;
 @group(0) @binding(46) var<storage, read_write> air_particles: array<GpuParticle>;
 @group(0) @binding(47) var<storage, read> air_surface: array<u32>;
 
@@ -197,6 +201,20 @@ fn capped_kick(dv: vec3<f32>, relative: vec3<f32>) -> vec3<f32> {
     return dv;
 }
 
+// Where a cloth's lists lie in the surface buffer: its triangle offsets, its triangle list and
+// its triangles' corners (bvh_cloth_core::gpu_layout::gpu_surface_words).
+struct AirSurface {
+    offsets: u32,
+    lists: u32,
+    corners: u32,
+}
+
+fn air_surface_of(air: AirCloth, count: u32) -> AirSurface {
+    let offsets = air.surface_start + air.vertex_count;
+    let lists = offsets + count + 1u;
+    return AirSurface(offsets, lists, lists + air_surface[offsets + count]);
+}
+
 @compute @workgroup_size(8, 8, 1)
 fn air_forces(@builtin(global_invocation_id) id: vec3<u32>) {
     let i = thread_index(id, frame.dispatch_width);
@@ -204,33 +222,37 @@ fn air_forces(@builtin(global_invocation_id) id: vec3<u32>) {
     if (c == NO_CLOTH || step.substep >= cloths[c].substeps) {
         return;
     }
-    let me = air_particles[i];
-    if (me.position.w == 0.0) {
-        air_kicks[i] = vec4(0.0);
-        return;
-    }
+    // The cloth's particles share its triangles out, in strides of its particle count: every
+    // thread takes about as many (two on a sheet), pinned or not, so none waits on another.
     let air = air_cloths[c];
     let start = cloths[c].particle_start;
     let count = cloths[c].particle_count;
-    let offsets = air.surface_start + air.vertex_count;
-    let lists = offsets + count + 1u;
-    let corners = lists + air_surface[offsets + count];
-    let local = i - start;
-    var f = vec3(0.0);
-    for (var k = air_surface[offsets + local]; k < air_surface[offsets + local + 1u]; k++) {
-        f += triangle_air(air, start, corners, air_surface[lists + k]);
+    let surface = air_surface_of(air, count);
+    for (var t = i - start; t < air.triangle_count; t += count) {
+        triangle_forces[air.triangle_start + t] = vec4(triangle_air(air, start, surface.corners, t), 0.0);
     }
-    let dv = f * (cloths[c].h * bitcast<f32>(particle_info[i].z));
-    air_kicks[i] = vec4(capped_kick(dv, wind[i].xyz - me.velocity.xyz), 0.0);
 }
 
 @compute @workgroup_size(8, 8, 1)
 fn air_kick(@builtin(global_invocation_id) id: vec3<u32>) {
     let i = thread_index(id, frame.dispatch_width);
     let c = air_cloth(i);
-    if (c == NO_CLOTH || step.substep >= cloths[c].substeps || air_particles[i].position.w == 0.0) {
+    if (c == NO_CLOTH || step.substep >= cloths[c].substeps) {
         return;
     }
-    let v = air_particles[i].velocity;
-    air_particles[i].velocity = vec4(v.xyz + air_kicks[i].xyz, v.w);
+    let me = air_particles[i];
+    if (me.position.w == 0.0) {
+        return;
+    }
+    let air = air_cloths[c];
+    let start = cloths[c].particle_start;
+    let surface = air_surface_of(air, cloths[c].particle_count);
+    let local = i - start;
+    var f = vec3(0.0);
+    for (var k = air_surface[surface.offsets + local]; k < air_surface[surface.offsets + local + 1u]; k++) {
+        f += triangle_forces[air.triangle_start + air_surface[surface.lists + k]].xyz;
+    }
+    let dv = f * (cloths[c].h * bitcast<f32>(particle_info[i].z));
+    let kick = capped_kick(dv, wind[i].xyz - me.velocity.xyz);
+    air_particles[i].velocity = vec4(me.velocity.xyz + kick, me.velocity.w);
 }
