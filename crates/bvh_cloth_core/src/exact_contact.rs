@@ -79,36 +79,42 @@ impl TriangleSurface {
     pub fn build(mesh: MeshRef<'_>) -> Result<Self, ColliderError> {
         let corner = |i: u32| mesh.positions.get(i as usize).map(|&p| Vec3::from(p));
         let count = mesh.indices.map_or(mesh.positions.len() / 3, |i| i.len() / 3);
-        let triangle = |t: usize| -> Option<[Vec3; 3]> {
+        let corners = |t: u32| -> Option<[Vec3; 3]> {
+            let t = t as usize;
             let ids = match mesh.indices {
                 Some(indices) => [indices[3 * t], indices[3 * t + 1], indices[3 * t + 2]],
                 None => [3 * t as u32, 3 * t as u32 + 1, 3 * t as u32 + 2],
             };
-            let tri = [corner(ids[0])?, corner(ids[1])?, corner(ids[2])?];
-            has_area(tri).then_some(tri)
+            Some([corner(ids[0])?, corner(ids[1])?, corner(ids[2])?])
         };
-        let kept: Vec<[Vec3; 3]> = if count >= PARALLEL_MIN {
-            (0..count).into_par_iter().filter_map(triangle).collect()
+        let keep = |&t: &u32| corners(t).is_some_and(has_area);
+        // The kept triangles by index, read from the mesh again where needed: the mesh's
+        // triangles are copied once, in leaf order (a build's memory is mostly fresh pages).
+        let kept: Vec<u32> = if count >= PARALLEL_MIN {
+            (0..count as u32).into_par_iter().filter(keep).collect()
         } else {
-            (0..count).filter_map(triangle).collect()
+            (0..count as u32).filter(keep).collect()
         };
         if kept.is_empty() {
             return Err(ColliderError::NoArea);
         }
+        // Every kept triangle has its corners.
+        let kept_triangle = |t: u32| corners(t).unwrap_or_default();
         let parallel = kept.len() >= PARALLEL_MIN;
         let spheres: Vec<Sphere> = if parallel {
-            kept.par_iter().map(bounding_sphere).collect()
+            kept.par_iter().map(|&t| bounding_sphere(&kept_triangle(t))).collect()
         } else {
-            kept.iter().map(bounding_sphere).collect()
+            kept.iter().map(|&t| bounding_sphere(&kept_triangle(t))).collect()
         };
         // The inner boxes are fitted to the triangles themselves, not to their spheres' boxes
         // (up to twice as wide): a query descends only where a triangle may be. The leaves keep
         // their spheres, which each query tests before the triangle.
         let (mut lbvh, order) = Lbvh::build_unfitted(&spheres);
+        drop(spheres);
         let triangles: Vec<[Vec3; 3]> = if parallel {
-            order.par_iter().map(|&k| kept[k as usize]).collect()
+            order.par_iter().map(|&k| kept_triangle(kept[k as usize])).collect()
         } else {
-            order.iter().map(|&k| kept[k as usize]).collect()
+            order.iter().map(|&k| kept_triangle(kept[k as usize])).collect()
         };
         lbvh.fit_boxes_by(|k| {
             let [a, b, c] = triangles[k as usize];
