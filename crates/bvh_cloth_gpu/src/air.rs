@@ -2,9 +2,10 @@
 //! cloths of a batch that have drag or lift.
 //!
 //! Per tick, `air_sample` samples the wind at every particle of those cloths; per substep,
-//! before the integrators, `air_forces` finds the drag and lift of every triangle once (a cloth's
-//! particle threads share its triangles out) and `air_kick` sums each particle's triangles and adds the
-//! change of velocity, as [`bvh_cloth_core::ClothSim::tick`] does on the CPU.
+//! before the integrators, `air_forces` finds the drag and lift of every triangle once (a
+//! cloth's particle threads share its triangles out) and `air_kick` sums each particle's
+//! triangles and adds the change of velocity, as [`bvh_cloth_core::ClothSim::tick`] does on the
+//! CPU.
 //!
 //! What changes per frame (each cloth's constants, the wind sources, each tick's ambient wind
 //! and lattice time, which the host computes from the wind clock as the CPU does) is written by
