@@ -1,36 +1,4 @@
-//! Every cloth on the GPU in one batch: shared, packed buffers, and one dispatch per integrator
-//! stage for all of them.
-//!
-//! A cloth's particles are a range of the shared particle buffers, its spring ends a range of
-//! the spring-end buffer, its surface a range of the surface buffer, and its constants one
-//! [`GpuBatchCloth`]; every index stored inside those ranges is relative to the cloth's own
-//! start, so a range can move without rewriting it. A tick is one `apply_anchors` dispatch,
-//! then for each substep RK4's three `node_update` stages and `node_update_final` (the last
-//! stage fused with the collision response), each one dispatch over every particle slot.
-//!
-//! A block-descent cloth takes, per substep, `vbd_predict` over every slot, one `vbd_solve`
-//! dispatch per iteration and colour, and `vbd_finish` (with the collision response). Its
-//! particles are listed colour by colour in the colour list: colour `k` of every block-descent
-//! cloth, then colour `k + 1`, so one dispatch updates one colour of all of them. The list is
-//! written again when the set of block-descent cloths, or where they lie, changes.
-//!
-//! The substeps run in step: substep `k` of the explicit cloths, then of the block-descent
-//! cloths, then self-contact for the cloths that have it (`contact_begin` before the
-//! integrators; see the `contact` module), so that contact sees every integrator's result.
-//! The cloths with self-contact all take the largest substep count among them.
-//!
-//! Cloths that need different substep counts share the tick: the batch runs the largest count,
-//! and a cloth sits out the substeps past its own (each cloth keeps its own substep length, so
-//! its trajectory is the one it would have alone, and the CPU stepper's). A semi-implicit Euler
-//! cloth integrates in the first stage and lands in the last; the other two skip it. Every
-//! cloth collides with every collider the batch is prepared with ([`ClothBatch::prepare`]), as
-//! every cloth of a scene does on the CPU.
-//!
-//! Adding a cloth writes its ranges at the end of the used space. When that is full, the
-//! buffers are rebuilt, larger where needed and with the live cloths packed together: their
-//! state is copied on the GPU (a submitted copy, which the CPU never waits for) and their
-//! shapes uploaded again. Removing a cloth marks its particles as no cloth's; the space comes
-//! back at the next rebuild. Other cloths' state is never touched.
+//! The batch of every cloth on the GPU: [`ClothBatch`].
 
 use std::sync::Arc;
 
@@ -254,7 +222,39 @@ struct DescentPlan {
     substeps: u32,
 }
 
-/// Every cloth of a scene on the GPU; see the [module docs](self).
+/// Every cloth on the GPU in one batch: shared, packed buffers, and one dispatch per integrator
+/// stage for all of them.
+///
+/// A cloth's particles are a range of the shared particle buffers, its spring ends a range of
+/// the spring-end buffer, its surface a range of the surface buffer, and its constants one
+/// [`GpuBatchCloth`]; every index stored inside those ranges is relative to the cloth's own
+/// start, so a range can move without rewriting it. A tick is one `apply_anchors` dispatch,
+/// then for each substep RK4's three `node_update` stages and `node_update_final` (the last
+/// stage fused with the collision response), each one dispatch over every particle slot.
+///
+/// A block-descent cloth takes, per substep, `vbd_predict` over every slot, one `vbd_solve`
+/// dispatch per iteration and colour, and `vbd_finish` (with the collision response). Its
+/// particles are listed colour by colour in the colour list: colour `k` of every block-descent
+/// cloth, then colour `k + 1`, so one dispatch updates one colour of all of them. The list is
+/// written again when the set of block-descent cloths, or where they lie, changes.
+///
+/// The substeps run in step: substep `k` of the explicit cloths, then of the block-descent
+/// cloths, then self-contact for the cloths that have it (`contact_begin` before the
+/// integrators; see the `contact` module), so that contact sees every integrator's result.
+/// The cloths with self-contact all take the largest substep count among them.
+///
+/// Cloths that need different substep counts share the tick: the batch runs the largest count,
+/// and a cloth sits out the substeps past its own (each cloth keeps its own substep length, so
+/// its trajectory is the one it would have alone, and the CPU stepper's). A semi-implicit Euler
+/// cloth integrates in the first stage and lands in the last; the other two skip it. Every
+/// cloth collides with every collider the batch is prepared with ([`ClothBatch::prepare`]), as
+/// every cloth of a scene does on the CPU.
+///
+/// Adding a cloth writes its ranges at the end of the used space. When that is full, the
+/// buffers are rebuilt, larger where needed and with the live cloths packed together: their
+/// state is copied on the GPU (a submitted copy, which the CPU never waits for) and their
+/// shapes uploaded again. Removing a cloth marks its particles as no cloth's; the space comes
+/// back at the next rebuild. Other cloths' state is never touched.
 #[derive(Debug)]
 pub struct ClothBatch {
     slots: Vec<Option<Slot>>,
