@@ -84,13 +84,8 @@ impl WindBlast {
     /// a finite age of at least 0. (The speed and the radius are checked with the blast's
     /// position, as a wind source.)
     pub fn validate(&self) -> Result<(), ClothError> {
-        if !(self.duration.is_finite() && self.duration > 0.0) {
-            return Err(ClothError::NotPositive { field: "blast.duration", value: self.duration });
-        }
-        if !(self.age.is_finite() && self.age >= 0.0) {
-            return Err(ClothError::Negative { field: "blast.age", value: self.age });
-        }
-        Ok(())
+        ClothError::check_positive("blast.duration", self.duration)?;
+        ClothError::check_non_negative("blast.age", self.age)
     }
 
     /// Its speed at the centre now: `speed` falling linearly to zero over `duration`.

@@ -163,10 +163,10 @@ impl Wind {
         in_range("wind.velocity", self.velocity.length(), 0.0, MAX_WIND_SPEED)?;
         in_range("wind.density", self.density, 0.0, MAX_AIR_DENSITY)?;
         in_range("wind.gust_strength", self.gust_strength, 0.0, 1.0)?;
-        positive("wind.gust_period", self.gust_period)?;
+        ClothError::check_positive("wind.gust_period", self.gust_period)?;
         in_range("wind.turbulence", self.turbulence, 0.0, MAX_WIND_SPEED)?;
-        positive("wind.turbulence_scale", self.turbulence_scale)?;
-        positive("wind.turbulence_period", self.turbulence_period)
+        ClothError::check_positive("wind.turbulence_scale", self.turbulence_scale)?;
+        ClothError::check_positive("wind.turbulence_period", self.turbulence_period)
     }
 
     /// The gust factor and the turbulence's lattice time at `time` seconds: what one tick's
@@ -224,7 +224,7 @@ impl WindSource {
                     return Err(ClothError::NotFinite { field: "fan.direction" });
                 }
                 in_range("fan.speed", speed, -MAX_WIND_SPEED, MAX_WIND_SPEED)?;
-                positive("fan.range", range)?;
+                ClothError::check_positive("fan.range", range)?;
                 in_range("fan.spread", spread, f32::MIN_POSITIVE, core::f32::consts::PI)
             }
             Self::Blast { center, speed, radius } => {
@@ -232,7 +232,7 @@ impl WindSource {
                     return Err(ClothError::NotFinite { field: "blast.center" });
                 }
                 in_range("blast.speed", speed, -MAX_WIND_SPEED, MAX_WIND_SPEED)?;
-                positive("blast.radius", radius)
+                ClothError::check_positive("blast.radius", radius)
             }
         }
     }
@@ -738,10 +738,6 @@ impl NoiseLattice {
 
 fn in_range(field: &'static str, value: f32, min: f32, max: f32) -> Result<(), ClothError> {
     if value >= min && value <= max { Ok(()) } else { Err(ClothError::OutOfRange { field, value, min, max }) }
-}
-
-fn positive(field: &'static str, value: f32) -> Result<(), ClothError> {
-    if value.is_finite() && value > 0.0 { Ok(()) } else { Err(ClothError::NotPositive { field, value }) }
 }
 
 #[cfg(test)]

@@ -139,6 +139,18 @@ pub enum ClothError {
     },
 }
 
+impl ClothError {
+    /// `Ok` for a finite `value` above zero, else [`Self::NotPositive`] naming `field`.
+    pub fn check_positive(field: &'static str, value: f32) -> Result<(), Self> {
+        if value.is_finite() && value > 0.0 { Ok(()) } else { Err(Self::NotPositive { field, value }) }
+    }
+
+    /// `Ok` for a finite `value` of at least zero, else [`Self::Negative`] naming `field`.
+    pub fn check_non_negative(field: &'static str, value: f32) -> Result<(), Self> {
+        if value.is_finite() && value >= 0.0 { Ok(()) } else { Err(Self::Negative { field, value }) }
+    }
+}
+
 impl fmt::Display for ClothError {
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
         match self {

@@ -179,7 +179,7 @@ impl ClothParams {
 
     /// Checks that a cloth can be stepped with these parameters.
     pub fn validate(&self) -> Result<(), ClothError> {
-        positive("mass", self.mass)?;
+        ClothError::check_positive("mass", self.mass)?;
         if self.looper == 0 {
             return Err(ClothError::ZeroLooper);
         }
@@ -201,11 +201,11 @@ impl ClothParams {
                 max: MAX_ITERATIONS,
             });
         }
-        non_negative("spring_k", self.spring_k)?;
-        non_negative("damping", self.damping)?;
-        non_negative("stiffness.structural", self.stiffness.structural)?;
-        non_negative("stiffness.shear", self.stiffness.shear)?;
-        non_negative("stiffness.bending", self.stiffness.bending)?;
+        ClothError::check_non_negative("spring_k", self.spring_k)?;
+        ClothError::check_non_negative("damping", self.damping)?;
+        ClothError::check_non_negative("stiffness.structural", self.stiffness.structural)?;
+        ClothError::check_non_negative("stiffness.shear", self.stiffness.shear)?;
+        ClothError::check_non_negative("stiffness.bending", self.stiffness.bending)?;
         finite("external_force", self.external_force)?;
         finite("gravity", self.gravity)?;
         if let Some(contact) = &self.self_contact {
@@ -226,14 +226,6 @@ impl ClothParams {
         }
         Ok(())
     }
-}
-
-fn positive(field: &'static str, value: f32) -> Result<(), ClothError> {
-    if value.is_finite() && value > 0.0 { Ok(()) } else { Err(ClothError::NotPositive { field, value }) }
-}
-
-fn non_negative(field: &'static str, value: f32) -> Result<(), ClothError> {
-    if value.is_finite() && value >= 0.0 { Ok(()) } else { Err(ClothError::Negative { field, value }) }
 }
 
 fn finite(field: &'static str, value: Vec3) -> Result<(), ClothError> {

@@ -101,13 +101,8 @@ impl SelfContact {
     /// Checks the fields alone: a positive, finite thickness and a non-negative, finite
     /// friction.
     pub fn validate(&self) -> Result<(), ClothError> {
-        if !(self.thickness.is_finite() && self.thickness > 0.0) {
-            return Err(ClothError::NotPositive { field: "self_contact.thickness", value: self.thickness });
-        }
-        if !(self.friction.is_finite() && self.friction >= 0.0) {
-            return Err(ClothError::Negative { field: "self_contact.friction", value: self.friction });
-        }
-        Ok(())
+        ClothError::check_positive("self_contact.thickness", self.thickness)?;
+        ClothError::check_non_negative("self_contact.friction", self.friction)
     }
 
     /// [`Self::validate`], and a thickness no larger than `topology`'s particle spacing.
