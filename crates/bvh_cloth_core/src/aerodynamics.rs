@@ -26,7 +26,8 @@
 //!
 //! On the CPU the triangles' forces are found three at a time, one triangle per SIMD lane
 //! ([`AirModel::triangle_forces`]), and a tick's sampling hashes each corner of the noise's
-//! lattice round the cloth once, not once per particle in its cells. Both give the bits of the
+//! lattice round the cloth and blends it in time once, not once per particle in its cells
+//! (the noise blends each corner in time first, then in space). Both give the bits of the
 //! one-at-a-time arithmetic that the GPU repeats.
 //!
 //! ## The wind
@@ -473,7 +474,7 @@ impl Air {
         self.wind.resize(x.len(), Vec3A::ZERO);
         let (t, seed) = (model.lattice_time, model.seed);
         let lattice = if model.turbulence > 0.0 {
-            let q = x.iter().map(|&p| Vec3::from(p) * model.inv_scale);
+            let q = x.iter().map(|&p| p * model.inv_scale);
             NoiseLattice::around(q, t, seed, x.len())
         } else {
             None
@@ -608,6 +609,12 @@ fn time_key(t: u32) -> u32 {
     (t % NOISE_TIME_PERIOD).wrapping_mul(0x1656_67b1)
 }
 
+/// The lattice cell of `q`: `Vec3::floor` on SIMD lanes, inline where `f32::floor` is a call.
+#[inline]
+fn floor(q: Vec3) -> Vec3 {
+    Vec3A::from(q).floor().into()
+}
+
 /// A corner's vector: three lattice values from one hash.
 #[inline]
 fn corner_vector(h: u32) -> Vec3A {
@@ -618,7 +625,7 @@ fn corner_vector(h: u32) -> Vec3A {
 /// units) and lattice time `t` (`0 <= t`), smoothstep-blended over the 16 corners of its cell.
 /// The GPU's `value_noise_4d` repeats this arithmetic.
 pub fn value_noise_4d(q: Vec3, t: f32, seed: u32) -> Vec3 {
-    let cell = q.floor();
+    let cell = floor(q);
     let tc = t.floor();
     let [x, y, z] = [cell.x as i32, cell.y as i32, cell.z as i32];
     let ti = tc as u32;
@@ -627,7 +634,11 @@ pub fn value_noise_4d(q: Vec3, t: f32, seed: u32) -> Vec3 {
     let ys = [lattice_key(y, Y_KEY), lattice_key(y.wrapping_add(1), Y_KEY)];
     let zs = [lattice_key(z, Z_KEY), lattice_key(z.wrapping_add(1), Z_KEY)];
     let ts = [time_key(ti) ^ seed, time_key(ti.wrapping_add(1)) ^ seed];
-    blend_cell(q - cell, t - tc, |[i, j, k, l]| corner_vector(hash(xs[i] ^ ys[j] ^ zs[k] ^ ts[l])))
+    let st = smooth(t - tc);
+    blend_cell(q - cell, |[i, j, k]| {
+        let key = xs[i] ^ ys[j] ^ zs[k];
+        in_time(corner_vector(hash(key ^ ts[0])), corner_vector(hash(key ^ ts[1])), st)
+    })
 }
 
 /// The odd constants of the lattice's x, y and z keys.
@@ -635,25 +646,29 @@ const X_KEY: u32 = 0x8da6_b343;
 const Y_KEY: u32 = 0xd816_3841;
 const Z_KEY: u32 = 0xcb1a_b31f;
 
-/// The smoothstep blend of a cell's 16 corner vectors, `corner([x, y, z, t])` with each index 0
-/// or 1, at the fractions `f` in space and `ft` in time: along x, then y, then z, then time.
+/// A lattice corner's vector at a time between two lattice times: its vectors at the two, `a`
+/// and `b`, blended by the time's smoothstep weight `st`. Time is blended first, so that one
+/// tick's corners are blended once, whatever the number of points in their cells.
 #[inline(always)]
-fn blend_cell(f: Vec3, ft: f32, corner: impl Fn([usize; 4]) -> Vec3A) -> Vec3 {
-    let (sx, sy, sz, st) = (smooth(f.x), smooth(f.y), smooth(f.z), smooth(ft));
+fn in_time(a: Vec3A, b: Vec3A, st: f32) -> Vec3A {
+    a + (b - a) * st
+}
+
+/// The smoothstep blend of a cell's 8 corner vectors (already blended in time), `corner([x, y,
+/// z])` with each index 0 or 1, at the fractions `f`: along x, then y, then z.
+#[inline(always)]
+fn blend_cell(f: Vec3, corner: impl Fn([usize; 3]) -> Vec3A) -> Vec3 {
+    let (sx, sy, sz) = (smooth(f.x), smooth(f.y), smooth(f.z));
     let lerp = |a: Vec3A, b: Vec3A, s: f32| a + (b - a) * s;
-    let mut by_time = [Vec3A::ZERO; 2];
-    for (l, slice) in by_time.iter_mut().enumerate() {
-        let mut by_z = [Vec3A::ZERO; 2];
-        for (k, plane) in by_z.iter_mut().enumerate() {
-            let mut by_y = [Vec3A::ZERO; 2];
-            for (j, row) in by_y.iter_mut().enumerate() {
-                *row = lerp(corner([0, j, k, l]), corner([1, j, k, l]), sx);
-            }
-            *plane = lerp(by_y[0], by_y[1], sy);
+    let mut by_z = [Vec3A::ZERO; 2];
+    for (k, plane) in by_z.iter_mut().enumerate() {
+        let mut by_y = [Vec3A::ZERO; 2];
+        for (j, row) in by_y.iter_mut().enumerate() {
+            *row = lerp(corner([0, j, k]), corner([1, j, k]), sx);
         }
-        *slice = lerp(by_z[0], by_z[1], sz);
+        *plane = lerp(by_y[0], by_y[1], sy);
     }
-    lerp(by_time[0], by_time[1], st).into()
+    lerp(by_z[0], by_z[1], sz).into()
 }
 
 /// The most corner vectors a [`NoiseLattice`] holds per particle it serves (and 4,096 at
@@ -662,25 +677,26 @@ const LATTICE_PER_PARTICLE: usize = 2;
 
 /// The turbulence's corner vectors over the cells a cloth's particles lie in, at one lattice
 /// time: one tick's [`value_noise_4d`] for every particle, each of the cells' corners hashed
-/// once instead of once for each particle in them. The same corners and the same blend give
-/// the same bits.
+/// and blended in time once instead of once for each particle in them. The same corners and
+/// the same blend give the same bits.
 struct NoiseLattice {
     /// The first corner, in lattice coordinates.
     lo: [i32; 3],
     /// Corners along x, y and z.
     dims: [usize; 3],
-    /// The vectors, x fastest, then y, z, and the two times.
+    /// The vectors at the lattice time, x fastest, then y and z.
     vectors: Vec<Vec3A>,
 }
 
 impl NoiseLattice {
     /// The corners round the cells of every finite `q` (lattice units) at lattice time `t`;
     /// `None` when there is no finite point or the lattice would be too large.
-    fn around(q: impl Iterator<Item = Vec3>, t: f32, seed: u32, particles: usize) -> Option<Self> {
+    fn around(q: impl Iterator<Item = Vec3A>, t: f32, seed: u32, particles: usize) -> Option<Self> {
+        // The cells' bounds are those of the points, floored (floor does not decrease).
         let (lo, hi) = q
             .filter(|q| q.is_finite())
-            .map(Vec3::floor)
-            .fold((Vec3::INFINITY, Vec3::NEG_INFINITY), |(lo, hi), c| (lo.min(c), hi.max(c)));
+            .fold((Vec3A::INFINITY, Vec3A::NEG_INFINITY), |(lo, hi), q| (lo.min(q), hi.max(q)));
+        let (lo, hi) = (Vec3::from(lo.floor()), Vec3::from(hi.floor()));
         if !(lo.is_finite() && hi.is_finite())
             || lo.min_element() < i32::MIN as f32 / 2.0
             || hi.max_element() > i32::MAX as f32 / 2.0
@@ -688,24 +704,24 @@ impl NoiseLattice {
             return None;
         }
         let span = hi - lo + 2.0;
-        let count = f64::from(span.x) * f64::from(span.y) * f64::from(span.z) * 2.0;
+        let count = f64::from(span.x) * f64::from(span.y) * f64::from(span.z);
         if count > (LATTICE_PER_PARTICLE * particles).max(4096) as f64 {
             return None;
         }
         let lo = [lo.x as i32, lo.y as i32, lo.z as i32];
         let dims = [span.x as usize, span.y as usize, span.z as usize];
-        let tc = t.floor() as u32;
+        let tc = t.floor();
+        let st = smooth(t - tc);
+        let ti = tc as u32;
+        let ts = [time_key(ti) ^ seed, time_key(ti.wrapping_add(1)) ^ seed];
         let mut vectors = Vec::with_capacity(count as usize);
-        for ti in [tc, tc.wrapping_add(1)] {
-            let tk = time_key(ti) ^ seed;
-            for z in 0..dims[2] as i32 {
-                let zk = lattice_key(lo[2].wrapping_add(z), Z_KEY);
-                for y in 0..dims[1] as i32 {
-                    let yk = lattice_key(lo[1].wrapping_add(y), Y_KEY);
-                    for x in 0..dims[0] as i32 {
-                        let xk = lattice_key(lo[0].wrapping_add(x), X_KEY);
-                        vectors.push(corner_vector(hash(xk ^ yk ^ zk ^ tk)));
-                    }
+        for z in 0..dims[2] as i32 {
+            let zk = lattice_key(lo[2].wrapping_add(z), Z_KEY);
+            for y in 0..dims[1] as i32 {
+                let yk = lattice_key(lo[1].wrapping_add(y), Y_KEY);
+                for x in 0..dims[0] as i32 {
+                    let key = lattice_key(lo[0].wrapping_add(x), X_KEY) ^ yk ^ zk;
+                    vectors.push(in_time(corner_vector(hash(key ^ ts[0])), corner_vector(hash(key ^ ts[1])), st));
                 }
             }
         }
@@ -716,7 +732,7 @@ impl NoiseLattice {
     /// cell is among them, else hashed.
     #[inline]
     fn noise(&self, q: Vec3, t: f32, seed: u32) -> Vec3 {
-        let cell = q.floor();
+        let cell = floor(q);
         let c = [cell.x as i32, cell.y as i32, cell.z as i32];
         let mut base = [0usize; 3];
         for axis in 0..3 {
@@ -726,13 +742,10 @@ impl NoiseLattice {
             }
             base[axis] = offset as usize;
         }
-        let [dx, dy, dz] = self.dims;
+        let [dx, dy, _] = self.dims;
         let first = (base[2] * dy + base[1]) * dx + base[0];
-        let strides = [1, dx, dx * dy, dx * dy * dz];
-        let tc = t.floor();
-        blend_cell(q - cell, t - tc, |[i, j, k, l]| {
-            self.vectors[first + i + j * strides[1] + k * strides[2] + l * strides[3]]
-        })
+        let (y_stride, z_stride) = (dx, dx * dy);
+        blend_cell(q - cell, |[i, j, k]| self.vectors[first + i + j * y_stride + k * z_stride])
     }
 }
 
@@ -834,9 +847,10 @@ mod tests {
         }
     }
 
-    /// A tick's sampling, which hashes each lattice corner once, gives every particle the bits
-    /// of [`AirModel::wind_at`]: in eddies larger than the cloth, in eddies so small that the
-    /// corners are hashed point by point, and with a point that is not finite among them.
+    /// A tick's sampling, which hashes and blends each lattice corner once, gives every particle
+    /// the bits of [`AirModel::wind_at`]: in eddies larger than the cloth, in eddies so small
+    /// that the corners are hashed point by point, and with a point that is not finite among
+    /// them.
     #[test]
     fn sampling_gives_the_bits_of_the_wind_at_each_point() {
         let mut seed = 5u32;
@@ -850,7 +864,7 @@ mod tests {
         for (scale, corners) in [(2.0, true), (0.3, true), (0.001, false)] {
             let wind = Wind { turbulence_scale: scale, ..Wind::gusty(Vec3::new(7.0, 0.0, 3.0)) };
             let model = AirModel::new(Aerodynamics::FABRIC, 0.3, &wind, 1234.5);
-            let q = x.iter().map(|&p| Vec3::from(p) * model.inv_scale);
+            let q = x.iter().map(|&p| p * model.inv_scale);
             let lattice = NoiseLattice::around(q, model.lattice_time, model.seed, x.len());
             assert_eq!(lattice.is_some(), corners, "eddies of {scale} m");
             let mut air = Air::default();

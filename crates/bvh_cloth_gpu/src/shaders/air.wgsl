@@ -107,24 +107,22 @@ fn value_noise_4d(q: vec3<f32>, t: f32, seed: u32) -> vec3<f32> {
     let sy = noise_smooth(f.y);
     let sz = noise_smooth(f.z);
     let st = noise_smooth(t - tc);
-    var by_time: array<vec3<f32>, 2>;
-    for (var k = 0u; k < 2u; k++) {
-        let tk = ti + k;
-        var by_z: array<vec3<f32>, 2>;
-        for (var dz = 0; dz < 2; dz++) {
-            let zk = z + dz;
-            var by_y: array<vec3<f32>, 2>;
-            for (var dy = 0; dy < 2; dy++) {
-                let yk = y + dy;
-                let a = noise_corner(x, yk, zk, tk, seed);
-                let b = noise_corner(x + 1, yk, zk, tk, seed);
-                by_y[dy] = noise_lerp(a, b, sx);
-            }
-            by_z[dz] = noise_lerp(by_y[0], by_y[1], sy);
+    // Each corner is blended in time first, then along x, y and z, as on the CPU.
+    var by_z: array<vec3<f32>, 2>;
+    for (var dz = 0; dz < 2; dz++) {
+        let zk = z + dz;
+        var by_y: array<vec3<f32>, 2>;
+        for (var dy = 0; dy < 2; dy++) {
+            let yk = y + dy;
+            let a0 = noise_corner(x, yk, zk, ti, seed);
+            let a = noise_lerp(a0, noise_corner(x, yk, zk, ti + 1u, seed), st);
+            let b0 = noise_corner(x + 1, yk, zk, ti, seed);
+            let b = noise_lerp(b0, noise_corner(x + 1, yk, zk, ti + 1u, seed), st);
+            by_y[dy] = noise_lerp(a, b, sx);
         }
-        by_time[k] = noise_lerp(by_z[0], by_z[1], sz);
+        by_z[dz] = noise_lerp(by_y[0], by_y[1], sy);
     }
-    return noise_lerp(by_time[0], by_time[1], st);
+    return noise_lerp(by_z[0], by_z[1], sz);
 }
 
 // bvh_cloth_core::aerodynamics::AirSource::velocity_at.
