@@ -462,10 +462,10 @@ pub struct Air {
     pub wind: Vec<Vec3A>,
     /// Each particle's wind less its velocity this substep.
     relative: Vec<Vec3A>,
-    /// Each triangle's force per corner (see [`AirModel::triangle_force`]), and each
-    /// particle's sum of them.
+    /// Each triangle's force per corner (see [`AirModel::triangle_force`]): in triangle order
+    /// on a large cloth, and on a small one in the particle-major order of the topology's
+    /// triangle list (a copy under each corner).
     forces: Vec<Vec3A>,
-    sums: Vec<Vec3A>,
 }
 
 impl Air {
@@ -507,35 +507,41 @@ impl Air {
         let inv_share = topology.inv_mass_share();
         self.relative.clear();
         self.relative.extend(self.wind.iter().zip(v.iter()).map(|(&w, &v)| w - v));
-        let relative = &self.relative;
+        let relative = &self.relative[..];
         let apply = |i: usize, f: Vec3A, v: &mut Vec3A| {
             if free[i] != 0.0 {
                 let dv = f * (h * inv_share[i]);
                 *v += capped_kick_simd(dv, relative[i]);
             }
         };
-        self.forces.resize(triangles.len(), Vec3A::ZERO);
-        // Tasks of a multiple of three triangles, so that each groups its triangles as one task
-        // over all of them would.
-        const TASK: usize = MIN_TASK / 3 * 3;
-        self.forces.par_chunks_mut(TASK).zip(triangles.par_chunks(TASK)).for_each(|(out, triangles)| {
-            model.triangle_forces(triangles, x, relative, |t, f| out[t] = f);
-        });
-        let forces = &self.forces;
         if v.len() < MIN_TASK {
-            // Scattered in triangle order, each particle's sum takes its triangles in the order
-            // of its triangle list (ascending), as the gather below and the GPU's do.
-            self.sums.clear();
-            self.sums.resize(v.len(), Vec3A::ZERO);
-            for (t, f) in triangles.iter().zip(forces) {
-                for &k in t {
-                    self.sums[k as usize] += *f;
+            // Each triangle's force goes under each of its corners in the triangle list, so that
+            // a particle's forces lie together, in the order of its list, as the gather below
+            // and the GPU's take them.
+            let (slots, offsets) = (topology.triangle_slots(), topology.triangle_offsets());
+            self.forces.resize(topology.triangle_list().len(), Vec3A::ZERO);
+            let forces = &mut self.forces[..];
+            model.triangle_forces(triangles, x, relative, |t, f| {
+                for slot in slots[t] {
+                    forces[slot as usize] = f;
                 }
-            }
-            for (i, (v, &f)) in v.iter_mut().zip(&self.sums).enumerate() {
+            });
+            for (i, v) in v.iter_mut().enumerate() {
+                let mut f = Vec3A::ZERO;
+                for &share in &forces[offsets[i] as usize..offsets[i + 1] as usize] {
+                    f += share;
+                }
                 apply(i, f, v);
             }
         } else {
+            self.forces.resize(triangles.len(), Vec3A::ZERO);
+            // Tasks of a multiple of three triangles, so that each groups its triangles as one
+            // task over all of them would.
+            const TASK: usize = MIN_TASK / 3 * 3;
+            self.forces.par_chunks_mut(TASK).zip(triangles.par_chunks(TASK)).for_each(|(out, triangles)| {
+                model.triangle_forces(triangles, x, relative, |t, f| out[t] = f);
+            });
+            let forces = &self.forces;
             v.par_iter_mut().enumerate().with_min_len(MIN_TASK).for_each(|(i, v)| {
                 let mut f = Vec3A::ZERO;
                 for &t in topology.triangles_of(i) {
@@ -888,6 +894,57 @@ mod tests {
         // A degenerate triangle neither.
         let line = [Vec3::ZERO, Vec3::X, 2.0 * Vec3::X];
         assert_eq!(m.triangle_force(line, [Vec3::ZERO; 3], [wind.velocity; 3]), Vec3::ZERO);
+    }
+
+    /// A kick gives each particle the bits of its triangles' forces found one at a time and
+    /// summed in the order of its list, on a cloth small enough for one thread (each force
+    /// copied under its corners) and on one large enough for the pool (gathered per particle).
+    #[test]
+    fn kicks_sum_each_particles_triangles_in_the_order_of_its_list() {
+        use crate::grid::ClothGrid;
+        use glam::{UVec2, Vec2};
+        let wind = Wind::gusty(Vec3::new(6.0, 1.0, -2.0));
+        let m = model(Aerodynamics::FABRIC, &wind);
+        let mut seed = 11u32;
+        let mut next = || {
+            seed = hash(seed);
+            unit(seed)
+        };
+        for cells in [24u32, 100] {
+            let topology = ClothTopology::grid(ClothGrid::new(Vec2::splat(1.0), UVec2::splat(cells))).unwrap();
+            let n = topology.len();
+            assert_eq!(n < MIN_TASK, cells == 24, "one cloth on each path");
+            let x: Vec<Vec3A> = topology
+                .rest_positions()
+                .iter()
+                .map(|&p| Vec3A::from(p) + 0.01 * Vec3A::new(next(), next(), next()))
+                .collect();
+            let v0: Vec<Vec3A> = (0..n).map(|_| 3.0 * Vec3A::new(next(), next(), next())).collect();
+            let free: Vec<f32> = (0..n).map(|i| if i % 7 == 0 { 0.0 } else { 1.0 }).collect();
+            let h = 1.0 / 960.0;
+            let mut air = Air::default();
+            air.sample(&m, &[], &x);
+            let mut v = v0.clone();
+            air.kick(&m, &topology, &free, h, &x, &mut v);
+            let corners = |t: [u32; 3], a: &[Vec3A]| t.map(|k| Vec3::from(a[k as usize]));
+            for i in 0..n {
+                let mut f = Vec3::ZERO;
+                for &t in topology.triangles_of(i) {
+                    let tri = topology.triangles()[t as usize];
+                    f += m.triangle_force(corners(tri, &x), corners(tri, &v0), corners(tri, &air.wind));
+                }
+                let mut want = Vec3::from(v0[i]);
+                if free[i] != 0.0 {
+                    want += capped_kick(f * (h * topology.inv_mass_share()[i]), Vec3::from(air.wind[i] - v0[i]));
+                }
+                assert_eq!(
+                    Vec3::from(v[i]).to_array().map(f32::to_bits),
+                    want.to_array().map(f32::to_bits),
+                    "{cells} cells, particle {i}: {} kicked, {want} one at a time",
+                    v[i]
+                );
+            }
+        }
     }
 
     #[test]

@@ -61,6 +61,7 @@ pub struct ClothTopology {
     triangles: Vec<[u32; 3]>,
     triangle_offsets: Vec<u32>,
     triangle_list: Vec<u32>,
+    triangle_slots: Vec<[u32; 3]>,
     vertex_particle: Vec<u32>,
     stencil: Option<ClothGrid>,
     stiffness_bound: [f32; 3],
@@ -243,8 +244,10 @@ impl ClothTopology {
         }
         let mut fill = triangle_offsets.clone();
         let mut triangle_list = vec![0u32; triangle_offsets[n] as usize];
-        for (k, t) in triangles.iter().enumerate() {
-            for &p in t {
+        let mut triangle_slots = vec![[0u32; 3]; triangles.len()];
+        for (k, (t, slots)) in triangles.iter().zip(&mut triangle_slots).enumerate() {
+            for (&p, slot) in t.iter().zip(slots) {
+                *slot = fill[p as usize];
                 triangle_list[fill[p as usize] as usize] = k as u32;
                 fill[p as usize] += 1;
             }
@@ -274,6 +277,7 @@ impl ClothTopology {
             triangles,
             triangle_offsets,
             triangle_list,
+            triangle_slots,
             vertex_particle,
             stencil: None,
             stiffness_bound,
@@ -342,6 +346,14 @@ impl ClothTopology {
     /// Every particle's triangles (indices into [`Self::triangles`]), particle by particle.
     pub fn triangle_list(&self) -> &[u32] {
         &self.triangle_list
+    }
+
+    /// Where each triangle stands in [`Self::triangle_list`] under each of its corners:
+    /// `triangle_list[triangle_slots()[t][c]] == t` for every corner `c` of triangle `t`. A
+    /// value per triangle written at these places lies in each particle's own run of the list,
+    /// in the list's order.
+    pub fn triangle_slots(&self) -> &[[u32; 3]] {
+        &self.triangle_slots
     }
 
     /// The triangles of particle `i`.
@@ -561,6 +573,16 @@ mod tests {
         assert_eq!(share[t.vertex_particle()[9] as usize], 0.0, "a zero-area triangle carries no mass");
         assert!((share.iter().sum::<f32>() - 1.0).abs() < 1e-6);
         assert!(t.spring_ends().iter().all(|e| e.rest > 0.0 && e.weight.is_finite()));
+        // Each triangle stands once under each corner, inside that corner's run of the list.
+        for (k, (tri, slots)) in t.triangles().iter().zip(t.triangle_slots()).enumerate() {
+            for (&p, &slot) in tri.iter().zip(slots) {
+                let run = t.triangle_offsets()[p as usize]..t.triangle_offsets()[p as usize + 1];
+                assert!(run.contains(&slot) && t.triangle_list()[slot as usize] == k as u32);
+            }
+        }
+        let mut slots: Vec<u32> = t.triangle_slots().iter().flatten().copied().collect();
+        slots.sort_unstable();
+        assert_eq!(slots, (0..t.triangle_list().len() as u32).collect::<Vec<_>>());
     }
 
     #[test]
