@@ -137,7 +137,8 @@ pub struct GpuAirCloth {
     pub drag: f32,
     /// [`AirModel::lift`].
     pub lift: f32,
-    /// Where the cloth's triangles start in the air kernels' buffer of triangle forces.
+    /// Where the cloth's triangles' forces start in the air kernels' state buffer (which holds
+    /// the wind at every particle slot first, then the triangles' forces).
     pub triangle_start: u32,
     /// The cloth's triangles.
     pub triangle_count: u32,

@@ -3,9 +3,12 @@
 //!
 //! Per tick, `air_sample` samples the wind at every particle of those cloths; per substep,
 //! before the integrators, `air_forces` finds the drag and lift of every triangle once (a
-//! cloth's particle threads share its triangles out) and `air_kick` sums each particle's
+//! cloth's particle threads share its triangles out), and then each particle sums its
 //! triangles and adds the change of velocity, as [`bvh_cloth_core::ClothSim::tick`] does on the
-//! CPU.
+//! CPU: `air_kick` does it for the explicit integrators' cloths, and block descent's prediction
+//! does it for its own (`vbd_predict_air` in place of `vbd_predict`), so that a block-descent
+//! cloth in the wind adds one dispatch to its substep, not two: on a hardware GPU a small
+//! cloth's substep is bound by its dependent dispatches (BENCHMARKS.md, "Wind").
 //!
 //! What changes per frame (each cloth's constants, the wind sources, each tick's ambient wind
 //! and lattice time, which the host computes from the wind clock as the CPU does) is written by
@@ -28,6 +31,8 @@ pub(crate) struct AirFrame {
     pub ticks: Vec<Vec<[f32; 4]>>,
     /// Most substeps of a cloth with aerodynamics.
     pub substeps: u32,
+    /// Whether a cloth with aerodynamics runs an explicit integrator (and so needs `air_kick`).
+    pub explicit: bool,
 }
 
 /// What the air bind groups bind besides the plan's own buffers.
@@ -38,6 +43,9 @@ pub(crate) struct SharedBuffers<'a> {
     pub info: &'a Buffer,
     pub cloths: &'a Buffer,
     pub surface: &'a Buffer,
+    /// Block descent's substep start and inertial targets.
+    pub substep_start: &'a Buffer,
+    pub inertial: &'a Buffer,
 }
 
 /// The air buffers of a batch.
@@ -54,18 +62,19 @@ pub(crate) struct AirPlan {
     cloths: Buffer,
     sources: Buffer,
     ticks: Buffer,
-    wind: Buffer,
-    /// Each triangle's force per corner, over its cloth's mass.
-    triangle_forces: Buffer,
-    /// Ticks written this frame, and the substeps the air cloths run.
+    /// The wind at each particle slot, then each triangle's force per corner, over its cloth's
+    /// mass (from its cloth's `triangle_start`, past the particle slots).
+    state: Buffer,
+    /// Ticks written this frame, the substeps the air cloths run, and whether one of them runs
+    /// an explicit integrator.
     ticks_written: u32,
     pub substeps: u32,
+    explicit: bool,
 }
 
 impl AirPlan {
     /// Buffers for `particles` particle slots and `cloths` cloth slots.
     pub fn new(device: &Device, particles: u32, cloths: u32) -> Self {
-        let particle_bytes = u64::from(particles) * 16;
         let mut plan = Self {
             particle_capacity: particles,
             cloth_capacity: cloths,
@@ -76,12 +85,13 @@ impl AirPlan {
             cloths: storage_buffer(device, "bvh_cloth_air_cloths", u64::from(cloths) * size_of::<GpuAirCloth>() as u64),
             sources: storage_buffer(device, "bvh_cloth_wind_sources", 16),
             ticks: storage_buffer(device, "bvh_cloth_air_ticks", 16),
-            wind: storage_buffer(device, "bvh_cloth_wind", particle_bytes),
-            triangle_forces: storage_buffer(device, "bvh_cloth_triangle_forces", 16),
+            state: storage_buffer(device, "bvh_cloth_air_state", 16),
             ticks_written: 0,
             substeps: 0,
+            explicit: false,
         };
         plan.grow_sources(device, 4);
+        plan.grow_triangles(device, 0);
         plan.grow_ticks(device, 4);
         plan
     }
@@ -99,8 +109,8 @@ impl AirPlan {
 
     fn grow_triangles(&mut self, device: &Device, count: u32) {
         self.triangle_capacity = count.max(64);
-        let bytes = u64::from(self.triangle_capacity) * 16;
-        self.triangle_forces = storage_buffer(device, "bvh_cloth_triangle_forces", bytes);
+        let bytes = (u64::from(self.particle_capacity) + u64::from(self.triangle_capacity)) * 16;
+        self.state = storage_buffer(device, "bvh_cloth_air_state", bytes);
     }
 
     fn grow_ticks(&mut self, device: &Device, ticks: u32) {
@@ -141,11 +151,12 @@ impl AirPlan {
         }
         self.ticks_written = frame.ticks.len() as u32;
         self.substeps = frame.substeps;
+        self.explicit = frame.explicit;
         replaced
     }
 
-    /// The bind groups of [`crate::kernels::AIR_KERNELS`].
-    pub fn bind_groups(&self, device: &Device, kernels: &ClothKernels, shared: &SharedBuffers<'_>) -> [BindGroup; 3] {
+    /// The bind groups of [`crate::kernels::AIR_KERNELS`], then of `vbd_predict_air`.
+    pub fn bind_groups(&self, device: &Device, kernels: &ClothKernels, shared: &SharedBuffers<'_>) -> [BindGroup; 4] {
         fn buffer(binding: u32, buffer: &Buffer) -> wgpu::BindGroupEntry<'_> {
             wgpu::BindGroupEntry { binding, resource: buffer.as_entire_binding() }
         }
@@ -162,6 +173,16 @@ impl AirPlan {
                 entries,
             })
         };
+        let per_substep = [
+            buffer(0, shared.frame),
+            step.clone(),
+            buffer(6, shared.info),
+            buffer(8, shared.cloths),
+            buffer(42, &self.cloths),
+            buffer(44, &self.state),
+            buffer(46, shared.particles),
+            buffer(47, shared.surface),
+        ];
         [
             group(
                 0,
@@ -171,38 +192,28 @@ impl AirPlan {
                     sized(41, &self.ticks, self.tick_stride),
                     buffer(42, &self.cloths),
                     buffer(43, &self.sources),
-                    buffer(44, &self.wind),
+                    buffer(44, &self.state),
                     buffer(46, shared.particles),
                 ],
             ),
-            group(
-                1,
-                &[
-                    buffer(0, shared.frame),
-                    step.clone(),
-                    buffer(6, shared.info),
-                    buffer(8, shared.cloths),
-                    buffer(42, &self.cloths),
-                    buffer(44, &self.wind),
-                    buffer(45, &self.triangle_forces),
-                    buffer(46, shared.particles),
-                    buffer(47, shared.surface),
-                ],
-            ),
-            group(
-                2,
-                &[
+            group(1, &per_substep),
+            group(2, &per_substep),
+            device.create_bind_group(&wgpu::BindGroupDescriptor {
+                label: Some("vbd_predict_air"),
+                layout: &kernels.vbd_predict_air_layout,
+                entries: &[
                     buffer(0, shared.frame),
                     step,
                     buffer(6, shared.info),
                     buffer(8, shared.cloths),
+                    buffer(19, shared.particles),
+                    buffer(20, shared.substep_start),
+                    buffer(21, shared.inertial),
                     buffer(42, &self.cloths),
-                    buffer(44, &self.wind),
-                    buffer(45, &self.triangle_forces),
-                    buffer(46, shared.particles),
+                    buffer(44, &self.state),
                     buffer(47, shared.surface),
                 ],
-            ),
+            }),
         ]
     }
 
@@ -211,7 +222,7 @@ impl AirPlan {
     pub fn sample(
         &self,
         kernels: &ClothKernels,
-        groups: &[BindGroup; 3],
+        groups: &[BindGroup; 4],
         workgroups: (u32, u32),
         tick: u32,
         each: &mut impl FnMut(Kernel, &dyn Fn(&mut ComputePass<'_>)),
@@ -225,11 +236,12 @@ impl AirPlan {
         });
     }
 
-    /// Calls `each` with substep `k`'s forces and kick, when an air cloth runs that substep.
+    /// Calls `each` with substep `k`'s forces, and the explicit integrators' kick, when an air
+    /// cloth runs that substep (block descent's cloths take theirs in [`Self::predict`]).
     pub fn kick(
         &self,
         kernels: &ClothKernels,
-        groups: &[BindGroup; 3],
+        groups: &[BindGroup; 4],
         workgroups: (u32, u32),
         k: u32,
         each: &mut impl FnMut(Kernel, &dyn Fn(&mut ComputePass<'_>)),
@@ -238,12 +250,32 @@ impl AirPlan {
             return;
         }
         let offset = [(u64::from(3 * k) * UNIFORM_STRIDE) as u32];
-        for (kernel, index) in [(Kernel::AirForces, 1), (Kernel::AirKick, 2)] {
+        let kicks = if self.explicit { 2 } else { 1 };
+        for (kernel, index) in [(Kernel::AirForces, 1), (Kernel::AirKick, 2)].into_iter().take(kicks) {
             each(kernel, &|pass| {
                 pass.set_pipeline(&kernels.air[index]);
                 pass.set_bind_group(0, &groups[index], &offset);
                 pass.dispatch_workgroups(workgroups.0, workgroups.1, 1);
             });
         }
+    }
+
+    /// Calls `each` with block descent's prediction of substep `k` after its cloths' kick
+    /// (`vbd_predict_air`, which runs where `vbd_predict` would: every block-descent cloth,
+    /// with or without aerodynamics).
+    pub fn predict(
+        &self,
+        kernels: &ClothKernels,
+        groups: &[BindGroup; 4],
+        workgroups: (u32, u32),
+        k: u32,
+        each: &mut impl FnMut(Kernel, &dyn Fn(&mut ComputePass<'_>)),
+    ) {
+        let offset = [(u64::from(3 * k) * UNIFORM_STRIDE) as u32];
+        each(Kernel::VbdPredictAir, &|pass| {
+            pass.set_pipeline(&kernels.vbd_predict_air);
+            pass.set_bind_group(0, &groups[3], &offset);
+            pass.dispatch_workgroups(workgroups.0, workgroups.1, 1);
+        });
     }
 }

@@ -50,8 +50,12 @@ pub enum Kernel {
     AirSample,
     /// `air_forces`: each triangle's drag and lift.
     AirForces,
-    /// `air_kick`: each particle's velocity changed by the drag and lift of its triangles.
+    /// `air_kick`: each particle's velocity changed by the drag and lift of its triangles (the
+    /// explicit integrators' cloths).
     AirKick,
+    /// `vbd_predict_air`: block descent's prediction after the air kick of its cloths in the
+    /// wind, in a batch with aerodynamics.
+    VbdPredictAir,
 }
 
 /// A cloth in a [`ClothBatch`], valid until it is removed.
@@ -199,7 +203,7 @@ struct Groups {
     /// Self-contact's kernels, when a cloth has it.
     contact: Option<[BindGroup; 8]>,
     /// Aerodynamics' kernels, when a cloth has drag or lift.
-    air: Option<[BindGroup; 3]>,
+    air: Option<[BindGroup; 4]>,
 }
 
 /// One colour of the colour list: where it starts, how many particles it has, and the
@@ -732,17 +736,22 @@ impl ClothBatch {
             sources: self.wind_sources.clone(),
             ticks: vec![vec![[0.0; 4]; capacity]; ticks as usize],
             substeps: 0,
+            explicit: false,
         };
+        // The triangles' forces lie after the wind at every particle slot, in one buffer.
+        let first_triangle = self.buffers.particles;
         for (index, slot) in self.slots.iter().enumerate() {
             let Some(slot) = slot.as_ref().filter(|slot| active(slot)) else { continue };
             frame.substeps = frame.substeps.max(slot.constants.substeps);
+            frame.explicit |= slot.constants.integrator != INTEGRATOR_BLOCK_DESCENT;
             for (k, words) in frame.ticks.iter_mut().enumerate() {
                 let time = start + k as f64 * tick_seconds;
                 let model = AirModel::new(slot.aerodynamics, slot.mass, &slot.wind, time);
                 if k == 0 {
                     let sources = self.wind_sources.len() as u32;
+                    let triangle_start = first_triangle + frame.triangles;
                     frame.cloths[index] =
-                        GpuAirCloth::new(&model, &slot.topology, slot.surface_start, frame.triangles, sources);
+                        GpuAirCloth::new(&model, &slot.topology, slot.surface_start, triangle_start, sources);
                 }
                 words[index] = GpuAirCloth::tick_word(&model);
             }
@@ -1011,6 +1020,8 @@ impl ClothBatch {
                 info: &b.info,
                 cloths: &b.cloth_constants,
                 surface: &b.surface_words,
+                substep_start: &b.stage_a,
+                inertial: &b.stage_b,
             };
             plan.bind_groups(device, kernels, &shared)
         });
@@ -1106,7 +1117,7 @@ impl ClothBatch {
                 }
                 self.dispatch_explicit(kernels, groups, k, &mut each);
                 if let Some(plan) = descent.filter(|plan| k < plan.substeps) {
-                    self.dispatch_descent(kernels, groups, plan, k, &mut each);
+                    self.dispatch_descent(kernels, groups, plan, air, k, &mut each);
                 }
                 if let Some((plan, contact_groups)) = contact {
                     plan.resolve(kernels, contact_groups, &mut each);
@@ -1145,23 +1156,28 @@ impl ClothBatch {
         });
     }
 
-    /// Calls `each` with substep `k` of block descent: the prediction, the sweeps colour by
-    /// colour, and the finish with the collision response.
+    /// Calls `each` with substep `k` of block descent: the prediction (after the air kick in a
+    /// batch with aerodynamics), the sweeps colour by colour, and the finish with the collision
+    /// response.
     fn dispatch_descent(
         &self,
         kernels: &ClothKernels,
         groups: &Groups,
         plan: &DescentPlan,
+        air: Option<(&AirPlan, &[BindGroup; 4])>,
         k: u32,
         each: &mut impl FnMut(Kernel, &dyn Fn(&mut wgpu::ComputePass<'_>)),
     ) {
         let (x, y) = self.workgroups;
         let offset = [(u64::from(3 * k) * UNIFORM_STRIDE) as u32];
-        each(Kernel::VbdPredict, &|pass| {
-            pass.set_pipeline(&kernels.vbd_predict);
-            pass.set_bind_group(0, &groups.predict, &offset);
-            pass.dispatch_workgroups(x, y, 1);
-        });
+        match air {
+            Some((air, air_groups)) => air.predict(kernels, air_groups, self.workgroups, k, each),
+            None => each(Kernel::VbdPredict, &|pass| {
+                pass.set_pipeline(&kernels.vbd_predict);
+                pass.set_bind_group(0, &groups.predict, &offset);
+                pass.dispatch_workgroups(x, y, 1);
+            }),
+        }
         for iteration in 0..plan.iterations {
             for (colour, range) in plan.colours.iter().enumerate() {
                 let entry = u64::from(iteration * MAX_COLOURS) + colour as u64;

@@ -52,8 +52,9 @@ pub const CONTACT_KERNELS: [&str; 8] = [
     "contact_apply",
 ];
 
-/// Aerodynamics' kernels: `air_sample` once per tick, then `air_forces` and `air_kick` at the
-/// start of every substep.
+/// Aerodynamics' kernels: `air_sample` once per tick, then `air_forces` at the start of every
+/// substep, and `air_kick` for the explicit integrators' cloths. Block descent's cloths take
+/// their kick in `vbd_predict_air`, its prediction in a batch with aerodynamics.
 pub const AIR_KERNELS: [&str; 3] = ["air_sample", "air_forces", "air_kick"];
 
 /// Threads per workgroup along each grid axis (workgroups are 8 x 8 x 1, paper Table I).
@@ -132,11 +133,11 @@ pub struct KernelDescriptor {
 }
 
 /// Number of kernels (entry points): the length of [`ClothKernels::descriptors`].
-pub const KERNEL_COUNT: usize = 22;
+pub const KERNEL_COUNT: usize = 23;
 
 /// The compiled kernels: `node_update` (RK4's first three stages, the stage named by the step
 /// uniform), `node_update_final` (the last stage with the collision response), block descent's
-/// `vbd_predict`, `vbd_solve` and `vbd_finish`, `apply_anchors`, `normal_shader`, a skinned
+/// `vbd_predict` (or `vbd_predict_air`), `vbd_solve` and `vbd_finish`, `apply_anchors`, `normal_shader`, a skinned
 /// collider's refit (`skin_vertices`, `fit_leaves`, `refit_nodes`, `refit_reach`), and
 /// self-contact's eight kernels (`contact_begin` to `contact_apply`) and aerodynamics' three
 /// ([`AIR_KERNELS`]), with their bind group layouts.
@@ -145,6 +146,8 @@ pub struct ClothKernels {
     pub(crate) node_update: ComputePipeline,
     pub(crate) node_update_final: ComputePipeline,
     pub(crate) vbd_predict: ComputePipeline,
+    /// `vbd_predict` after the air kick, in a batch with aerodynamics.
+    pub(crate) vbd_predict_air: ComputePipeline,
     pub(crate) vbd_solve: ComputePipeline,
     pub(crate) vbd_finish: ComputePipeline,
     pub(crate) anchors: ComputePipeline,
@@ -161,6 +164,7 @@ pub struct ClothKernels {
     pub(crate) node_update_layout: BindGroupLayout,
     pub(crate) final_layout: BindGroupLayout,
     pub(crate) vbd_predict_layout: BindGroupLayout,
+    pub(crate) vbd_predict_air_layout: BindGroupLayout,
     pub(crate) vbd_solve_layout: BindGroupLayout,
     pub(crate) vbd_finish_layout: BindGroupLayout,
     pub(crate) anchors_layout: BindGroupLayout,
@@ -182,9 +186,9 @@ fn storage(binding: u32, read_only: bool) -> BindGroupLayoutEntry {
 
 impl ClothKernels {
     /// The kernels, in the order [`Self::from_parts`] takes them: `node_update`,
-    /// `node_update_final`, `vbd_predict`, `vbd_solve`, `vbd_finish`, `apply_anchors`,
-    /// `normal_shader`, `skin_vertices`, `fit_leaves`, `refit_nodes`, `refit_reach`, then
-    /// [`CONTACT_KERNELS`], then [`AIR_KERNELS`].
+    /// `node_update_final`, `vbd_predict`, `vbd_predict_air`, `vbd_solve`, `vbd_finish`,
+    /// `apply_anchors`, `normal_shader`, `skin_vertices`, `fit_leaves`, `refit_nodes`,
+    /// `refit_reach`, then [`CONTACT_KERNELS`], then [`AIR_KERNELS`].
     pub fn descriptors() -> [KernelDescriptor; KERNEL_COUNT] {
         let frame = entry(0, BufferBindingType::Uniform, false);
         let step = entry(1, BufferBindingType::Uniform, true);
@@ -250,6 +254,22 @@ impl ClothKernels {
                     storage(19, false),
                     storage(20, false),
                     storage(21, false),
+                ],
+            },
+            KernelDescriptor {
+                entry_point: "vbd_predict_air",
+                file: "block_descent.wgsl",
+                layout: vec![
+                    frame,
+                    step,
+                    storage(6, true),
+                    storage(8, false),
+                    storage(19, false),
+                    storage(20, false),
+                    storage(21, false),
+                    storage(42, true),
+                    storage(44, false),
+                    storage(47, true),
                 ],
             },
             KernelDescriptor {
@@ -371,7 +391,6 @@ impl ClothKernels {
                     storage(8, false),
                     storage(42, true),
                     storage(44, false),
-                    storage(45, false),
                     storage(46, false),
                     storage(47, true),
                 ],
@@ -386,7 +405,6 @@ impl ClothKernels {
                     storage(8, false),
                     storage(42, true),
                     storage(44, false),
-                    storage(45, false),
                     storage(46, false),
                     storage(47, true),
                 ],
@@ -442,6 +460,7 @@ impl ClothKernels {
             node_update,
             node_update_final,
             vbd_predict,
+            vbd_predict_air,
             vbd_solve,
             vbd_finish,
             anchors,
@@ -466,6 +485,7 @@ impl ClothKernels {
             node_update_layout,
             final_layout,
             vbd_predict_layout,
+            vbd_predict_air_layout,
             vbd_solve_layout,
             vbd_finish_layout,
             anchors_layout,
@@ -490,6 +510,7 @@ impl ClothKernels {
             node_update,
             node_update_final,
             vbd_predict,
+            vbd_predict_air,
             vbd_solve,
             vbd_finish,
             anchors,
@@ -503,6 +524,7 @@ impl ClothKernels {
             node_update_layout,
             final_layout,
             vbd_predict_layout,
+            vbd_predict_air_layout,
             vbd_solve_layout,
             vbd_finish_layout,
             anchors_layout,

@@ -52,6 +52,7 @@ fn wgsl_is_valid() {
             "node_update",
             "node_update_final",
             "vbd_predict",
+            "vbd_predict_air",
             "vbd_solve",
             "vbd_finish",
             "apply_anchors",

@@ -2,16 +2,18 @@
 // - air_sample, once per tick, one thread per particle slot: the wind at the particle (the
 //   cloth's ambient wind for the tick, its turbulence, every wind source);
 // - air_forces, once per substep before the integrators: the drag and lift of every triangle,
-//   each found once (a cloth's particle threads share its triangles out), into triangle_forces;
-// - air_kick: each free particle sums its triangles' forces (in its triangle list's order, no
+//   each found once (a cloth's particle threads share its triangles out);
+// - the kick: each free particle sums its triangles' forces (in its triangle list's order, no
 //   atomics) and adds its capped change of velocity to its own velocity. A separate pass,
-//   since air_forces reads the velocities of every corner.
+//   since air_forces reads the velocities of every corner: air_kick for the explicit
+//   integrators' cloths, and block descent's own vbd_predict_air for its cloths (so that a
+//   block-descent cloth in the wind costs one dispatch more per substep, not two).
 // A cloth past its own substeps sits the substep out.
 //
-// Bindings 41-47 (see types.wgsl).
+// Bindings 41-44, 46 and 47 (see types.wgsl).
 
 #define_import_path bvh_cloth::air
-#import bvh_cloth::types::{GpuParticle, NO_CLOTH, frame, step, thread_index}
+#import bvh_cloth::types::{GpuParticle, NO_CLOTH, INTEGRATOR_BLOCK_DESCENT, frame, step, thread_index}
 #import bvh_cloth::springs::{particle_info, cloths}
 
 struct AirCloth {
@@ -23,7 +25,7 @@ struct AirCloth {
     inv_scale: f32,
     drag: f32,
     lift: f32,
-    // Where the cloth's triangles start in triangle_forces, and how many it has (padded to 48
+    // Where the cloth's triangles' forces start in air_state, and how many it has (padded to 48
     // bytes).
     triangle_start: u32,
     @size(12) triangle_count: u32,
@@ -43,8 +45,9 @@ const SOURCE_FAN: f32 = 0.0;           // bvh_cloth_core::aerodynamics::SOURCE_F
 @group(0) @binding(41) var<storage, read> air_ticks: array<vec4<f32>>;
 @group(0) @binding(42) var<storage, read> air_cloths: array<AirCloth>;
 @group(0) @binding(43) var<storage, read> wind_sources: array<WindSource>;
-@group(0) @binding(44) var<storage, read_write> wind: array<vec4<f32>>;
-@group(0) @binding(45) var<storage, read_write> triangle_forces: array<vec4<f32>>;
+// The wind at each particle slot, then each air cloth's triangle forces from its
+// triangle_start: one buffer, so that vbd_predict_air stays within eight storage buffers.
+@group(0) @binding(44) var<storage, read_write> air_state: array<vec4<f32>>;
 @group(0) @binding(46) var<storage, read_write> air_particles: array<GpuParticle>;
 @group(0) @binding(47) var<storage, read> air_surface: array<u32>;
 
@@ -164,7 +167,7 @@ fn air_sample(@builtin(global_invocation_id) id: vec3<u32>) {
     for (var s = 0u; s < air.source_count; s++) {
         w += source_wind(wind_sources[s], p);
     }
-    wind[i] = vec4(w, 0.0);
+    air_state[i] = vec4(w, 0.0);
 }
 
 // bvh_cloth_core::aerodynamics::AirModel::triangle_force: corner k of triangle t of cloth c.
@@ -175,9 +178,9 @@ fn triangle_air(air: AirCloth, start: u32, corners: u32, t: u32) -> vec3<f32> {
     let xa = air_particles[a].position.xyz;
     let m = cross(air_particles[b].position.xyz - xa, air_particles[cc].position.xyz - xa);
     let m2 = dot(m, m);
-    let ua = wind[a].xyz - air_particles[a].velocity.xyz;
-    let ub = wind[b].xyz - air_particles[b].velocity.xyz;
-    let uc = wind[cc].xyz - air_particles[cc].velocity.xyz;
+    let ua = air_state[a].xyz - air_particles[a].velocity.xyz;
+    let ub = air_state[b].xyz - air_particles[b].velocity.xyz;
+    let uc = air_state[cc].xyz - air_particles[cc].velocity.xyz;
     let u = ((ua + ub) + uc) * (1.0 / 3.0);
     let u2 = dot(u, u);
     if (!(m2 > 0.0 && u2 > 0.0)) {
@@ -227,30 +230,36 @@ fn air_forces(@builtin(global_invocation_id) id: vec3<u32>) {
     let count = cloths[c].particle_count;
     let surface = air_surface_of(air, count);
     for (var t = i - start; t < air.triangle_count; t += count) {
-        triangle_forces[air.triangle_start + t] = vec4(triangle_air(air, start, surface.corners, t), 0.0);
+        air_state[air.triangle_start + t] = vec4(triangle_air(air, start, surface.corners, t), 0.0);
     }
 }
 
-@compute @workgroup_size(8, 8, 1)
-fn air_kick(@builtin(global_invocation_id) id: vec3<u32>) {
-    let i = thread_index(id, frame.dispatch_width);
-    let c = air_cloth(i);
-    if (c == NO_CLOTH || step.substep >= cloths[c].substeps) {
-        return;
-    }
-    let me = air_particles[i];
-    if (me.position.w == 0.0) {
-        return;
-    }
+// The capped change of velocity of free particle i of air cloth c, moving at `velocity`, from
+// its triangles' forces this substep (the CPU's Air::kick).
+fn air_kick_of(i: u32, c: u32, velocity: vec3<f32>) -> vec3<f32> {
     let air = air_cloths[c];
     let start = cloths[c].particle_start;
     let surface = air_surface_of(air, cloths[c].particle_count);
     let local = i - start;
     var f = vec3(0.0);
     for (var k = air_surface[surface.offsets + local]; k < air_surface[surface.offsets + local + 1u]; k++) {
-        f += triangle_forces[air.triangle_start + air_surface[surface.lists + k]].xyz;
+        f += air_state[air.triangle_start + air_surface[surface.lists + k]].xyz;
     }
     let dv = f * (cloths[c].h * bitcast<f32>(particle_info[i].z));
-    let kick = capped_kick(dv, wind[i].xyz - me.velocity.xyz);
-    air_particles[i].velocity = vec4(me.velocity.xyz + kick, me.velocity.w);
+    return capped_kick(dv, air_state[i].xyz - velocity);
+}
+
+// The kick of the explicit integrators' cloths (vbd_predict_air kicks block descent's).
+@compute @workgroup_size(8, 8, 1)
+fn air_kick(@builtin(global_invocation_id) id: vec3<u32>) {
+    let i = thread_index(id, frame.dispatch_width);
+    let c = air_cloth(i);
+    if (c == NO_CLOTH || step.substep >= cloths[c].substeps || cloths[c].integrator == INTEGRATOR_BLOCK_DESCENT) {
+        return;
+    }
+    let me = air_particles[i];
+    if (me.position.w == 0.0) {
+        return;
+    }
+    air_particles[i].velocity = vec4(me.velocity.xyz + air_kick_of(i, c, me.velocity.xyz), me.velocity.w);
 }

@@ -1,7 +1,8 @@
 // Vertex block descent (bvh_cloth_core::block_descent), three kernels per substep for every
 // block-descent cloth of the batch:
 // - vbd_predict, one thread per particle slot: keeps the substep's start state, the inertial
-//   target y = x + h v + h^2 g, and the first iterate x + h v;
+//   target y = x + h v + h^2 g, and the first iterate x + h v; in a batch with aerodynamics,
+//   vbd_predict_air instead, which first gives a cloth in the wind its kick (air.wgsl);
 // - vbd_solve, one dispatch per iteration and colour, one thread per particle of that colour in
 //   the batch's colour list: one Newton step on the particle's block of the incremental
 //   potential, against its neighbours' current positions (no neighbour shares its colour, so no
@@ -13,6 +14,7 @@
 #import bvh_cloth::types::{GpuParticle, ColourPass, NO_CLOTH, INTEGRATOR_BLOCK_DESCENT, frame, step, thread_index, all_finite}
 #import bvh_cloth::springs::{particle_info, ends, cloths}
 #import bvh_cloth::collision::collide
+#import bvh_cloth::air::{air_cloth, air_kick_of}
 
 @group(0) @binding(19) var<storage, read_write> iterate: array<GpuParticle>;       // the state, solved in place
 @group(0) @binding(20) var<storage, read_write> substep_start: array<GpuParticle>; // x0, v0
@@ -32,14 +34,8 @@ fn descent_cloth(i: u32) -> u32 {
     return c;
 }
 
-@compute @workgroup_size(8, 8, 1)
-fn vbd_predict(@builtin(global_invocation_id) id: vec3<u32>) {
-    let i = thread_index(id, frame.dispatch_width);
-    let c = descent_cloth(i);
-    if (c == NO_CLOTH) {
-        return;
-    }
-    let me = iterate[i];
+// The substep's start of particle i of block-descent cloth c, whose state is `me`.
+fn predict(i: u32, c: u32, me: GpuParticle) {
     substep_start[i] = me;
     let free = me.position.w;
     let h = cloths[c].h;
@@ -55,7 +51,33 @@ fn vbd_predict(@builtin(global_invocation_id) id: vec3<u32>) {
     goal.position = vec4(y, free);
     goal.velocity = vec4(0.0);
     inertial[i] = goal;
-    iterate[i].position = vec4(x, free);
+    iterate[i] = GpuParticle(vec4(x, free), me.velocity);
+}
+
+@compute @workgroup_size(8, 8, 1)
+fn vbd_predict(@builtin(global_invocation_id) id: vec3<u32>) {
+    let i = thread_index(id, frame.dispatch_width);
+    let c = descent_cloth(i);
+    if (c == NO_CLOTH) {
+        return;
+    }
+    predict(i, c, iterate[i]);
+}
+
+// vbd_predict after the aerodynamic kick of a free particle of a cloth with drag or lift (what
+// air_kick does for the explicit integrators): one dispatch for both.
+@compute @workgroup_size(8, 8, 1)
+fn vbd_predict_air(@builtin(global_invocation_id) id: vec3<u32>) {
+    let i = thread_index(id, frame.dispatch_width);
+    let c = descent_cloth(i);
+    if (c == NO_CLOTH) {
+        return;
+    }
+    var me = iterate[i];
+    if (me.position.w != 0.0 && air_cloth(i) != NO_CLOTH) {
+        me.velocity = vec4(me.velocity.xyz + air_kick_of(i, c, me.velocity.xyz), me.velocity.w);
+    }
+    predict(i, c, me);
 }
 
 // bvh_cloth_core::block_descent::descend: the new position of particle i (of cloth c) at x,

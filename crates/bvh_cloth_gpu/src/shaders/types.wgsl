@@ -12,7 +12,7 @@
 // node_update; 9-12: node_update_final (11-12 in collision.wgsl, which vbd_finish shares;
 // primitives.wgsl has no binding);
 // 19-22 and 25: block_descent.wgsl; 13-14: apply_anchors; 15-18 and 23-24: normal_shader;
-// 26-34: skin_refit.wgsl; 35-40: self_contact.wgsl; 41-47: air.wgsl.
+// 26-34: skin_refit.wgsl; 35-40: self_contact.wgsl; 41-44, 46-47: air.wgsl.
 
 #define_import_path bvh_cloth::types
 
