@@ -222,8 +222,9 @@ struct RenderCloth {
     /// The state read back for gameplay, and the clock's ticks and the cloth's ticks run at the
     /// copy in flight.
     state: Option<(ParticleReadback, [AtomicU64; 2])>,
-    /// Whether its parameters ask for self-contact.
+    /// Whether its parameters ask for self-contact, and for drag or lift.
     self_contact: bool,
+    aerodynamics: bool,
 }
 
 /// The render world's cloth state.
@@ -263,6 +264,8 @@ pub(crate) struct GpuClothWorld {
     refused_skins: Vec<Arc<SkinnedSpheres>>,
     /// Self-contact's buffers did not fit the device: said once, until they fit again.
     contact_refused: bool,
+    /// The air's buffer did not fit the device: said once, until it fits again.
+    air_refused: bool,
 }
 
 /// A skinned collider refitted on the GPU: its skin, its refit, and where the refit was bound
@@ -461,6 +464,7 @@ fn prepare_cloths(
                         ticks_run: 0,
                         state: None,
                         self_contact: false,
+                        aerodynamics: false,
                     }),
                     Err(error) => {
                         error!("Cloth on {}: cannot run on the GPU: {error}; it stays at rest", cloth.entity);
@@ -481,6 +485,7 @@ fn prepare_cloths(
         render.ticks_run += u64::from(world.ticks);
         batch.set_params(&queue, render.id, &cloth.params, world.tick_seconds.max(f32::MIN_POSITIVE));
         render.self_contact = cloth.params.self_contact.is_some();
+        render.aerodynamics = cloth.params.aerodynamics.is_active();
         batch.set_anchor_targets(render.id, &cloth.anchor_targets);
         // Checked in the main world (`gather_wind`): it cannot be refused here.
         let _ = batch.set_wind(render.id, cloth.wind);
@@ -566,6 +571,18 @@ fn prepare_cloth_bind_groups(mut world: ResMut<GpuClothWorld>, device: Res<Rende
         }
         Some(_) => {}
         None => world.contact_refused = false,
+    }
+    match batch.air_error() {
+        Some(error) if !world.air_refused => {
+            let entities: Vec<Entity> = world.cloths.iter().filter(|(_, c)| c.aerodynamics).map(|(e, _)| *e).collect();
+            error!(
+                "Cloths on {entities:?}: drag and lift cannot run on this device ({error}); on the GPU they \
+                 move as if in still air (ClothBackend::Cpu runs them)"
+            );
+            world.air_refused = true;
+        }
+        Some(_) => {}
+        None => world.air_refused = false,
     }
 }
 

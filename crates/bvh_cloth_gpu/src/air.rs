@@ -19,7 +19,7 @@ use bvh_cloth_core::gpu_layout::GpuAirCloth;
 use wgpu::{BindGroup, Buffer, ComputePass, Device, Queue};
 
 use crate::batch::{Kernel, UNIFORM_STRIDE, storage_buffer};
-use crate::kernels::ClothKernels;
+use crate::kernels::{ClothKernels, KernelError, storage_binding_limit};
 
 /// What one frame of air needs written: each cloth slot's constants (zero for a cloth without
 /// aerodynamics), the wind sources, and per tick each cloth slot's ambient wind and lattice time.
@@ -33,6 +33,19 @@ pub(crate) struct AirFrame {
     pub substeps: u32,
     /// Whether a cloth with aerodynamics runs an explicit integrator (and so needs `air_kick`).
     pub explicit: bool,
+}
+
+/// The bytes of the air state buffer for `particles` particle slots and `triangles` triangles:
+/// the wind at every particle slot, then the triangles' forces.
+fn state_bytes(particles: u32, triangles: u32) -> u64 {
+    (u64::from(particles) + u64::from(triangles)) * 16
+}
+
+/// Whether the air state of `particles` particle slots and `triangles` triangles fits one
+/// storage binding of `device`; the error gives its size where it does not.
+pub(crate) fn check_state(device: &Device, particles: u32, triangles: u32) -> Result<(), KernelError> {
+    let (bytes, max) = (state_bytes(particles, triangles), storage_binding_limit(device));
+    if bytes > max { Err(KernelError::BufferTooLarge { bytes, max }) } else { Ok(()) }
 }
 
 /// What the air bind groups bind besides the plan's own buffers.
@@ -108,8 +121,11 @@ impl AirPlan {
     }
 
     fn grow_triangles(&mut self, device: &Device, count: u32) {
-        self.triangle_capacity = count.max(64);
-        let bytes = (u64::from(self.particle_capacity) + u64::from(self.triangle_capacity)) * 16;
+        // Room for `count` and, where one binding allows it, for half as many again.
+        let max = storage_binding_limit(device) / 16;
+        let room = u32::try_from(max.saturating_sub(u64::from(self.particle_capacity))).unwrap_or(u32::MAX);
+        self.triangle_capacity = count.saturating_add(count / 2).max(64).min(room.max(count));
+        let bytes = state_bytes(self.particle_capacity, self.triangle_capacity);
         self.state = storage_buffer(device, "bvh_cloth_air_state", bytes);
     }
 
@@ -120,8 +136,8 @@ impl AirPlan {
         self.ticks = storage_buffer(device, "bvh_cloth_air_ticks", self.tick_stride * u64::from(self.tick_capacity));
     }
 
-    /// Writes `frame`. Returns whether a buffer was replaced (the bind groups must be made
-    /// again).
+    /// Writes `frame`, whose triangles passed [`check_state`]. Returns whether a
+    /// buffer was replaced (the bind groups must be made again).
     pub fn write(&mut self, device: &Device, queue: &Queue, frame: &AirFrame) -> bool {
         let mut replaced = false;
         if frame.sources.len() as u32 > self.source_capacity {
@@ -129,7 +145,7 @@ impl AirPlan {
             replaced = true;
         }
         if frame.triangles > self.triangle_capacity {
-            self.grow_triangles(device, frame.triangles + frame.triangles / 2);
+            self.grow_triangles(device, frame.triangles);
             replaced = true;
         }
         let ticks = frame.ticks.len().max(1) as u32;

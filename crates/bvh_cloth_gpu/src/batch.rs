@@ -280,6 +280,9 @@ pub struct ClothBatch {
     /// the device: [`Self::contact_error`]).
     contact: Option<ContactPlan>,
     contact_error: Option<KernelError>,
+    /// Why the cloths with drag or lift run without them, if they do (their buffer would not
+    /// fit the device: [`Self::air_error`]).
+    air_error: Option<KernelError>,
     /// Aerodynamics' buffers, `None` while no cloth has drag or lift; the wind sources; and
     /// the wind clock of the coming frame: the first tick's time, the tick length, the ticks.
     air: Option<AirPlan>,
@@ -338,6 +341,7 @@ impl ClothBatch {
             descent: None,
             contact: None,
             contact_error: None,
+            air_error: None,
             air: None,
             wind_sources: Vec::new(),
             wind_clock: (0.0, 0.0, 1),
@@ -726,6 +730,7 @@ impl ClothBatch {
             if self.air.take().is_some() {
                 self.groups = None;
             }
+            self.air_error = None;
             return;
         }
         let capacity = self.buffers.cloths as usize;
@@ -757,6 +762,15 @@ impl ClothBatch {
             }
             frame.triangles += slot.topology.triangles().len() as u32;
         }
+        if let Err(error) = crate::air::check_state(device, self.buffers.particles, frame.triangles) {
+            // The cloths run without drag and lift until their air fits again.
+            if self.air.take().is_some() {
+                self.groups = None;
+            }
+            self.air_error = Some(error);
+            return;
+        }
+        self.air_error = None;
         if self.air.as_ref().is_none_or(|plan| !plan.fits(self.buffers.particles, self.buffers.cloths)) {
             self.air = Some(AirPlan::new(device, self.buffers.particles, self.buffers.cloths));
             self.groups = None;
@@ -766,6 +780,12 @@ impl ClothBatch {
         {
             self.groups = None;
         }
+    }
+
+    /// Why the batch's cloths with drag or lift run without them, if they do: the buffer of
+    /// their wind and their triangles' forces would not fit one storage binding of the device.
+    pub fn air_error(&self) -> Option<&KernelError> {
+        self.air_error.as_ref()
     }
 
     /// Why the batch's cloths with self-contact run without it, if they do: its buffers would

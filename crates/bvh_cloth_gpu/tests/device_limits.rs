@@ -111,6 +111,54 @@ fn colliders_beyond_one_storage_binding_are_left_out_and_the_rest_kept() {
     assert_eq!(colliders.len(), 2);
 }
 
+/// A cloth whose wind and triangle forces would not fit one storage binding, though all its
+/// other buffers do, runs without drag and lift and says why; on a device with room an updraft
+/// slows its fall. The cloth is a square of two triangles listed 50 times over, so that it has many
+/// triangles for its few particles and springs.
+#[test]
+fn air_beyond_one_storage_binding_is_refused_and_the_cloth_runs_without_it() {
+    use bvh_cloth_core::{Aerodynamics, Wind};
+    let positions = [[0.0, 0.0, 0.0], [1.0, 0.0, 0.0], [0.0, 0.0, 1.0], [1.0, 0.0, 1.0]];
+    let indices: Vec<u32> = [0, 2, 1, 1, 2, 3].repeat(50);
+    let topology = ClothTopology::from_mesh(MeshRef { positions: &positions, indices: Some(&indices) }).unwrap();
+    assert_eq!(topology.triangles().len(), 100, "repeated triangles are kept");
+    let params = ClothParams { aerodynamics: Aerodynamics::FABRIC, ..Default::default() };
+    let mut sim = ClothSim::new(params, Arc::new(topology), Affine3A::from_translation(Vec3::Y), &[]).unwrap();
+    sim.set_wind(Wind::steady(Vec3::new(0.0, 5.0, 0.0)), &[]).unwrap();
+    // The surface words are the cloth's largest buffer: a binding of exactly their size.
+    let surface = 4 * bvh_cloth_core::gpu_layout::gpu_surface_words(sim.topology()).len() as u64;
+    let air_bytes = |particle_slots: u64| 16 * (particle_slots + 100);
+    let run = |gpu: &HeadlessGpu| {
+        let kernels = ClothKernels::new(&gpu.device).unwrap();
+        let mut batch = ClothBatch::new(&gpu.device, &gpu.queue);
+        let id = batch.insert(&gpu.device, &gpu.queue, &sim).expect("every buffer of the cloth fits");
+        batch.set_params(&gpu.queue, id, sim.params(), 1.0 / 60.0);
+        batch.set_wind(id, *sim.wind()).unwrap();
+        batch.prepare(&gpu.device, &gpu.queue, &kernels, &GpuColliders::new(&gpu.device, &[]));
+        let mut encoder = gpu.device.create_command_encoder(&Default::default());
+        batch.encode_ticks(&mut encoder, &kernels, 3);
+        gpu.queue.submit([encoder.finish()]);
+        let (buffer, offset, size) = batch.particles(id).unwrap();
+        let particles: Vec<GpuParticle> = headless::read(&gpu.device, &gpu.queue, buffer);
+        let particles = &particles[offset as usize / 32..(offset + size) as usize / 32];
+        let fall = particles.iter().map(|p| p.velocity[1]).sum::<f32>() / 4.0;
+        assert!(particles.iter().all(|p| p.position.iter().chain(&p.velocity).all(|x| x.is_finite())));
+        (batch.air_error().cloned(), fall)
+    };
+    let Some(small) = gpu(|limits| wgpu::Limits { max_storage_buffer_binding_size: surface, ..limits }) else { return };
+    let (error, still) = run(&small);
+    // The batch gives a cloth of 4 particles 64 particle slots.
+    assert_eq!(error, Some(KernelError::BufferTooLarge { bytes: air_bytes(64), max: surface }));
+    assert!(error.unwrap().to_string().contains(&format!("{} bytes", air_bytes(64))));
+
+    let roomy = gpu(|limits| limits).expect("the same adapter");
+    let (error, blown) = run(&roomy);
+    assert_eq!(error, None);
+    assert!(still < -0.1, "in still air the cloth falls: {still} m/s");
+    // An updraft under the flat cloth slows its fall.
+    assert!(blown > still + 0.05, "falling at {blown} m/s in the updraft, {still} m/s without it");
+}
+
 /// Live wgpu buffers and bind groups: the handles the program holds.
 fn live(gpu: &HeadlessGpu) -> (usize, usize) {
     let report = gpu.instance.generate_report().expect("a wgpu-core instance reports");
