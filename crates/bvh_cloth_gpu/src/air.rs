@@ -16,7 +16,7 @@
 
 use bvh_cloth_core::aerodynamics::AirSource;
 use bvh_cloth_core::gpu_layout::GpuAirCloth;
-use wgpu::{BindGroup, Buffer, ComputePass, Device, Queue};
+use wgpu::{BindGroup, Buffer, ComputePass, ComputePipeline, Device, Queue};
 
 use crate::batch::{Kernel, UNIFORM_STRIDE, storage_buffer};
 use crate::kernels::{ClothKernels, KernelError, storage_binding_limit};
@@ -245,11 +245,7 @@ impl AirPlan {
     ) {
         let tick = tick.min(self.ticks_written.saturating_sub(1));
         let offset = [(u64::from(tick) * self.tick_stride) as u32];
-        each(Kernel::AirSample, &|pass| {
-            pass.set_pipeline(&kernels.air[0]);
-            pass.set_bind_group(0, &groups[0], &offset);
-            pass.dispatch_workgroups(workgroups.0, workgroups.1, 1);
-        });
+        each(Kernel::AirSample, &|pass| record(pass, &kernels.air[0], &groups[0], &offset, workgroups));
     }
 
     /// Calls `each` with substep `k`'s forces, and the explicit integrators' kick, when an air
@@ -268,11 +264,7 @@ impl AirPlan {
         let offset = [(u64::from(3 * k) * UNIFORM_STRIDE) as u32];
         let kicks = if self.explicit { 2 } else { 1 };
         for (kernel, index) in [(Kernel::AirForces, 1), (Kernel::AirKick, 2)].into_iter().take(kicks) {
-            each(kernel, &|pass| {
-                pass.set_pipeline(&kernels.air[index]);
-                pass.set_bind_group(0, &groups[index], &offset);
-                pass.dispatch_workgroups(workgroups.0, workgroups.1, 1);
-            });
+            each(kernel, &|pass| record(pass, &kernels.air[index], &groups[index], &offset, workgroups));
         }
     }
 
@@ -288,10 +280,19 @@ impl AirPlan {
         each: &mut impl FnMut(Kernel, &dyn Fn(&mut ComputePass<'_>)),
     ) {
         let offset = [(u64::from(3 * k) * UNIFORM_STRIDE) as u32];
-        each(Kernel::VbdPredictAir, &|pass| {
-            pass.set_pipeline(&kernels.vbd_predict_air);
-            pass.set_bind_group(0, &groups[3], &offset);
-            pass.dispatch_workgroups(workgroups.0, workgroups.1, 1);
-        });
+        each(Kernel::VbdPredictAir, &|pass| record(pass, &kernels.vbd_predict_air, &groups[3], &offset, workgroups));
     }
+}
+
+/// Records one dispatch of `pipeline` over `workgroups`, with `group` at the dynamic `offset`.
+fn record(
+    pass: &mut ComputePass<'_>,
+    pipeline: &ComputePipeline,
+    group: &BindGroup,
+    offset: &[u32],
+    workgroups: (u32, u32),
+) {
+    pass.set_pipeline(pipeline);
+    pass.set_bind_group(0, group, offset);
+    pass.dispatch_workgroups(workgroups.0, workgroups.1, 1);
 }

@@ -192,6 +192,15 @@ impl ClothKernels {
     pub fn descriptors() -> [KernelDescriptor; KERNEL_COUNT] {
         let frame = entry(0, BufferBindingType::Uniform, false);
         let step = entry(1, BufferBindingType::Uniform, true);
+        let predict = vec![
+            frame,
+            step,
+            storage(6, true),
+            storage(8, false),
+            storage(19, false),
+            storage(20, false),
+            storage(21, false),
+        ];
         let contact = |entry_point, mut layout: Vec<BindGroupLayoutEntry>| {
             layout.insert(0, entry(35, BufferBindingType::Uniform, false));
             KernelDescriptor { entry_point, file: "self_contact.wgsl", layout }
@@ -243,34 +252,12 @@ impl ClothKernels {
                     storage(12, true),
                 ],
             },
-            KernelDescriptor {
-                entry_point: "vbd_predict",
-                file: "block_descent.wgsl",
-                layout: vec![
-                    frame,
-                    step,
-                    storage(6, true),
-                    storage(8, false),
-                    storage(19, false),
-                    storage(20, false),
-                    storage(21, false),
-                ],
-            },
+            KernelDescriptor { entry_point: "vbd_predict", file: "block_descent.wgsl", layout: predict.clone() },
+            // The prediction, and the air's cloth constants, state and surface lists.
             KernelDescriptor {
                 entry_point: "vbd_predict_air",
                 file: "block_descent.wgsl",
-                layout: vec![
-                    frame,
-                    step,
-                    storage(6, true),
-                    storage(8, false),
-                    storage(19, false),
-                    storage(20, false),
-                    storage(21, false),
-                    storage(42, true),
-                    storage(44, false),
-                    storage(47, true),
-                ],
+                layout: [predict, vec![storage(42, true), storage(44, false), storage(47, true)]].concat(),
             },
             KernelDescriptor {
                 entry_point: "vbd_solve",
