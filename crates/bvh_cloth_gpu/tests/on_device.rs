@@ -141,6 +141,31 @@ impl Rig {
             .collect()
     }
 
+    /// `ticks` ticks of 1/60 s of cloths in the wind, without colliders, each from the CPU's
+    /// state and on the CPU's wind clock: each cloth's largest gap after one tick, held to
+    /// 1e-5 m.
+    fn windy_ticks_against_the_cpu(
+        &self,
+        batch: &mut ClothBatch,
+        cloths: &mut [(&str, ClothSim)],
+        ids: &[ClothId],
+        ticks: u32,
+    ) -> Vec<f32> {
+        let none = GpuColliders::new(&self.device, &[]);
+        let mut worst = vec![0.0f32; cloths.len()];
+        for _ in 0..ticks {
+            batch.set_wind_clock(cloths[0].1.wind_time(), 1.0 / 60.0, 1);
+            let gaps = self.tick_against_the_cpu(batch, cloths, ids, (&[], &none), 1.0 / 60.0, true);
+            for (worst, gap) in worst.iter_mut().zip(gaps) {
+                *worst = worst.max(gap);
+            }
+        }
+        for ((name, _), &gap) in cloths.iter().zip(&worst) {
+            assert!(gap < 1e-5, "{name}: GPU and CPU differ by {gap} m after one tick");
+        }
+        worst
+    }
+
     fn particles(&self, cloth: &OneCloth) -> Vec<GpuParticle> {
         self.batch_particles(&cloth.batch, cloth.id)
     }
@@ -1444,23 +1469,12 @@ fn flags_in_gusty_wind_agree_with_the_cpu() {
         .collect();
     let (mut batch, ids) = rig.batch(&cloths, 1.0 / 60.0);
     batch.set_wind_sources(&[fan]).unwrap();
-    let none = GpuColliders::new(&rig.device, &[]);
-    let mut worst = [0.0f32; 3];
     // How far each flag's free edge has gone downwind, along +Z.
     let far_z = |(k, sim): (usize, &ClothSim)| {
         (0..16).map(|r| sim.position(r * 24 + 23).z).sum::<f32>() / 16.0 - k as f32 * 0.8
     };
-    for _ in 0..90 {
-        batch.set_wind_clock(cloths[0].1.wind_time(), 1.0 / 60.0, 1);
-        let gaps = rig.tick_against_the_cpu(&mut batch, &mut cloths, &ids, (&[], &none), 1.0 / 60.0, true);
-        for (k, gap) in gaps.into_iter().enumerate() {
-            worst[k] = worst[k].max(gap);
-        }
-    }
+    let worst = rig.windy_ticks_against_the_cpu(&mut batch, &mut cloths, &ids, 90);
     eprintln!("flags in gusty wind, 90 ticks: largest CPU-GPU gaps after one tick {worst:?} m");
-    for ((name, _), gap) in cloths.iter().zip(worst) {
-        assert!(gap < 1e-5, "{name}: GPU and CPU differ by {gap} m after one tick");
-    }
     // The wind matters in this scene: it swings the flags with aerodynamics round their pole,
     // while the flag without them hangs in its plane.
     let downwind: Vec<f32> = cloths.iter().map(|(_, sim)| sim).enumerate().map(far_z).collect();
@@ -1493,19 +1507,8 @@ fn block_descent_takes_its_air_kick_in_its_prediction() {
         })
         .collect();
     let (mut batch, ids) = rig.batch(&cloths, 1.0 / 60.0);
-    let none = GpuColliders::new(&rig.device, &[]);
-    let mut worst = [0.0f32; 2];
-    for _ in 0..30 {
-        batch.set_wind_clock(cloths[0].1.wind_time(), 1.0 / 60.0, 1);
-        let gaps = rig.tick_against_the_cpu(&mut batch, &mut cloths, &ids, (&[], &none), 1.0 / 60.0, true);
-        for (k, gap) in gaps.into_iter().enumerate() {
-            worst[k] = worst[k].max(gap);
-        }
-    }
+    let worst = rig.windy_ticks_against_the_cpu(&mut batch, &mut cloths, &ids, 30);
     eprintln!("block descent alone in gusty wind, 30 ticks: largest CPU-GPU gaps after one tick {worst:?} m");
-    for ((name, _), gap) in cloths.iter().zip(worst) {
-        assert!(gap < 1e-5, "{name}: GPU and CPU differ by {gap} m after one tick");
-    }
     assert!(cloths[0].1.velocities().iter().any(|v| v.z > 0.5), "the wind blows the flag downwind");
     if !rig.device.features().contains(wgpu::Features::TIMESTAMP_QUERY) {
         eprintln!("the adapter has no timestamp queries: the dispatches were not listed");
