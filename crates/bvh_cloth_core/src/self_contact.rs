@@ -392,25 +392,26 @@ impl ContactSolver {
         }
         let b = bucket(cell_of(x, 1.0 / cell), self.starts.len() - 1);
         let candidates = &self.entries[self.starts[b] as usize..self.starts[b + 1] as usize];
-        found.extend(candidates.iter().take(MAX_CANDIDATES).filter_map(|&t| self.contact(bodies, p, t)));
+        // The grown boxes first, here in the scan: most candidates are beside the point, not
+        // within the thickness.
+        let point = Vec3A::from(x);
+        let near = |&&t: &&u32| {
+            let [lo, hi] = self.boxes[t as usize];
+            point.cmpge(lo).all() && point.cmple(hi).all()
+        };
+        found.extend(candidates.iter().take(MAX_CANDIDATES).filter(near).filter_map(|&t| self.contact(bodies, p, t)));
         candidates.len() > MAX_CANDIDATES
     }
 
-    /// The contact of point `p` (flat index) with triangle `t`, if the point is closer than
-    /// the pair's thickness, is not one of its corners, and lay no closer than that in their
-    /// rest shape when they are of one body.
+    /// The contact of point `p` (flat index) with triangle `t`, whose grown box holds it, if
+    /// the point is closer than the pair's thickness, is not one of its corners, and lay no
+    /// closer than that in their rest shape when they are of one body.
     fn contact(&self, bodies: &[ContactBody<'_>], p: usize, t: u32) -> Option<Contact> {
         let (tb, corners) = self.triangles[t as usize];
         if corners.contains(&(p as u32)) {
             return None;
         }
         let xp = self.x[p];
-        // The boxes first: most candidates are beside the point, not within the thickness.
-        let [lo, hi] = self.boxes[t as usize];
-        let point = Vec3A::from(xp);
-        if !(point.cmpge(lo).all() && point.cmple(hi).all()) {
-            return None;
-        }
         let (pb, pl) = self.owner[p];
         let (point_body, tri_body) = (&bodies[pb as usize], &bodies[tb as usize]);
         let h = 0.5 * (point_body.contact.thickness + tri_body.contact.thickness);
