@@ -643,7 +643,7 @@ pub fn value_noise_4d(q: Vec3, t: f32, seed: u32) -> Vec3 {
     let st = smooth(t - tc);
     blend_cell(q - cell, |[i, j, k]| {
         let key = xs[i] ^ ys[j] ^ zs[k];
-        in_time(corner_vector(hash(key ^ ts[0])), corner_vector(hash(key ^ ts[1])), st)
+        corner_at(key, ts, st)
     })
 }
 
@@ -652,12 +652,19 @@ const X_KEY: u32 = 0x8da6_b343;
 const Y_KEY: u32 = 0xd816_3841;
 const Z_KEY: u32 = 0xcb1a_b31f;
 
-/// A lattice corner's vector at a time between two lattice times: its vectors at the two, `a`
-/// and `b`, blended by the time's smoothstep weight `st`. Time is blended first, so that one
-/// tick's corners are blended once, whatever the number of points in their cells.
+/// The vector of the lattice corner whose spatial keys XOR to `key`, at a time between two
+/// lattice times (keys `ts`, seed included): its vectors at the two blended by the time's
+/// smoothstep weight `st`. Time is blended first, so that one tick's corners are blended once,
+/// whatever the number of points in their cells.
 #[inline(always)]
-fn in_time(a: Vec3A, b: Vec3A, st: f32) -> Vec3A {
-    a + (b - a) * st
+fn corner_at(key: u32, ts: [u32; 2], st: f32) -> Vec3A {
+    lerp(corner_vector(hash(key ^ ts[0])), corner_vector(hash(key ^ ts[1])), st)
+}
+
+/// `a` blended towards `b` by the weight `s`.
+#[inline(always)]
+fn lerp(a: Vec3A, b: Vec3A, s: f32) -> Vec3A {
+    a + (b - a) * s
 }
 
 /// The smoothstep blend of a cell's 8 corner vectors (already blended in time), `corner([x, y,
@@ -665,7 +672,6 @@ fn in_time(a: Vec3A, b: Vec3A, st: f32) -> Vec3A {
 #[inline(always)]
 fn blend_cell(f: Vec3, corner: impl Fn([usize; 3]) -> Vec3A) -> Vec3 {
     let (sx, sy, sz) = (smooth(f.x), smooth(f.y), smooth(f.z));
-    let lerp = |a: Vec3A, b: Vec3A, s: f32| a + (b - a) * s;
     let mut by_z = [Vec3A::ZERO; 2];
     for (k, plane) in by_z.iter_mut().enumerate() {
         let mut by_y = [Vec3A::ZERO; 2];
@@ -727,7 +733,7 @@ impl NoiseLattice {
                 let yk = lattice_key(lo[1].wrapping_add(y), Y_KEY);
                 for x in 0..dims[0] as i32 {
                     let key = lattice_key(lo[0].wrapping_add(x), X_KEY) ^ yk ^ zk;
-                    vectors.push(in_time(corner_vector(hash(key ^ ts[0])), corner_vector(hash(key ^ ts[1])), st));
+                    vectors.push(corner_at(key, ts, st));
                 }
             }
         }
