@@ -84,8 +84,8 @@ fn step(c: &mut Criterion) {
 
 /// The parts of aerodynamics at 64 x 64 (the report's `wind` cost scene: hanging from two
 /// corners for 1 s in `Wind::gusty` at 8 m/s), against the block-descent substep they are set
-/// against: the wind's sampling (once a tick), the kick of drag and lift (once a substep), and
-/// a tick without them.
+/// against: the wind's sampling (once a tick), the kick of drag and lift (once a substep, on the
+/// grid's path and on the general one), and a tick without them.
 fn aerodynamics(c: &mut Criterion) {
     let mut group = c.benchmark_group("aerodynamics");
     let topology = Arc::new(ClothTopology::grid(ClothGrid::new(Vec2::splat(1.4), UVec2::splat(64))).unwrap());
@@ -105,9 +105,18 @@ fn aerodynamics(c: &mut Criterion) {
     group.throughput(Throughput::Elements(64 * 64));
     group.bench_function("sample/64x64", |b| b.iter(|| air.sample(&model, &[], black_box(&x))));
     let h = 1.0 / (60.0 * params.looper as f32);
+    // The kick reads the sampled wind, whether or not the sampling's own benchmark ran.
+    air.sample(&model, &[], &x);
     group.bench_function("kick/64x64", |b| {
         let mut v = v.clone();
         b.iter(|| air.kick(&model, &topology, &free, black_box(h), &x, &mut v))
+    });
+    // The same kick with the same bits on the general path, which gathers each triangle's
+    // corners: the path of an authored mesh.
+    let general = ClothTopology::grid_as_mesh(*topology.stencil().expect("a generated grid")).unwrap();
+    group.bench_function("kick on the general path/64x64", |b| {
+        let mut v = v.clone();
+        b.iter(|| air.kick(&model, &general, &free, black_box(h), &x, &mut v))
     });
     // A whole tick, whose substeps share one change of layout in and out.
     sim.set_params(ClothParams { aerodynamics: Aerodynamics::NONE, ..params.clone() }).unwrap();
