@@ -207,7 +207,10 @@ impl TriangleSurface {
     /// and the triangle.
     pub fn first_crossing(&self, p: Vec3, q: Vec3) -> Option<(f32, [Vec3; 3])> {
         let mut first: Option<(f32, [Vec3; 3])> = None;
-        self.lbvh.for_each_overlapping(p.min(q), p.max(q), 0.0, |k, _| {
+        self.lbvh.for_each_overlapping(p.min(q), p.max(q), 0.0, |k, s| {
+            if !segment_near_sphere(s, p, q) {
+                return;
+            }
             let tri = self.triangles[k as usize];
             if let Some(t) = segment_hit(p, q, tri)
                 && first.is_none_or(|(best, _)| t < best)
@@ -288,6 +291,21 @@ struct Nearest {
 fn facing(tri: [Vec3; 3], towards: Vec3) -> Vec3 {
     let n = face_normal(tri).unwrap_or(Vec3::Y);
     if n.dot(towards) < 0.0 { -n } else { n }
+}
+
+/// Whether the segment from `p` to `q` may cross the triangle in `s`: whether it passes within
+/// the sphere's radius of its centre, grown by a thousandth of the radius and a hundred-
+/// thousandth of the segment's length, more than a crossing within
+/// [`EDGE_SLACK`](crate::triangles::EDGE_SLACK) of an edge and the rounding of the closest
+/// point need. The GPU's `segment_near_sphere` repeats this arithmetic.
+#[inline]
+fn segment_near_sphere(s: &Sphere, p: Vec3, q: Vec3) -> bool {
+    let (c, d) = (s.centre(), q - p);
+    let a = d.length_squared();
+    let t = if a > 0.0 { ((c - p).dot(d) / a).clamp(0.0, 1.0) } else { 0.0 };
+    let e = p + t * d - c;
+    let r = s.radius * 1.001;
+    e.length_squared() <= r * r + 1.0e-10 * a
 }
 
 /// Whether `p` is within `reach` of the sphere (so possibly of its triangle).

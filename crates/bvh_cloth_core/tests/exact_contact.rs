@@ -283,6 +283,46 @@ fn closest_within_agrees_with_brute_force() {
     assert!(found > 500 && missed > 500, "{found} found and {missed} missed: the points do not test both cases");
 }
 
+/// The sweep against brute force: on the torus, paths from a millimetre to a hundred metres
+/// long aimed through the triangles' corners, their edges' midpoints and points just past the
+/// edges (where the crossing test's slack lets a path through and a triangle's bounding sphere
+/// is at its tightest), and random ones, find a first crossing exactly when some triangle's
+/// `segment_hit` does, at the least parameter of them.
+#[test]
+fn first_crossing_agrees_with_brute_force() {
+    use bvh_cloth_core::triangles::segment_hit;
+    let (positions, indices) = common::torus(0.35, 0.08, 64, 20);
+    let mesh = MeshRef { positions: &positions, indices: Some(&indices) };
+    let surface = TriangleSurface::build(mesh).unwrap();
+    let mut rng = common::Rng::new(7);
+    let (mut crossed, mut clear) = (0, 0);
+    for k in 0..6000 {
+        let [a, b, c] =
+            surface.triangles[rng.range(0.0, surface.triangles.len() as f32) as usize % surface.triangles.len()];
+        let centre = (a + b + c) / 3.0;
+        // A corner, an edge's midpoint, or a point a little past an edge, or anywhere.
+        let aim = match k % 4 {
+            0 => [a, b, c][k / 4 % 3],
+            1 => (a + b) * 0.5,
+            2 => centre + ((b + c) * 0.5 - centre) * (1.0 + 2.0e-5),
+            _ => rng.vec3(-0.5, 0.5) * Vec3::new(1.0, 0.4, 1.0),
+        };
+        let length = 10f32.powf(rng.range(-3.0, 2.0));
+        let dir = rng.vec3(-1.0, 1.0).normalize_or(Vec3::Y);
+        let along = rng.range(0.0, 1.0);
+        let (p, q) = (aim - dir * (length * along), aim + dir * (length * (1.0 - along)));
+        let want = surface.triangles.iter().filter_map(|&tri| segment_hit(p, q, tri)).reduce(f32::min);
+        let got = surface.first_crossing(p, q).map(|(t, _)| t);
+        assert_eq!(got, want, "path {p} to {q} ({length} m)");
+        if want.is_some() {
+            crossed += 1;
+        } else {
+            clear += 1;
+        }
+    }
+    assert!(crossed > 2000 && clear > 500, "{crossed} crossed and {clear} clear: the paths do not test both cases");
+}
+
 /// A particle far faster than anything a cloth reaches (1 km/s, 17 m in one substep) straight at
 /// a plate of zero thickness stops on its near side, the thickness off; one that starts on the
 /// plate's surface (closer than the thickness) is lifted to the thickness on its own side; and a

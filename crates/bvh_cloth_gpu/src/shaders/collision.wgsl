@@ -438,15 +438,30 @@ fn sphere_reaches(sphere: vec4<f32>, p: vec3<f32>, reach: f32) -> bool {
     return dot(d, d) <= r * r;
 }
 
+// The triangle's corners are read only once its sphere is within reach.
+// bvh_cloth_core::exact_contact::segment_near_sphere: whether the path from p to q may cross
+// the sphere's triangle.
+fn segment_near_sphere(sphere: vec4<f32>, p: vec3<f32>, q: vec3<f32>) -> bool {
+    let d = q - p;
+    let a = dot(d, d);
+    var t = 0.0;
+    if (a > 0.0) {
+        t = clamp(dot(sphere.xyz - p, d) / a, 0.0, 1.0);
+    }
+    let e = p + t * d - sphere.xyz;
+    let r = sphere.w * 1.001;
+    return dot(e, e) <= r * r + 1.0e-10 * a;
+}
+
 fn consider_triangle(q: ptr<function, TriQuery>, col: GpuCollider, k: u32, sphere: vec4<f32>) {
-    let a = triangle_corner(col, k, 0u);
-    let b = triangle_corner(col, k, 1u);
-    let c = triangle_corner(col, k, 2u);
     switch (*q).kind {
         case TRI_CONTACTS: {
             if (!sphere_reaches(sphere, (*q).prev, (*q).reach)) {
                 return;
             }
+            let a = triangle_corner(col, k, 0u);
+            let b = triangle_corner(col, k, 1u);
+            let c = triangle_corner(col, k, 2u);
             let closest = closest_on_triangle((*q).prev, a, b, c);
             let away = (*q).prev - closest;
             let dist = length(away);
@@ -465,6 +480,12 @@ fn consider_triangle(q: ptr<function, TriQuery>, col: GpuCollider, k: u32, spher
             }
         }
         case TRI_SWEEP: {
+            if (!segment_near_sphere(sphere, (*q).prev, (*q).end_point)) {
+                return;
+            }
+            let a = triangle_corner(col, k, 0u);
+            let b = triangle_corner(col, k, 1u);
+            let c = triangle_corner(col, k, 2u);
             let t = segment_hit((*q).prev, (*q).end_point, a, b, c);
             if (t >= 0.0 && ((*q).found == 0u || t < (*q).value)) {
                 (*q).found = 1u;
@@ -476,6 +497,9 @@ fn consider_triangle(q: ptr<function, TriQuery>, col: GpuCollider, k: u32, spher
             if (!sphere_reaches(sphere, (*q).end_point, (*q).reach)) {
                 return;
             }
+            let a = triangle_corner(col, k, 0u);
+            let b = triangle_corner(col, k, 1u);
+            let c = triangle_corner(col, k, 2u);
             let closest = closest_on_triangle((*q).end_point, a, b, c);
             let d = closest - (*q).end_point;
             let d2 = dot(d, d);
