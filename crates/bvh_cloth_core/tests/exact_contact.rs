@@ -250,14 +250,18 @@ fn a_box_edge_with_duplicated_degenerate_and_intersecting_triangles() {
     assert!(touching > 100 && least > 0.9 * THICKNESS);
 }
 
+/// The surface of a torus of 2,560 triangles (major radius 0.35 m, minor 0.08 m).
+fn torus_surface() -> TriangleSurface {
+    let (positions, indices) = common::torus(0.35, 0.08, 64, 20);
+    TriangleSurface::build(MeshRef { positions: &positions, indices: Some(&indices) }).unwrap()
+}
+
 /// The nearest-first query against brute force: on a torus of 2,560 triangles, for points
 /// round it and through its hole, the closest point within a reach is at the brute-force
 /// distance, and there is none exactly when every triangle is beyond the reach.
 #[test]
 fn closest_within_agrees_with_brute_force() {
-    let (positions, indices) = common::torus(0.35, 0.08, 64, 20);
-    let mesh = MeshRef { positions: &positions, indices: Some(&indices) };
-    let surface = TriangleSurface::build(mesh).unwrap();
+    let surface = torus_surface();
     let mut rng = common::Rng::new(41);
     let (mut found, mut missed) = (0, 0);
     for _ in 0..4000 {
@@ -291,9 +295,7 @@ fn closest_within_agrees_with_brute_force() {
 #[test]
 fn first_crossing_agrees_with_brute_force() {
     use bvh_cloth_core::triangles::segment_hit;
-    let (positions, indices) = common::torus(0.35, 0.08, 64, 20);
-    let mesh = MeshRef { positions: &positions, indices: Some(&indices) };
-    let surface = TriangleSurface::build(mesh).unwrap();
+    let surface = torus_surface();
     let mut rng = common::Rng::new(7);
     let (mut crossed, mut clear) = (0, 0);
     for k in 0..6000 {
