@@ -10,7 +10,9 @@ use std::sync::Arc;
 use bvh_cloth_core::{Affine3A, ClothGrid, ClothParams, ClothSim, ClothTopology, Collider, MeshRef, UVec2, Vec2, Vec3};
 use bvh_cloth_gpu::headless::{self, HeadlessGpu};
 use bvh_cloth_gpu::wgpu;
-use bvh_cloth_gpu::{ClothBatch, ClothKernels, FaultReadback, GpuColliders, KernelError, STORAGE_BUFFERS_NEEDED};
+use bvh_cloth_gpu::{
+    ClothBatch, ClothId, ClothKernels, FaultReadback, GpuColliders, KernelError, STORAGE_BUFFERS_NEEDED,
+};
 
 /// A device with the limits `limit` makes of the adapter's, or `None` (with a note) when there
 /// is no adapter and none is required.
@@ -34,6 +36,23 @@ fn boxy(n: u32) -> Collider {
     let indices =
         [0, 1, 3, 0, 3, 2, 4, 6, 7, 4, 7, 5, 0, 4, 5, 0, 5, 1, 2, 3, 7, 2, 7, 6, 0, 2, 6, 0, 6, 4, 1, 5, 7, 1, 7, 3];
     Collider::from_mesh(MeshRef { positions: &positions, indices: Some(&indices) }, n).unwrap()
+}
+
+/// Cloth `id`'s particles after `ticks` ticks of `batch` with no collider.
+fn ticked(
+    gpu: &HeadlessGpu,
+    batch: &mut ClothBatch,
+    kernels: &ClothKernels,
+    id: ClothId,
+    ticks: u32,
+) -> Vec<GpuParticle> {
+    batch.prepare(&gpu.device, &gpu.queue, kernels, &GpuColliders::new(&gpu.device, &[]));
+    let mut encoder = gpu.device.create_command_encoder(&Default::default());
+    batch.encode_ticks(&mut encoder, kernels, ticks);
+    gpu.queue.submit([encoder.finish()]);
+    let (buffer, offset, size) = batch.particles(id).expect("the cloth is in the batch");
+    let all: Vec<GpuParticle> = headless::read(&gpu.device, &gpu.queue, buffer);
+    all[offset as usize / 32..(offset + size) as usize / 32].to_vec()
 }
 
 #[test]
@@ -62,15 +81,8 @@ fn a_cloth_beyond_one_dispatch_is_refused_and_smaller_ones_run() {
     let id = batch.insert(&gpu.device, &gpu.queue, &sim).expect("32 x 32 fits 4 x 4 workgroups");
     let error = batch.insert(&gpu.device, &gpu.queue, &cloth(2, 2)).unwrap_err();
     assert_eq!(error, KernelError::TooManyThreads { count: 32 * 32 + 4, max_workgroups: 4 }, "the batch is full");
-    let none = GpuColliders::new(&gpu.device, &[]);
     batch.set_params(&gpu.queue, id, sim.params(), 1.0 / 60.0);
-    batch.prepare(&gpu.device, &gpu.queue, &kernels, &none);
-    let mut encoder = gpu.device.create_command_encoder(&Default::default());
-    batch.encode_ticks(&mut encoder, &kernels, 2);
-    gpu.queue.submit([encoder.finish()]);
-    let (buffer, offset, size) = batch.particles(id).unwrap();
-    let particles: Vec<GpuParticle> = headless::read(&gpu.device, &gpu.queue, buffer);
-    let particles = &particles[offset as usize / 32..(offset + size) as usize / 32];
+    let particles = ticked(&gpu, &mut batch, &kernels, id, 2);
     assert!(particles.iter().all(|p| p.position[1] < 1.0 && p.position.iter().all(|x| x.is_finite())), "it fell");
 }
 
@@ -134,13 +146,7 @@ fn air_beyond_one_storage_binding_is_refused_and_the_cloth_runs_without_it() {
         let id = batch.insert(&gpu.device, &gpu.queue, &sim).expect("every buffer of the cloth fits");
         batch.set_params(&gpu.queue, id, sim.params(), 1.0 / 60.0);
         batch.set_wind(id, *sim.wind()).unwrap();
-        batch.prepare(&gpu.device, &gpu.queue, &kernels, &GpuColliders::new(&gpu.device, &[]));
-        let mut encoder = gpu.device.create_command_encoder(&Default::default());
-        batch.encode_ticks(&mut encoder, &kernels, 3);
-        gpu.queue.submit([encoder.finish()]);
-        let (buffer, offset, size) = batch.particles(id).unwrap();
-        let particles: Vec<GpuParticle> = headless::read(&gpu.device, &gpu.queue, buffer);
-        let particles = &particles[offset as usize / 32..(offset + size) as usize / 32];
+        let particles = ticked(gpu, &mut batch, &kernels, id, 3);
         let fall = particles.iter().map(|p| p.velocity[1]).sum::<f32>() / 4.0;
         assert!(particles.iter().all(|p| p.position.iter().chain(&p.velocity).all(|x| x.is_finite())));
         (batch.air_error().cloned(), fall)

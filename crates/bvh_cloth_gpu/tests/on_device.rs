@@ -102,6 +102,17 @@ impl Rig {
         headless::read(&self.device, &self.queue, &vertices)
     }
 
+    /// A set of `count` timestamp queries, or `None` when the adapter has none.
+    fn timestamp_queries(&self, count: u32) -> Option<wgpu::QuerySet> {
+        self.device.features().contains(wgpu::Features::TIMESTAMP_QUERY).then(|| {
+            self.device.create_query_set(&wgpu::QuerySetDescriptor {
+                label: None,
+                ty: wgpu::QueryType::Timestamp,
+                count,
+            })
+        })
+    }
+
     /// Cloth `id`'s particles as the GPU has them.
     fn batch_particles(&self, batch: &ClothBatch, id: ClothId) -> Vec<GpuParticle> {
         let (buffer, offset, size) = batch.particles(id).expect("the cloth is in the batch");
@@ -1043,15 +1054,10 @@ fn timed_ticks_step_as_untimed_ones_and_name_each_dispatch() {
     let (mut plain, mut timed) = (rig.cloth(&sim, 1.0 / 60.0), rig.cloth(&sim, 1.0 / 60.0));
     rig.ticks(&mut plain, &none, 2);
     timed.batch.prepare(&rig.device, &rig.queue, &rig.kernels, &none);
-    if !rig.device.features().contains(wgpu::Features::TIMESTAMP_QUERY) {
+    let Some(queries) = rig.timestamp_queries(64) else {
         eprintln!("the adapter has no timestamp queries: only the untimed path ran");
         return;
-    }
-    let queries = rig.device.create_query_set(&wgpu::QuerySetDescriptor {
-        label: None,
-        ty: wgpu::QueryType::Timestamp,
-        count: 64,
-    });
+    };
     let mut encoder = rig.device.create_command_encoder(&Default::default());
     assert_eq!(
         timed.batch.encode_ticks_timed(&mut encoder, &rig.kernels, 2, &queries, 8),
@@ -1510,15 +1516,10 @@ fn block_descent_takes_its_air_kick_in_its_prediction() {
     let worst = rig.windy_ticks_against_the_cpu(&mut batch, &mut cloths, &ids, 30);
     eprintln!("block descent alone in gusty wind, 30 ticks: largest CPU-GPU gaps after one tick {worst:?} m");
     assert!(cloths[0].1.velocities().iter().any(|v| v.z > 0.5), "the wind blows the flag downwind");
-    if !rig.device.features().contains(wgpu::Features::TIMESTAMP_QUERY) {
+    let Some(queries) = rig.timestamp_queries(512) else {
         eprintln!("the adapter has no timestamp queries: the dispatches were not listed");
         return;
-    }
-    let queries = rig.device.create_query_set(&wgpu::QuerySetDescriptor {
-        label: None,
-        ty: wgpu::QueryType::Timestamp,
-        count: 512,
-    });
+    };
     let mut encoder = rig.device.create_command_encoder(&Default::default());
     let kernels = batch.encode_ticks_timed(&mut encoder, &rig.kernels, 1, &queries, 512).expect("512 queries fit");
     rig.queue.submit([encoder.finish()]);
