@@ -319,7 +319,8 @@ pub struct GpuCollider {
     /// [`SHAPE_SPHERES`] for a sphere tree, else [`Primitive::kind`](crate::primitives::Primitive::kind).
     pub shape: u32,
     /// A primitive's sizes in local units ([`Primitive::size`](crate::primitives::Primitive::size)); zero for a sphere tree;
-    /// for exact contact ([`SHAPE_TRIANGLES`]) `x` is the surface's least thickness.
+    /// for exact contact ([`SHAPE_TRIANGLES`]) `x` is the surface's least thickness and `y` its
+    /// [`sweep_slack`](crate::exact_contact::TriangleSurface::sweep_slack).
     pub size: [f32; 4],
 }
 
@@ -376,7 +377,7 @@ impl GpuCollider {
         let (node_count, sphere_count, shape, size) = match &collider.shape {
             ColliderShape::Spheres { surface: Some(surface), .. } => {
                 let tree = &surface.lbvh;
-                let size = [surface.min_thickness, 0.0, 0.0, 0.0];
+                let size = [surface.min_thickness, surface.sweep_slack(), 0.0, 0.0];
                 (tree.nodes.len() as u32, tree.spheres.len() as u32, SHAPE_TRIANGLES, size)
             }
             ColliderShape::Spheres { lbvh, .. } => {

@@ -348,3 +348,46 @@ fn direct_responses_at_the_extremes() {
     let none = [[0.0f32; 3]; 3];
     assert!(TriangleSurface::build(MeshRef { positions: &none, indices: None }).is_err());
 }
+
+/// The short way out of `respond` against brute force: on the torus, a particle moving less
+/// than the band (the thickness and the contact band beyond it) in a substep is free exactly
+/// when no step of the response would touch it: no triangle within the band of its previous
+/// position holds its end point (the end point is less than the thickness above the plane
+/// through the closest point, normal to the way to `prev`), no triangle is crossed by its
+/// path, and none is closer to its end than the thickness less the band. Paths start at
+/// random round the torus, from touching it to 3 cm off, so that both answers come often and
+/// some start right at the edge of the lookout.
+#[test]
+fn a_short_path_is_free_exactly_when_no_step_would_touch_it() {
+    use bvh_cloth_core::collision::{CONTACT_BAND, Response};
+    use bvh_cloth_core::triangles::segment_hit;
+    let surface = torus_surface();
+    let mut rng = common::Rng::new(23);
+    let h = 0.01;
+    let band = h * (1.0 + CONTACT_BAND);
+    let (mut free, mut touched) = (0, 0);
+    for _ in 0..12000 {
+        let prev = rng.vec3(-0.5, 0.5) * Vec3::new(1.0, 0.25, 1.0);
+        if distance(&surface, prev) > 0.03 {
+            continue;
+        }
+        let p = prev + rng.vec3(-1.0, 1.0).normalize_or(Vec3::Y) * rng.range(0.0, band);
+        let near_prev = surface.triangles.iter().any(|&tri| {
+            let q = closest_point(prev, tri);
+            let away = prev - q;
+            away.length() < band && (p - q).dot(away.normalize()) < h
+        });
+        let crossed = surface.triangles.iter().any(|&tri| segment_hit(prev, p, tri).is_some());
+        let near_end = distance(&surface, p) < h * (1.0 - CONTACT_BAND);
+        let response = surface.respond(prev, p, h, |_| {});
+        if response == Response::Free {
+            free += 1;
+            assert!(!(near_prev || crossed || near_end), "{prev} to {p}: free, though a step would touch it");
+        } else {
+            touched += 1;
+            assert!(near_prev || crossed || near_end, "{prev} to {p}: {response:?}, though no step would touch it");
+        }
+    }
+    eprintln!("{free} free, {touched} touched");
+    assert!(free > 1000 && touched > 1000, "{free} free and {touched} touched: the paths do not test both cases");
+}

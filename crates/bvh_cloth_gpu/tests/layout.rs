@@ -234,6 +234,7 @@ fn shared_constants_match_the_core() {
     assert_eq!(constant("LEAF_BIT"), format!("{:#x}u", bvh_cloth_core::lbvh::LEAF_BIT));
     assert_eq!(constant("SURFACE_TOLERANCE").parse::<f32>().unwrap(), bvh_cloth_core::traversal::SURFACE_TOLERANCE);
     assert_eq!(constant("CONTACT_BAND").parse::<f32>().unwrap(), bvh_cloth_core::collision::CONTACT_BAND);
+    assert_eq!(constant("LOOKOUT_ROUNDING").parse::<f32>().unwrap(), bvh_cloth_core::exact_contact::LOOKOUT_ROUNDING);
     assert_eq!(constant("NO_CLOTH"), format!("{:#x}u", bvh_cloth_core::gpu_layout::NO_CLOTH));
     assert_eq!(constant("SHAPE_SPHERES"), format!("{}u", bvh_cloth_core::gpu_layout::SHAPE_SPHERES));
     assert_eq!(constant("SHAPE_TRIANGLES"), format!("{}u", bvh_cloth_core::gpu_layout::SHAPE_TRIANGLES));

@@ -4,7 +4,7 @@
 // (bvh_cloth_core::exact_contact), through the same traversal of its tree.
 
 #define_import_path bvh_cloth::collision
-#import bvh_cloth::types::{GpuParticle, GpuCollider, LEAF_BIT, STACK_SIZE, SURFACE_TOLERANCE, CONTACT_BAND, MAX_PASSES, SHAPE_SPHERES, SHAPE_TRIANGLES, frame}
+#import bvh_cloth::types::{GpuParticle, GpuCollider, LEAF_BIT, STACK_SIZE, SURFACE_TOLERANCE, CONTACT_BAND, MAX_PASSES, LOOKOUT_ROUNDING, SHAPE_SPHERES, SHAPE_TRIANGLES, frame}
 #import bvh_cloth::primitives::respond_primitive
 
 @group(0) @binding(11) var<storage, read> colliders: array<GpuCollider>;
@@ -411,8 +411,9 @@ fn facing(a: vec3<f32>, b: vec3<f32>, c: vec3<f32>, towards: vec3<f32>) -> vec3<
 }
 
 // What one query over the triangles does with each triangle whose sphere it reaches:
-// TRI_CONTACTS holds the end point off the triangles near `prev`, TRI_SWEEP finds the first
-// triangle the path crosses, TRI_CLOSEST the closest point within `reach`.
+// TRI_CONTACTS holds the end point off the triangles within `reach` of `prev` and sets `found`
+// for any within `lookout`, TRI_SWEEP finds the first triangle the path crosses, TRI_CLOSEST
+// the closest point within `reach`.
 const TRI_CONTACTS: u32 = 0u;
 const TRI_SWEEP: u32 = 1u;
 const TRI_CLOSEST: u32 = 2u;
@@ -424,6 +425,7 @@ struct TriQuery {
     end_point: vec3<f32>,
     thickness: f32,
     reach: f32,
+    lookout: f32,
     found: u32,
     value: f32,
     point: vec3<f32>,
@@ -456,7 +458,7 @@ fn segment_near_sphere(sphere: vec4<f32>, p: vec3<f32>, q: vec3<f32>) -> bool {
 fn consider_triangle(q: ptr<function, TriQuery>, col: GpuCollider, k: u32, sphere: vec4<f32>) {
     switch (*q).kind {
         case TRI_CONTACTS: {
-            if (!sphere_reaches(sphere, (*q).prev, (*q).reach)) {
+            if (!sphere_reaches(sphere, (*q).prev, (*q).lookout)) {
                 return;
             }
             let a = triangle_corner(col, k, 0u);
@@ -465,6 +467,10 @@ fn consider_triangle(q: ptr<function, TriQuery>, col: GpuCollider, k: u32, spher
             let closest = closest_on_triangle((*q).prev, a, b, c);
             let away = (*q).prev - closest;
             let dist = length(away);
+            if (dist >= (*q).lookout) {
+                return;
+            }
+            (*q).found = 1u;
             if (dist >= (*q).reach) {
                 return;
             }
@@ -552,16 +558,26 @@ fn run_triangle_query(q: ptr<function, TriQuery>, col: GpuCollider, lo: vec3<f32
 }
 
 fn triangle_query(kind: u32, prev: vec3<f32>, end_point: vec3<f32>, thickness: f32, reach: f32, v: vec3<f32>) -> TriQuery {
-    return TriQuery(kind, prev, end_point, end_point, thickness, reach, 0u, 0.0, vec3<f32>(0.0), 0u, false, v);
+    return TriQuery(kind, prev, end_point, end_point, thickness, reach, reach, 0u, 0.0, vec3<f32>(0.0), 0u, false, v);
 }
 
 // bvh_cloth_core::exact_contact::TriangleSurface::respond.
 fn respond_triangles(col: GpuCollider, prev: vec3<f32>, p: vec3<f32>, velocity: vec3<f32>) -> Response {
     let h = max(col.margin_local, col.size.x);
     let band = h * (1.0 + CONTACT_BAND);
-    // 1. Contacts at the previous position.
+    // 1. Contacts at the previous position, looking along a short path too: with no triangle
+    // that near, the particle is free.
+    let path = distance(prev, p);
+    let short = path <= band;
     var q = triangle_query(TRI_CONTACTS, prev, p, h, band, velocity);
-    run_triangle_query(&q, col, prev, prev, band);
+    if (short) {
+        let size = max(max(abs(prev.x), abs(prev.y)), abs(prev.z));
+        q.lookout = band + path + col.size.y + LOOKOUT_ROUNDING * size;
+    }
+    run_triangle_query(&q, col, prev, prev, q.lookout);
+    if (short && q.found == 0u) {
+        return Response(0u, p, q.velocity);
+    }
     var target_point = q.end_point;
     var v = q.velocity;
     var touched = q.touched;

@@ -115,6 +115,7 @@ const STACK_SIZE: u32 = 64u;               // bvh_cloth_core::traversal::STACK_S
 const SURFACE_TOLERANCE: f32 = 1.0e-3;     // bvh_cloth_core::traversal::SURFACE_TOLERANCE
 const CONTACT_BAND: f32 = 1.0e-2;          // bvh_cloth_core::collision::CONTACT_BAND
 const MAX_PASSES: u32 = 4u;                // bvh_cloth_core::collision::MAX_PASSES
+const LOOKOUT_ROUNDING: f32 = 1.1920929e-6; // bvh_cloth_core::exact_contact::LOOKOUT_ROUNDING
 
 @group(0) @binding(0) var<uniform> frame: BatchFrame;
 @group(0) @binding(1) var<uniform> step: BatchStep;
