@@ -28,7 +28,8 @@
 //!    within reach of `prev`), it is pushed out along the direction from that triangle, at
 //!    most [`MAX_PASSES`] times.
 //! 4. **Guard.** If the path from `prev` to the final point crosses any triangle, the particle
-//!    stays at `prev`.
+//!    stays at `prev`. When neither the sweep nor the clearance moved the end point, the sweep
+//!    has just tested this very path, so the guard is not run again.
 //!
 //! A particle whose path is no longer than the band, with no triangle within the band plus
 //! the path's length of `prev` (step 1 looks that far), is free at once: no triangle is near
@@ -282,12 +283,15 @@ impl TriangleSurface {
             return Response::Free;
         }
 
-        // 2. Sweep: stop off the first triangle the path crosses.
+        // 2. Sweep: stop off the first triangle the path crosses. `clear` while the path to
+        // `target` is known to cross nothing.
+        let mut clear = true;
         if let Some((t, tri)) = self.first_crossing(prev, target) {
             let hit = prev.lerp(target, t);
             let n = facing(tri, prev - hit);
             target = hit + n * h;
             touched = true;
+            clear = false;
             touch(n);
         }
 
@@ -298,14 +302,15 @@ impl TriangleSurface {
             let n = away.try_normalize().unwrap_or_else(|| (prev - target).normalize_or(Vec3::Y));
             target = q + n * h;
             touched = true;
+            clear = false;
             touch(n);
         }
 
-        // 4. Guard.
+        // 4. Guard, unless the sweep has just found this very path clear.
         if !touched {
             return Response::Free;
         }
-        if self.first_crossing(prev, target).is_some() { Response::Stay } else { Response::Moved(target) }
+        if !clear && self.first_crossing(prev, target).is_some() { Response::Stay } else { Response::Moved(target) }
     }
 }
 

@@ -584,6 +584,8 @@ fn respond_triangles(col: GpuCollider, prev: vec3<f32>, p: vec3<f32>, velocity: 
     // 2. Sweep.
     var sweep = triangle_query(TRI_SWEEP, prev, target_point, h, 0.0, v);
     run_triangle_query(&sweep, col, min(prev, target_point), max(prev, target_point), 0.0);
+    // Whether the path to `target_point` is known to cross nothing.
+    var path_clear = sweep.found == 0u;
     if (sweep.found != 0u) {
         let k = sweep.triangle;
         let hit = mix(prev, target_point, sweep.value);
@@ -609,11 +611,15 @@ fn respond_triangles(col: GpuCollider, prev: vec3<f32>, p: vec3<f32>, velocity: 
         }
         target_point = near.point + n * h;
         touched = true;
+        path_clear = false;
         v = contact_velocity(v, rotate(col.rotation, n), col.friction);
     }
-    // 4. Guard.
+    // 4. Guard, unless the sweep has just found this very path clear.
     if (!touched) {
         return Response(0u, p, v);
+    }
+    if (path_clear) {
+        return Response(1u, target_point, v);
     }
     var guard = triangle_query(TRI_SWEEP, prev, target_point, h, 0.0, v);
     run_triangle_query(&guard, col, min(prev, target_point), max(prev, target_point), 0.0);
