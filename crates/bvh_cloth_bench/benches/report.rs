@@ -21,10 +21,11 @@
 //!     both backends, GPU against CPU in gusty wind, and what drag and lift cost.
 //!
 //! `WGPU_BACKEND=vulkan cargo bench -p bvh_cloth_bench --bench report`
-//! (without a GPU adapter the GPU columns say so and the rest still runs). Append `-- NAME` to
-//! run only the sections whose name contains NAME: `table_vii`, `queries`, `fidelity`,
-//! `step_scaling`, `topology`, `gpu_profile`, `many_cloths`, `build_scaling`, `far_from_origin`,
-//! `solver`, `primitives`, `skinned_refit`, `exact_contact`, `self_contact`, `wind`.
+//! (without a GPU adapter the GPU columns say so and the rest still runs). Append `-- NAME...`
+//! to run only the sections whose name contains one of the NAMEs: `table_vii`, `queries`,
+//! `fidelity`, `step_scaling`, `topology`, `gpu_profile`, `many_cloths`, `build_scaling`,
+//! `far_from_origin`, `solver`, `primitives`, `skinned_refit`, `exact_contact`, `self_contact`,
+//! `wind`.
 
 use std::fmt::Write as _;
 use std::sync::Arc;
@@ -87,9 +88,9 @@ fn main() {
     let csv_dir = format!("{}/../../docs/benchmarks", std::env::var("CARGO_MANIFEST_DIR").expect("run by cargo"));
     std::fs::create_dir_all(&csv_dir).expect("docs/benchmarks is writable");
 
-    // `cargo bench ... -- NAME` runs only the sections whose name contains NAME.
-    let filter = std::env::args().skip(1).find(|a| !a.starts_with("--")).unwrap_or_default();
-    let run = |section: &str| section.contains(filter.as_str());
+    // `cargo bench ... -- NAME...` runs only the sections whose name contains one of the NAMEs.
+    let filters: Vec<String> = std::env::args().skip(1).filter(|a| !a.starts_with("--")).collect();
+    let run = |section: &str| filters.is_empty() || filters.iter().any(|f| section.contains(f.as_str()));
     if run("table_vii") {
         table_vii(&meshes, gpu.as_ref(), &single, threads);
     }
@@ -446,6 +447,35 @@ fn many_cloths(gpu: Option<&Gpu>) {
 The GPU here is a software adapter on the same CPU cores: only the ratios mean anything."
         );
     }
+}
+
+/// Writes one byte in every 64-byte line of `bytes`: evicts the caches, and its loop's branches
+/// are few and always taken.
+fn write_every_line(bytes: &mut [u8]) {
+    for b in bytes.iter_mut().step_by(64) {
+        *b = b.wrapping_add(1);
+    }
+    std::hint::black_box(bytes);
+}
+
+/// Three million steps of a loop over 16 KiB whose branches follow a pseudo-random sequence
+/// (xorshift): trains the branch predictors on other code, and evicts little from the caches.
+fn train_other_branches(words: &mut [u32; 4096]) {
+    let mut state = words[0] | 1;
+    for _ in 0..3_000_000 {
+        state ^= state << 13;
+        state ^= state >> 17;
+        state ^= state << 5;
+        let w = &mut words[(state & 4095) as usize];
+        if *w & 1 == 0 {
+            *w = w.wrapping_add(state);
+        } else if state & 2 == 0 {
+            *w ^= 7;
+        } else {
+            *w = w.rotate_left(3);
+        }
+    }
+    std::hint::black_box(words);
 }
 
 /// The exact mesh as parry3d sees it, oriented so that its pseudo-normals tell inside from outside.
@@ -1193,6 +1223,10 @@ fn exact_contact(meshes: &[ObjMesh], parry: &[TriMesh], single: &rayon::ThreadPo
         "| model | triangles | exact M/s | parry3d M/s | exact / parry3d | repeated: exact M/s | parry3d M/s | exact / parry3d | build ms | build with surface ms | ratio |"
     );
     println!("|---|---|---|---|---|---|---|---|---|---|---|");
+    // The second table's rows: what slows the pass that follows other work.
+    let mut after_rows = Vec::new();
+    let mut lines = vec![0u8; 64 << 20];
+    let mut words = [1u32; 4096];
     for ((name, mesh), exact) in MODELS.iter().zip(meshes).zip(parry) {
         let c = collider(mesh, 5).with_margin(THICKNESS).with_exact_contact(mesh.as_mesh_ref()).expect("area");
         let surface = c.surface().expect("exact contact").clone();
@@ -1218,6 +1252,26 @@ fn exact_contact(meshes: &[ObjMesh], parry: &[TriMesh], single: &rayon::ThreadPo
                 std::array::from_fn(|i| best[i].min(times[i]))
             })
         });
+        let [after_write, after_branches, after_both] = single.install(|| {
+            (0..9).fold([f64::INFINITY; 3], |best, _| {
+                write_every_line(&mut lines);
+                let write = time(ours);
+                train_other_branches(&mut words);
+                let branches = time(ours);
+                write_every_line(&mut lines);
+                train_other_branches(&mut words);
+                let both = time(ours);
+                [best[0].min(write), best[1].min(branches), best[2].min(both)]
+            })
+        });
+        after_rows.push(format!(
+            "| {name} | {:.2} | {:.2} | {:.2} | {:.2} | {:.2} |",
+            rate(exact_repeated) / 1e6,
+            rate(after_write) / 1e6,
+            rate(after_branches) / 1e6,
+            rate(after_both) / 1e6,
+            rate(exact_after) / 1e6
+        ));
         let (exact_qps, parry_qps) = (rate(exact_after), rate(parry_after));
         let (exact_warm_qps, parry_warm_qps) = (rate(exact_repeated), rate(parry_repeated));
         // The builds on the whole pool, as a game's loading does, alternating; best of 5 each.
@@ -1245,6 +1299,17 @@ fn exact_contact(meshes: &[ObjMesh], parry: &[TriMesh], single: &rayon::ThreadPo
             with_s / build_s,
         );
     }
+
+    println!("\n### What slows the exact query's pass after other work\n");
+    println!(
+        "M/s of the same exact queries on one thread, each pass timed right after: the same pass (repeated, as above); a write to every cache line of 64 MiB (which evicts the caches and trains few branches); 3 million steps of a loop whose branches follow a pseudo-random sequence over 16 KiB (which trains the branch predictors on other code and evicts little); both; parry3d's pass (as above). Best of 9 each, in that order within each round.\n"
+    );
+    println!("| model | repeated | after the write | after the branches | after both | after parry3d |");
+    println!("|---|---|---|---|---|---|");
+    for row in after_rows {
+        println!("{row}");
+    }
+    drop(lines);
 
     println!("\n### CPU: the drape with exact against sphere contact\n");
     println!(

@@ -9,7 +9,9 @@
 //! triangles at the paper's `n = 5` (about 900 on the 70,000-triangle bunny), so a tree whose
 //! leaves are single triangles keeps the narrow phase to the few triangles within a thickness
 //! of the particle whatever `n` the voxel spheres were built with, and the same traversal
-//! serves both.
+//! serves both. The GPU walks that tree; the CPU walks a four-wide copy of it ([`WideBvh`]),
+//! whose nodes test four of the binary tree's boxes at once and which meets the triangles in
+//! the same order.
 //!
 //! # Response
 //!
@@ -56,16 +58,18 @@ use rayon::prelude::*;
 
 use crate::collision::{CONTACT_BAND, MAX_PASSES, Response};
 use crate::error::ColliderError;
-use crate::lbvh::{BvhNode, LEAF_BIT, Lbvh, Sphere};
-use crate::traversal::STACK_SIZE;
+use crate::lbvh::{Lbvh, Sphere};
 use crate::triangles::{EDGE_SLACK, closest_point, face_normal, has_area, segment_hit};
 use crate::voxel_spheres::MeshRef;
+use crate::wide_bvh::WideBvh;
 
 /// The triangles of a mesh in an LBVH, for exact contact.
 #[derive(Clone, Debug)]
 pub struct TriangleSurface {
-    /// One bounding sphere per triangle: leaf `k` is `triangles[k]`.
+    /// One bounding sphere per triangle: leaf `k` is `triangles[k]`. The GPU's tree.
     pub lbvh: Lbvh,
+    /// The same tree four wide, each leaf's box the triangle's: the CPU's queries walk it.
+    pub wide: WideBvh,
     /// The triangles in leaf order, in the mesh's coordinates.
     pub triangles: Vec<[Vec3; 3]>,
     /// Triangles of the mesh left out because they have no area (or a non-finite corner).
@@ -126,86 +130,38 @@ impl TriangleSurface {
         } else {
             order.iter().map(|&k| kept_triangle(kept[k as usize])).collect()
         };
-        lbvh.fit_boxes_by(|k| {
+        let triangle_box = |k: u32| {
             let [a, b, c] = triangles[k as usize];
             (a.min(b).min(c), a.max(b).max(c))
-        });
+        };
+        lbvh.fit_boxes_by(triangle_box);
+        let wide = WideBvh::from_lbvh(&lbvh, triangle_box);
         let diagonal = match (lbvh.nodes.first(), triangles.first()) {
             (Some(root), _) => Vec3::from(root.aabb_min).distance(Vec3::from(root.aabb_max)),
             (None, Some([a, b, c])) => a.min(b.min(*c)).distance(a.max(b.max(*c))),
             (None, None) => 0.0,
         };
-        Ok(Self { lbvh, triangles, dropped: count - kept.len(), min_thickness: 1.0e-6 * diagonal })
+        Ok(Self { lbvh, wide, triangles, dropped: count - kept.len(), min_thickness: 1.0e-6 * diagonal })
     }
 
     /// The point of the surface closest to `p` within `reach`, if any is.
     ///
-    /// A nearest-first descent: the reach shrinks to the closest triangle found so far, the
-    /// nearer child is visited first, and a node is skipped when its box (or a leaf when its
-    /// sphere) lies farther than that.
+    /// A nearest-first descent of the wide tree: the reach shrinks to the closest triangle
+    /// found so far, the nearer children are visited first, and a child is skipped when its box
+    /// lies farther than that.
     pub fn closest_within(&self, p: Vec3, reach: f32) -> Option<Vec3> {
-        let tree = &self.lbvh;
-        let mut best = Nearest { d2: reach * reach, d: reach, point: None };
-        let leaf = |k: u32, best: &mut Nearest| {
-            let s = &tree.spheres[k as usize];
-            // The sphere, so its triangle, is no nearer than the best so far.
-            let beyond = s.radius + best.d;
-            if s.centre().distance_squared(p) >= beyond * beyond {
-                return;
-            }
+        let mut point = None;
+        self.wide.nearest(p, reach * reach, |k, best| {
             let q = closest_point(p, self.triangles[k as usize]);
             let d2 = q.distance_squared(p);
-            if d2 < best.d2 {
-                *best = Nearest { d2, d: d2.sqrt(), point: Some(q) };
+            if d2 < best {
+                point = Some(q);
+                d2
+            } else {
+                best
             }
-        };
-        if tree.nodes.is_empty() {
-            if !tree.spheres.is_empty() {
-                leaf(0, &mut best);
-            }
-            return best.point;
-        }
-        let box_d2 = |node: u32| {
-            let n = &tree.nodes[node as usize];
-            let nearest = p.clamp(Vec3::from(n.aabb_min), Vec3::from(n.aabb_max));
-            nearest.distance_squared(p)
-        };
-        // Each entry keeps its box's distance, checked again against the shrunk reach when it
-        // is popped.
-        let mut stack = [(0u32, 0.0f32); STACK_SIZE];
-        let mut top = 0usize;
-        let root_d2 = box_d2(0);
-        if root_d2 < best.d2 {
-            stack[0] = (0, root_d2);
-            top = 1;
-        }
-        while top > 0 {
-            top -= 1;
-            let (node, d2) = stack[top];
-            if d2 >= best.d2 {
-                continue;
-            }
-            let BvhNode { left, right, .. } = tree.nodes[node as usize];
-            let mut inner: [(u32, f32); 2] = [(0, f32::INFINITY); 2];
-            for (slot, child) in inner.iter_mut().zip([left, right]) {
-                if child & LEAF_BIT != 0 {
-                    leaf(child & !LEAF_BIT, &mut best);
-                } else {
-                    *slot = (child, box_d2(child));
-                }
-            }
-            // The farther child goes on the stack first, so the nearer one is popped first.
-            if inner[1].1 > inner[0].1 {
-                inner.swap(0, 1);
-            }
-            for (child, d2) in inner {
-                if d2 < best.d2 && top < STACK_SIZE {
-                    stack[top] = (child, d2);
-                    top += 1;
-                }
-            }
-        }
-        best.point
+        });
+        point
     }
 
     /// The farthest off a triangle the sweep may find a crossing, ten times over: the slack
@@ -225,10 +181,9 @@ impl TriangleSurface {
     /// and the triangle.
     pub fn first_crossing(&self, p: Vec3, q: Vec3) -> Option<(f32, [Vec3; 3])> {
         let mut first: Option<(f32, [Vec3; 3])> = None;
-        self.lbvh.for_each_overlapping(p.min(q), p.max(q), 0.0, |k, s| {
-            if !segment_near_sphere(s, p, q) {
-                return;
-            }
+        // Grown by the slack: a crossing within it of an edge may lie just off the triangle's
+        // box.
+        self.wide.for_each_overlapping(p.min(q), p.max(q), self.sweep_slack(), |k| {
             let tri = self.triangles[k as usize];
             if let Some(t) = segment_hit(p, q, tri)
                 && first.is_none_or(|(best, _)| t < best)
@@ -256,10 +211,7 @@ impl TriangleSurface {
         let lookout =
             if short { band + path + self.sweep_slack() + LOOKOUT_ROUNDING * prev.abs().max_element() } else { band };
         let mut near = false;
-        self.lbvh.for_each_overlapping(prev, prev, lookout, |k, s| {
-            if !sphere_reaches(s, prev, lookout) {
-                return;
-            }
+        self.wide.for_each_overlapping(prev, prev, lookout, |k| {
             let tri = self.triangles[k as usize];
             let q = closest_point(prev, tri);
             let away = prev - q;
@@ -314,41 +266,11 @@ impl TriangleSurface {
     }
 }
 
-/// The closest point a query has found so far, at squared distance `d2` and distance `d`
-/// (the reach, until one is found).
-struct Nearest {
-    d2: f32,
-    d: f32,
-    point: Option<Vec3>,
-}
-
 /// The triangle's unit normal turned to the side `towards` points to (the face normal by
 /// winding when `towards` lies in the plane; +Y for a triangle without one).
 fn facing(tri: [Vec3; 3], towards: Vec3) -> Vec3 {
     let n = face_normal(tri).unwrap_or(Vec3::Y);
     if n.dot(towards) < 0.0 { -n } else { n }
-}
-
-/// Whether the segment from `p` to `q` may cross the triangle in `s`: whether it passes within
-/// the sphere's radius of its centre, grown by a thousandth of the radius and a hundred-
-/// thousandth of the segment's length, more than a crossing within
-/// [`EDGE_SLACK`](crate::triangles::EDGE_SLACK) of an edge and the rounding of the closest
-/// point need. The GPU's `segment_near_sphere` repeats this arithmetic.
-#[inline]
-fn segment_near_sphere(s: &Sphere, p: Vec3, q: Vec3) -> bool {
-    let (c, d) = (s.centre(), q - p);
-    let a = d.length_squared();
-    let t = if a > 0.0 { ((c - p).dot(d) / a).clamp(0.0, 1.0) } else { 0.0 };
-    let e = p + t * d - c;
-    let r = s.radius * 1.001;
-    e.length_squared() <= r * r + 1.0e-10 * a
-}
-
-/// Whether `p` is within `reach` of the sphere (so possibly of its triangle).
-#[inline]
-fn sphere_reaches(s: &Sphere, p: Vec3, reach: f32) -> bool {
-    let r = s.radius + reach;
-    s.centre().distance_squared(p) <= r * r
 }
 
 /// A sphere around the triangle: centred on its box, through its farthest corner.

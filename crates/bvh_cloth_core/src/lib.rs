@@ -17,7 +17,7 @@
 //! | [`morton`], [`lbvh`] | 2.4.2 (Karras 2012) |
 //! | [`traversal`] | 2.4.3, Algorithm 2 |
 //! | [`collision`] | 2.4.4 |
-//! | [`exact_contact`], [`triangles`] | (contact with the mesh's own triangles; not in the paper) |
+//! | [`exact_contact`], [`triangles`], [`wide_bvh`] | (contact with the mesh's own triangles; not in the paper) |
 //! | [`normals`] | Algorithm 3 |
 //! | [`gpu_layout`] | Table II: the buffer layouts of the GPU kernels |
 //! | [`obj`] | (a minimal OBJ reader for engine-free tools) |
@@ -74,6 +74,7 @@ pub mod traversal;
 pub mod triangles;
 mod voxel_grid;
 pub mod voxel_spheres;
+pub mod wide_bvh;
 
 pub use aerodynamics::{Aerodynamics, Wind, WindSource};
 pub use collider::{Collider, ColliderPose, ColliderShape};

@@ -287,6 +287,43 @@ fn closest_within_agrees_with_brute_force() {
     assert!(found > 500 && missed > 500, "{found} found and {missed} missed: the points do not test both cases");
 }
 
+/// The CPU's wide tree against the GPU's binary one on the torus: a box query meets exactly the
+/// triangles whose own box overlaps it, and those the binary tree also meets (it tests their
+/// bounding spheres) come in its order, so contacts are taken in the same order on both
+/// backends.
+#[test]
+fn the_wide_tree_meets_the_triangles_in_the_binary_trees_order() {
+    let surface = torus_surface();
+    let mut rng = common::Rng::new(17);
+    let mut met = 0;
+    for i in 0..3000 {
+        // Round a random triangle, or anywhere.
+        let [p, q, r] = surface.triangles[rng.range(0.0, surface.triangles.len() as f32) as usize];
+        let a = if i % 2 == 0 { (p + q + r) / 3.0 + rng.vec3(-0.03, 0.01) } else { rng.vec3(-0.5, 0.5) };
+        let (lo, hi) = (a, a + rng.vec3(0.0, 0.05));
+        let margin = rng.range(0.0, 0.02);
+        let mut wide = Vec::new();
+        surface.wide.for_each_overlapping(lo, hi, margin, |k| wide.push(k));
+        let overlaps = |k: u32| {
+            let [p, q, r] = surface.triangles[k as usize];
+            (p.min(q).min(r)).cmple(hi + margin).all() && (p.max(q).max(r)).cmpge(lo - margin).all()
+        };
+        let want: Vec<u32> = (0..surface.triangles.len() as u32).filter(|&k| overlaps(k)).collect();
+        let mut sorted = wide.clone();
+        sorted.sort_unstable();
+        assert_eq!(sorted, want, "box {lo}..{hi} grown by {margin}");
+        let mut binary = Vec::new();
+        surface.lbvh.for_each_overlapping(lo, hi, margin, |k, _| {
+            if overlaps(k) {
+                binary.push(k);
+            }
+        });
+        assert_eq!(wide, binary, "box {lo}..{hi} grown by {margin}: another order");
+        met += wide.len();
+    }
+    assert!(met > 10_000, "{met} triangles met: the boxes do not reach the surface");
+}
+
 /// The sweep against brute force: on the torus, paths from a millimetre to a hundred metres
 /// long aimed through the triangles' corners, their edges' midpoints and points just past the
 /// edges (where the crossing test's slack lets a path through and a triangle's bounding sphere

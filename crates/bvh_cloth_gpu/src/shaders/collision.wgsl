@@ -318,7 +318,9 @@ fn collide(prev_world: vec3<f32>, moved: GpuParticle) -> GpuParticle {
 }
 
 // ---- Exact contact (bvh_cloth_core::exact_contact and triangles), in the same order of
-// operations. A collider's triangles follow its spheres in `tree`, three vec4s each.
+// operations: the CPU walks a four-wide copy of this tree (bvh_cloth_core::wide_bvh), which
+// meets the triangles in this walk's order. A collider's triangles follow its spheres in
+// `tree`, three vec4s each.
 
 fn triangle_corner(col: GpuCollider, k: u32, corner: u32) -> vec3<f32> {
     return tree[col.sphere_offset + col.sphere_count + 3u * k + corner].xyz;
@@ -441,8 +443,10 @@ fn sphere_reaches(sphere: vec4<f32>, p: vec3<f32>, reach: f32) -> bool {
 }
 
 // The triangle's corners are read only once its sphere is within reach.
-// bvh_cloth_core::exact_contact::segment_near_sphere: whether the path from p to q may cross
-// the sphere's triangle.
+// Whether the path from p to q may cross the sphere's triangle: whether it passes within the
+// sphere's radius of its centre, grown by a thousandth of the radius and a hundred-thousandth
+// of the path's length, more than a crossing within EDGE_SLACK of an edge and the rounding of
+// the closest point need. (The CPU tests the triangle's box grown by the sweep's slack.)
 fn segment_near_sphere(sphere: vec4<f32>, p: vec3<f32>, q: vec3<f32>) -> bool {
     let d = q - p;
     let a = dot(d, d);

@@ -1,0 +1,304 @@
+//! A four-wide copy of an [`Lbvh`] for queries on the CPU: each node holds the boxes of up to
+//! four children side by side, one SIMD lane each, so a query tests four boxes at once and
+//! descends two levels of the binary tree per node.
+//!
+//! The wide tree is the binary tree with every other level folded into its parent: a wide node
+//! stands for a binary node, and its children are that node's grandchildren (or its children
+//! where those are leaves). Its boxes are the binary tree's, and a leaf's is the box the tree
+//! was fitted to (a triangle's own box for exact contact), so a query finds what a descent of
+//! the binary tree would have found, with half the dependent loads.
+//!
+//! [`WideBvh::for_each_overlapping`] meets the leaves in the order [`Lbvh::for_each_overlapping`]
+//! does (the GPU's order too), so a response that depends on the order of its contacts is the
+//! same on both.
+
+use glam::{Vec3, Vec4};
+use rayon::prelude::*;
+
+use crate::lbvh::{LEAF_BIT, Lbvh};
+use crate::traversal::STACK_SIZE;
+
+/// A node of the wide tree: the boxes of up to four children, one lane per child, and the
+/// children's references. An unused lane has an empty box (`+inf` to `-inf`), which no query
+/// overlaps and whose distance is infinite.
+#[derive(Clone, Copy, Debug, PartialEq)]
+#[repr(C, align(64))]
+pub struct WideNode {
+    /// The children's box minima, per axis (x, y, z), one lane per child.
+    pub lo: [Vec4; 3],
+    /// The children's box maxima, per axis.
+    pub hi: [Vec4; 3],
+    /// `LEAF_BIT | leaf` or a wide node's index, in the order a depth-first walk of the binary
+    /// tree meets them; `u32::MAX` in an unused lane.
+    pub child: [u32; 4],
+}
+
+impl WideNode {
+    const EMPTY: Self = Self { lo: [Vec4::INFINITY; 3], hi: [Vec4::NEG_INFINITY; 3], child: [u32::MAX; 4] };
+
+    /// The four squared distances from `p` to the children's boxes (infinite in unused lanes).
+    #[inline]
+    fn distances_squared(&self, p: Vec3) -> Vec4 {
+        let mut sum = Vec4::ZERO;
+        for axis in 0..3 {
+            let at = Vec4::splat(p[axis]);
+            let outside = (self.lo[axis] - at).max(at - self.hi[axis]).max(Vec4::ZERO);
+            sum += outside * outside;
+        }
+        sum
+    }
+
+    /// The lanes (bit `i` for child `i`) whose box overlaps `[lo, hi]`.
+    #[inline]
+    fn overlapping(&self, lo: Vec3, hi: Vec3) -> u32 {
+        let mut lanes = 0b1111;
+        for axis in 0..3 {
+            let apart = self.lo[axis].cmpgt(Vec4::splat(hi[axis])) | self.hi[axis].cmplt(Vec4::splat(lo[axis]));
+            lanes &= !apart.bitmask();
+        }
+        lanes
+    }
+}
+
+/// The wide tree: node 0 is the root; empty when the binary tree has no leaf.
+#[derive(Clone, Debug, Default)]
+pub struct WideBvh {
+    /// The nodes, each before its children (a depth-first order).
+    pub nodes: Vec<WideNode>,
+}
+
+/// The traversal stack: a node pushes at most four entries and pops one, and the wide tree is
+/// at most half as deep as the binary one (at most [`STACK_SIZE`] levels).
+const WIDE_STACK: usize = 2 * STACK_SIZE + 4;
+
+impl WideBvh {
+    /// Folds `tree` into a wide tree. `leaf_box(k)` is leaf `k`'s box, the one `tree`'s inner
+    /// boxes were fitted to. A large tree's subtrees under the root are folded in parallel.
+    pub fn from_lbvh(tree: &Lbvh, leaf_box: impl Fn(u32) -> (Vec3, Vec3) + Sync) -> Self {
+        if tree.nodes.is_empty() {
+            if tree.spheres.is_empty() {
+                return Self::default();
+            }
+            let mut root = WideNode::EMPTY;
+            set_lane(&mut root, 0, LEAF_BIT, leaf_box(0));
+            return Self { nodes: vec![root] };
+        }
+        let fold = Fold { tree, leaf_box: &leaf_box };
+        if tree.nodes.len() < PARALLEL_FOLD_MIN_NODES {
+            let mut nodes = vec![WideNode::EMPTY; fold.count(0)];
+            fold.fill(0, &mut nodes, 0);
+            return Self { nodes };
+        }
+        // The root, then each of its inner children's subtrees in turn, each folded on its own
+        // into its own slice of the nodes.
+        let (children, count) = wide_children(tree, 0);
+        let inner: Vec<(usize, u32)> =
+            children[..count].iter().enumerate().filter(|&(_, &c)| c & LEAF_BIT == 0).map(|(l, &c)| (l, c)).collect();
+        let sizes: Vec<usize> = inner.par_iter().map(|&(_, c)| fold.count(c)).collect();
+        let total = 1 + sizes.iter().sum::<usize>();
+        let mut nodes: Vec<WideNode> = (0..total).into_par_iter().map(|_| WideNode::EMPTY).collect();
+        let (root, mut rest) = nodes.split_at_mut(1);
+        fold.node(0, &mut root[0]);
+        let mut parts = Vec::with_capacity(inner.len());
+        let mut base = 1;
+        for (&(lane, child), &size) in inner.iter().zip(&sizes) {
+            root[0].child[lane] = base as u32;
+            let (part, after) = std::mem::take(&mut rest).split_at_mut(size);
+            parts.push((child, part, base as u32));
+            rest = after;
+            base += size;
+        }
+        parts.into_par_iter().for_each(|(child, part, base)| fold.fill(child, part, base));
+        Self { nodes }
+    }
+
+    /// Calls `visit(leaf)` for every leaf whose box overlaps `[lo, hi]` grown by `margin`, in
+    /// the order [`Lbvh::for_each_overlapping`] meets them. (That one tests a leaf's sphere,
+    /// this one the leaf's own box, so each may meet a leaf the other does not whose sphere or
+    /// box alone overlaps; a caller's exact test decides either way.)
+    #[inline]
+    pub fn for_each_overlapping(&self, lo: Vec3, hi: Vec3, margin: f32, mut visit: impl FnMut(u32)) {
+        if self.nodes.is_empty() {
+            return;
+        }
+        let (lo, hi) = (lo - margin, hi + margin);
+        // Leaves go through the stack too, so that each is met where the binary walk meets it.
+        let mut stack = [0u32; WIDE_STACK];
+        let mut top = 1usize;
+        while top > 0 {
+            top -= 1;
+            let entry = stack[top];
+            if entry & LEAF_BIT != 0 {
+                visit(entry & !LEAF_BIT);
+                continue;
+            }
+            let node = &self.nodes[entry as usize];
+            let lanes = node.overlapping(lo, hi);
+            for lane in (0..4).rev() {
+                if lanes & (1 << lane) != 0 {
+                    stack[top] = node.child[lane];
+                    top += 1;
+                }
+            }
+        }
+    }
+
+    /// A nearest-first search: `leaf(k, best)` is called for every leaf whose box lies closer
+    /// to `p` than `best`, the squared distance found so far (`limit` at first), and returns the
+    /// new `best` (its own squared distance to `p` when nearer). Returns the last `best`.
+    #[inline]
+    pub fn nearest(&self, p: Vec3, limit: f32, mut leaf: impl FnMut(u32, f32) -> f32) -> f32 {
+        let mut best = limit;
+        if self.nodes.is_empty() {
+            return best;
+        }
+        // Each entry keeps its box's squared distance, checked again against `best` when popped.
+        let mut stack = [(0u32, 0.0f32); WIDE_STACK];
+        let mut top = 1usize;
+        while top > 0 {
+            top -= 1;
+            let (index, d2) = stack[top];
+            if d2 >= best {
+                continue;
+            }
+            let node = &self.nodes[index as usize];
+            let distances = node.distances_squared(p).to_array();
+            // The leaves at once; the inner children sorted farthest first, so that the
+            // nearest is popped first.
+            let mut inner = [(0u32, 0.0f32); 4];
+            let mut inner_count = 0;
+            for (&child, &d2) in node.child.iter().zip(&distances) {
+                if d2 >= best {
+                    continue;
+                }
+                if child & LEAF_BIT != 0 {
+                    best = leaf(child & !LEAF_BIT, best);
+                } else {
+                    let mut slot = inner_count;
+                    while slot > 0 && inner[slot - 1].1 < d2 {
+                        inner[slot] = inner[slot - 1];
+                        slot -= 1;
+                    }
+                    inner[slot] = (child, d2);
+                    inner_count += 1;
+                }
+            }
+            for &(child, d2) in &inner[..inner_count] {
+                if d2 < best {
+                    stack[top] = (child, d2);
+                    top += 1;
+                }
+            }
+        }
+        best
+    }
+}
+
+/// Below this many binary nodes a tree is folded on one thread.
+const PARALLEL_FOLD_MIN_NODES: usize = 16_384;
+
+/// Folding a binary tree whose leaf `k` has the box `leaf_box(k)`.
+struct Fold<'a, F> {
+    tree: &'a Lbvh,
+    leaf_box: &'a F,
+}
+
+impl<F: Fn(u32) -> (Vec3, Vec3) + Sync> Fold<'_, F> {
+    /// The number of wide nodes under (and with) binary node `binary`, a wide node's.
+    fn count(&self, binary: u32) -> usize {
+        let mut count = 0;
+        let mut stack = Vec::with_capacity(WIDE_STACK);
+        stack.push(binary);
+        while let Some(binary) = stack.pop() {
+            count += 1;
+            let (children, n) = wide_children(self.tree, binary);
+            stack.extend(children[..n].iter().filter(|&&c| c & LEAF_BIT == 0));
+        }
+        count
+    }
+
+    /// Writes the wide node of binary node `binary` into `node`, its inner children's
+    /// references still binary.
+    fn node(&self, binary: u32, node: &mut WideNode) {
+        let (children, count) = wide_children(self.tree, binary);
+        for (lane, &child) in children[..count].iter().enumerate() {
+            let bounds = if child & LEAF_BIT != 0 {
+                (self.leaf_box)(child & !LEAF_BIT)
+            } else {
+                let n = &self.tree.nodes[child as usize];
+                (Vec3::from(n.aabb_min), Vec3::from(n.aabb_max))
+            };
+            set_lane(node, lane, child, bounds);
+        }
+    }
+
+    /// Folds the subtree under binary node `binary` into `out` (exactly its size), depth first,
+    /// `out[0]` being wide node `base`.
+    fn fill(&self, binary: u32, out: &mut [WideNode], base: u32) {
+        let mut next = 0;
+        // Binary nodes still to fold, each with the wide node and lane that will point to it.
+        let mut stack: Vec<(u32, Option<(usize, usize)>)> = Vec::with_capacity(WIDE_STACK);
+        stack.push((binary, None));
+        while let Some((binary, parent)) = stack.pop() {
+            let at = next;
+            next += 1;
+            if let Some((parent, lane)) = parent {
+                out[parent].child[lane] = base + at as u32;
+            }
+            let node = &mut out[at];
+            self.node(binary, node);
+            // The first inner child is popped first.
+            for (lane, &child) in node.child.iter().enumerate().rev() {
+                if child != u32::MAX && child & LEAF_BIT == 0 {
+                    stack.push((child, Some((at, lane))));
+                }
+            }
+        }
+        debug_assert_eq!(next, out.len());
+    }
+}
+
+/// Writes a child's reference and box into `lane`.
+fn set_lane(node: &mut WideNode, lane: usize, child: u32, (lo, hi): (Vec3, Vec3)) {
+    for axis in 0..3 {
+        node.lo[axis][lane] = lo[axis];
+        node.hi[axis][lane] = hi[axis];
+    }
+    node.child[lane] = child;
+}
+
+/// The wide node's children for binary node `binary`, in the order a depth-first walk of the
+/// binary tree ([`Lbvh::for_each_overlapping`]) meets them. That walk, at a node, meets its leaf
+/// children at once (right, then left), then walks its left subtree, then its right one; so
+/// the grandchildren under each inner child come as that child's leaves (right, then left) and
+/// then its inner children (left, then right).
+fn wide_children(tree: &Lbvh, binary: u32) -> ([u32; 4], usize) {
+    let node = &tree.nodes[binary as usize];
+    let mut children = [u32::MAX; 4];
+    let mut count = 0;
+    let mut push = |child: u32| {
+        children[count] = child;
+        count += 1;
+    };
+    for child in [node.right, node.left] {
+        if child & LEAF_BIT != 0 {
+            push(child);
+        }
+    }
+    for child in [node.left, node.right] {
+        if child & LEAF_BIT == 0 {
+            let inner = &tree.nodes[child as usize];
+            for grandchild in [inner.right, inner.left] {
+                if grandchild & LEAF_BIT != 0 {
+                    push(grandchild);
+                }
+            }
+            for grandchild in [inner.left, inner.right] {
+                if grandchild & LEAF_BIT == 0 {
+                    push(grandchild);
+                }
+            }
+        }
+    }
+    (children, count)
+}

@@ -1,0 +1,114 @@
+//! The four-wide tree against the binary tree it is folded from: the same leaves in the same
+//! order for box queries, and the nearest leaf of brute force for nearest-first queries.
+
+mod common;
+
+use bvh_cloth_core::lbvh::LEAF_BIT;
+use bvh_cloth_core::wide_bvh::WideBvh;
+use bvh_cloth_core::{Lbvh, Sphere, Vec3};
+use common::Rng;
+
+fn random_spheres(rng: &mut Rng, count: usize) -> Vec<Sphere> {
+    (0..count).map(|_| Sphere::new(rng.vec3(-1.0, 1.0), rng.range(0.0, 0.3))).collect()
+}
+
+/// The binary tree over `spheres` (its boxes fitted to the spheres' boxes) and its wide copy.
+fn trees(spheres: &[Sphere]) -> (Lbvh, WideBvh) {
+    let bvh = Lbvh::build(spheres);
+    let wide = WideBvh::from_lbvh(&bvh, |k| {
+        let s = bvh.spheres[k as usize];
+        (s.centre() - s.radius, s.centre() + s.radius)
+    });
+    (bvh, wide)
+}
+
+/// The number of wide levels on the longest path from the root to a leaf.
+fn levels(wide: &WideBvh) -> u32 {
+    let mut deepest = 0;
+    let mut stack = vec![(0u32, 1u32)];
+    while let Some((node, level)) = stack.pop() {
+        deepest = deepest.max(level);
+        for &child in &wide.nodes[node as usize].child {
+            if child != u32::MAX && child & LEAF_BIT == 0 {
+                stack.push((child, level + 1));
+            }
+        }
+    }
+    deepest
+}
+
+/// With the leaves' boxes the spheres' own, both trees test the same box for a leaf, so a box
+/// query meets exactly the same leaves in exactly the same order: points, boxes and segments'
+/// boxes, with and without a margin, and every leaf is met once at most.
+fn check_order(bvh: &Lbvh, wide: &WideBvh, rng: &mut Rng, queries: usize) {
+    for _ in 0..queries {
+        let a = rng.vec3(-1.4, 1.4);
+        let b = if rng.range(0.0, 1.0) < 0.5 { a } else { a + rng.vec3(-0.3, 0.3) };
+        let margin = if rng.range(0.0, 1.0) < 0.5 { 0.0 } else { rng.range(0.0, 0.2) };
+        let (lo, hi) = (a.min(b), a.max(b));
+        let mut binary = Vec::new();
+        bvh.for_each_overlapping(lo, hi, margin, |k, _| binary.push(k));
+        let mut folded = Vec::new();
+        wide.for_each_overlapping(lo, hi, margin, |k| folded.push(k));
+        assert_eq!(folded, binary, "box {lo}..{hi} grown by {margin}");
+        let mut once = folded.clone();
+        once.sort_unstable();
+        once.dedup();
+        assert_eq!(once.len(), folded.len(), "a leaf met twice");
+    }
+}
+
+/// Nearest-first: the leaf value is the squared distance from the point to the sphere (zero
+/// inside it), which is never less than the distance to the leaf's box; the query's answer is
+/// brute force's least value below the limit, or the limit.
+fn check_nearest(bvh: &Lbvh, wide: &WideBvh, rng: &mut Rng, queries: usize) {
+    let to_sphere = |s: &Sphere, p: Vec3| (s.centre().distance(p) - s.radius).max(0.0).powi(2);
+    for _ in 0..queries {
+        let p = rng.vec3(-1.6, 1.6);
+        let limit = rng.range(0.0, 0.5).powi(2);
+        let mut calls = 0;
+        let got = wide.nearest(p, limit, |k, best| {
+            calls += 1;
+            to_sphere(&bvh.spheres[k as usize], p).min(best)
+        });
+        let want = bvh.spheres.iter().map(|s| to_sphere(s, p)).fold(limit, f32::min);
+        assert_eq!(got, want, "nearest from {p} within {limit}");
+        assert!(calls <= bvh.spheres.len());
+    }
+}
+
+#[test]
+fn tiny_trees() {
+    let mut rng = Rng::new(2);
+    for count in 1..=5 {
+        let (bvh, wide) = trees(&random_spheres(&mut rng, count));
+        check_order(&bvh, &wide, &mut rng, 2000);
+        check_nearest(&bvh, &wide, &mut rng, 2000);
+    }
+    let (bvh, wide) = trees(&[]);
+    assert!(wide.nodes.is_empty());
+    check_order(&bvh, &wide, &mut rng, 10);
+    assert_eq!(wide.nearest(Vec3::ZERO, 1.0, |_, _| unreachable!("no leaf")), 1.0);
+}
+
+#[test]
+fn random_sets_meet_the_same_leaves_in_the_same_order() {
+    let mut rng = Rng::new(9);
+    for count in [6, 17, 64, 100, 1000, 20_000] {
+        let (bvh, wide) = trees(&random_spheres(&mut rng, count));
+        // A wide node folds two binary levels into one.
+        assert_eq!(levels(&wide), bvh.depth.div_ceil(2), "{count} leaves");
+        check_order(&bvh, &wide, &mut rng, 2000);
+        check_nearest(&bvh, &wide, &mut rng, 2000);
+    }
+}
+
+#[test]
+fn coincident_centres() {
+    // Equal Morton codes, ties broken by index: the deepest trees a set of leaves makes.
+    let mut rng = Rng::new(13);
+    let same: Vec<Sphere> = (0..300).map(|i| Sphere::new(Vec3::splat(0.25), 0.01 * (i % 7) as f32)).collect();
+    let (bvh, wide) = trees(&same);
+    check_order(&bvh, &wide, &mut rng, 2000);
+    check_nearest(&bvh, &wide, &mut rng, 2000);
+}
