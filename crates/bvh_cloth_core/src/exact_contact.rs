@@ -166,8 +166,9 @@ impl TriangleSurface {
 
     /// The farthest off a triangle the sweep may find a crossing, ten times over: the slack
     /// [`segment_hit`] allows at the edges is [`EDGE_SLACK`] of edges at most twice the largest
-    /// bounding radius. [`Self::respond`] looks that much farther round `prev` (and
-    /// [`LOOKOUT_ROUNDING`] of `prev`'s size) before it calls a short path free.
+    /// bounding radius. [`Self::first_crossing`] grows the triangles' boxes by it, and
+    /// [`Self::respond`] looks that much farther round `prev` (and [`LOOKOUT_ROUNDING`] of
+    /// `prev`'s size) before it calls a short path free.
     pub fn sweep_slack(&self) -> f32 {
         20.0 * EDGE_SLACK * self.lbvh.max_radius
     }
