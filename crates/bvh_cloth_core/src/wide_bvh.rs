@@ -48,13 +48,14 @@ impl WideNode {
         sum
     }
 
-    /// The lanes (bit `i` for child `i`) whose box overlaps `[lo, hi]`.
+    /// The lanes (bit `i` for child `i`) whose box overlaps `[lo, hi]`; none for a query with a
+    /// NaN.
     #[inline]
     fn overlapping(&self, lo: Vec3, hi: Vec3) -> u32 {
         let mut lanes = 0b1111;
         for axis in 0..3 {
-            let apart = self.lo[axis].cmpgt(Vec4::splat(hi[axis])) | self.hi[axis].cmplt(Vec4::splat(lo[axis]));
-            lanes &= !apart.bitmask();
+            let meet = self.lo[axis].cmple(Vec4::splat(hi[axis])) & self.hi[axis].cmpge(Vec4::splat(lo[axis]));
+            lanes &= meet.bitmask();
         }
         lanes
     }
@@ -145,11 +146,14 @@ impl WideBvh {
 
     /// A nearest-first search: `leaf(k, best)` is called for every leaf whose box lies closer
     /// to `p` than `best`, the squared distance found so far (`limit` at first), and returns the
-    /// new `best` (its own squared distance to `p` when nearer). Returns the last `best`.
+    /// new `best` (its own squared distance to `p` when nearer). Returns the last `best`, which
+    /// is `limit` for a point with a NaN.
     #[inline]
     pub fn nearest(&self, p: Vec3, limit: f32, mut leaf: impl FnMut(u32, f32) -> f32) -> f32 {
         let mut best = limit;
-        if self.nodes.is_empty() {
+        // A NaN coordinate would count as inside every box along its axis (the lanes' `max`
+        // keeps the zero), so such a point is answered here.
+        if self.nodes.is_empty() || p.is_nan() {
             return best;
         }
         // Each entry keeps its box's squared distance, checked again against `best` when popped.

@@ -103,6 +103,22 @@ fn random_sets_meet_the_same_leaves_in_the_same_order() {
     }
 }
 
+/// A query with a NaN meets no leaf, as the binary walk does.
+#[test]
+fn a_nan_query_meets_nothing() {
+    let mut rng = Rng::new(21);
+    let (bvh, wide) = trees(&random_spheres(&mut rng, 1000));
+    let nan = Vec3::new(f32::NAN, 0.0, 0.0);
+    for (lo, hi, margin) in [(nan, nan, 0.0), (Vec3::ZERO, nan, 0.1), (Vec3::ZERO, Vec3::ONE, f32::NAN)] {
+        wide.for_each_overlapping(lo, hi, margin, |k| panic!("leaf {k} met by {lo}..{hi} grown by {margin}"));
+        bvh.for_each_overlapping(lo, hi, margin, |k, _| panic!("the binary walk met leaf {k}"));
+    }
+    for p in [nan, Vec3::new(0.0, 0.0, f32::NAN)] {
+        let best = wide.nearest(p, 1.0, |k, _| panic!("leaf {k} tried from {p}"));
+        assert_eq!(best, 1.0);
+    }
+}
+
 #[test]
 fn coincident_centres() {
     // Equal Morton codes, ties broken by index: the deepest trees a set of leaves makes.
