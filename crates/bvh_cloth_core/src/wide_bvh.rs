@@ -68,8 +68,9 @@ pub struct WideBvh {
     pub nodes: Vec<WideNode>,
 }
 
-/// The traversal stack: a node pushes at most four entries and pops one, and the wide tree is
-/// at most half as deep as the binary one (at most [`STACK_SIZE`] levels).
+/// The traversal stack. The binary tree has fewer than [`STACK_SIZE`] levels, so the wide one
+/// has at most half as many; a walk holds at most three entries for each level above the node
+/// it pops and the four that node pushes, well within this.
 const WIDE_STACK: usize = 2 * STACK_SIZE + 4;
 
 impl WideBvh {
