@@ -148,13 +148,14 @@ impl WideBvh {
     /// A nearest-first search: `leaf(k, best)` is called for every leaf whose box lies closer
     /// to `p` than `best`, the squared distance found so far (`limit` at first), and returns the
     /// new `best` (its own squared distance to `p` when nearer). Returns the last `best`, which
-    /// is `limit` for a point with a NaN.
+    /// is `limit` for a point with a NaN or a `limit` that is not positive.
     #[inline]
     pub fn nearest(&self, p: Vec3, limit: f32, mut leaf: impl FnMut(u32, f32) -> f32) -> f32 {
         let mut best = limit;
         // A NaN coordinate would count as inside every box along its axis (the lanes' `max`
-        // keeps the zero), so such a point is answered here.
-        if self.nodes.is_empty() || p.is_nan() {
+        // keeps the zero), and a NaN limit would let the unused lanes through, so both are
+        // answered here.
+        if self.nodes.is_empty() || p.is_nan() || limit.is_nan() || limit <= 0.0 {
             return best;
         }
         // Each entry keeps its box's squared distance, checked again against `best` when popped.

@@ -103,7 +103,7 @@ fn random_sets_meet_the_same_leaves_in_the_same_order() {
     }
 }
 
-/// A query with a NaN meets no leaf, as the binary walk does.
+/// A query with a NaN (point, box, margin or limit) meets no leaf, as the binary walk does.
 #[test]
 fn a_nan_query_meets_nothing() {
     let mut rng = Rng::new(21);
@@ -116,6 +116,12 @@ fn a_nan_query_meets_nothing() {
     for p in [nan, Vec3::new(0.0, 0.0, f32::NAN)] {
         let best = wide.nearest(p, 1.0, |k, _| panic!("leaf {k} tried from {p}"));
         assert_eq!(best, 1.0);
+    }
+    // Small trees too: their root has leaves and unused lanes.
+    for count in [1, 2, 3, 5, 1000] {
+        let (_, wide) = trees(&random_spheres(&mut rng, count));
+        let best = wide.nearest(Vec3::ZERO, f32::NAN, |k, _| panic!("leaf {k} tried within a NaN limit"));
+        assert!(best.is_nan());
     }
 }
 
