@@ -415,7 +415,7 @@ impl AirModel {
     ///
     /// Four triangles at a time, one per SIMD lane: their edges and flows are transposed so
     /// that each vector holds one coordinate of the four, and the arithmetic of
-    /// [`Self::triangle_force_simd`] runs lane-wise, its square root and divisions shared. The
+    /// `triangle_force_simd` runs lane-wise, its square root and divisions shared. The
     /// operations and their order are the same, so the lanes give the same bits.
     #[inline]
     pub fn triangle_forces(&self, triangles: &[[u32; 3]], corners: &[[Vec3A; 2]], mut each: impl FnMut(usize, Vec3A)) {

@@ -38,7 +38,7 @@ const RADIX_MIN: usize = 1024;
 
 /// The pairs `(code, index)` of `codes` sorted by code, equal codes in index order: a stable
 /// least-significant-digit radix sort, linear in the count (a comparison sort of the 200,000
-/// leaves of a triangle surface takes about twice as long). Fewer than [`RADIX_MIN`] codes are
+/// leaves of a triangle surface takes about twice as long). Fewer than `RADIX_MIN` codes are
 /// sorted by comparison, which is quicker than clearing the radix counters.
 pub fn sort_by_code(codes: impl ExactSizeIterator<Item = u32>) -> Vec<(u32, u32)> {
     const BUCKETS: usize = 1 << RADIX_BITS;
