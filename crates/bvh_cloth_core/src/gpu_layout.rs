@@ -67,10 +67,14 @@ pub struct GpuBatchCloth {
     pub contact_thickness: f32,
     /// [`crate::SelfContact::friction`].
     pub contact_friction: f32,
-    /// Padding.
-    pub pad: u32,
+    /// 1 when no particle with mass is pinned (block descent then keeps the cloth's momentum:
+    /// `bvh_cloth_core::block_descent`), else 0.
+    pub free_body: u32,
     /// Particles quarantined since the host last cleared this word.
     pub faults: u32,
+    /// Block descent's drift of the centre of mass in this substep (`xyz`, metres), which the
+    /// kernels compute and read; the host never writes it.
+    pub drift: [f32; 4],
 }
 
 impl GpuBatchCloth {
@@ -78,7 +82,8 @@ impl GpuBatchCloth {
     pub const HOST_BYTES: u64 = 76;
 
     /// The constants of a cloth with `params` on `topology`, whose particles and spring ends
-    /// start at the given indices, for `substeps` substeps of `h` seconds per tick.
+    /// start at the given indices, for `substeps` substeps of `h` seconds per tick (as a held
+    /// cloth: set [`Self::free_body`] for one that nothing holds).
     pub fn new(
         params: &ClothParams,
         topology: &ClothTopology,
@@ -109,8 +114,9 @@ impl GpuBatchCloth {
             },
             contact_thickness: params.self_contact.map_or(0.0, |c| c.thickness),
             contact_friction: params.self_contact.map_or(0.0, |c| c.friction),
-            pad: 0,
+            free_body: 0,
             faults: 0,
+            drift: [0.0; 4],
         }
     }
 }
@@ -508,7 +514,7 @@ mod tests {
     #[test]
     fn sizes_are_multiples_of_sixteen() {
         assert_eq!(size_of::<GpuParticle>(), 32);
-        assert_eq!(size_of::<GpuBatchCloth>(), 80);
+        assert_eq!(size_of::<GpuBatchCloth>(), 96);
         assert_eq!(size_of::<GpuColourPass>(), 16);
         assert_eq!(size_of::<GpuContactFrame>(), 32);
         assert_eq!(std::mem::offset_of!(GpuBatchCloth, faults) as u64, GpuBatchCloth::HOST_BYTES);

@@ -141,8 +141,16 @@ impl ClothSim {
         Ok(sim)
     }
 
+    /// Whether nothing holds the cloth: no particle with mass is pinned, so only the uniform
+    /// acceleration, the air and the colliders change its momentum.
+    pub fn is_free_body(&self) -> bool {
+        let share = self.topology.mass_share();
+        self.free[..self.len()].iter().zip(share).all(|(&free, &share)| free != 0.0 || share == 0.0)
+    }
+
     /// Puts every particle back at its rest position under `pose`, at rest.
     pub fn reset(&mut self, pose: Affine3A) {
+        self.descent.accel.fill(0.0);
         let topology = Arc::clone(&self.topology);
         for (i, &p) in topology.rest_positions().iter().enumerate() {
             self.set_position(i, pose.transform_point3(p));
@@ -403,6 +411,7 @@ impl ClothSim {
         let n = self.len();
         let mut descent = core::mem::take(&mut self.descent);
         descent.resize(n);
+        let free_body = self.is_free_body();
         let w = self.width;
         for (r, row) in self.state.chunks_exact(LANES * w).enumerate() {
             for c in 0..w.min(n.saturating_sub(r * w)) {
@@ -418,7 +427,16 @@ impl ClothSim {
             if let Some(model) = self.air_model {
                 self.air.kick(&model, &self.topology, &self.free[..n], h, &descent.x, &mut descent.v);
             }
-            descent.substep(&self.topology, &model, &self.free[..n], &mut self.held[..n], h, iterations, &frames);
+            descent.substep(
+                &self.topology,
+                &model,
+                &self.free[..n],
+                &mut self.held[..n],
+                h,
+                iterations,
+                free_body,
+                &frames,
+            );
             if let Some(contact) = self.params.self_contact {
                 self.contact_x.clear();
                 self.contact_x.extend(descent.x.iter().map(|&p| Vec3::from(p)));

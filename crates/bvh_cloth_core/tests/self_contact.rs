@@ -50,10 +50,11 @@ fn close_between(a: &[Vec3], b: &[Vec3], limit: f32) -> usize {
     a.iter().map(|p| b.iter().filter(|q| p.distance(**q) < limit).count()).sum()
 }
 
-/// A 48 x 48 cloth of 1 m dropped from 0.3 m onto a bar of radius 3 cm (a capsule along Z), off
-/// its centre line so that one side is longer: it folds over the bar and its two sides swing
+/// A 48 x 48 cloth of 1 m dropped from 0.8 m onto a bar of radius 3 cm (a capsule along Z), off
+/// its centre line so that one side is longer: it folds over the bar and its two sides whip
 /// down and into each other under it. After 3 s: no close pair, no crossing triangle; without
-/// contact the two sides swing through each other (over a thousand crossing triangles). A
+/// contact the two sides swing through each other (measured: 3,218 crossing triangles; from
+/// 0.3 m, where the sides only swing down, none). A
 /// thinner bar than the particle spacing would let the cloth slip through between particles.
 #[test]
 fn a_cloth_folding_over_a_thin_bar_keeps_off_itself() {
@@ -65,7 +66,7 @@ fn a_cloth_folding_over_a_thin_bar_keeps_off_itself() {
     let mut results = Vec::new();
     for (contact, integrator) in [(true, Integrator::BLOCK_DESCENT), (false, Integrator::BLOCK_DESCENT)] {
         let topology = common::grid_topology(1.0, 48, 48);
-        let pose = Affine3A::from_translation(Vec3::new(0.12, 0.3, 0.0));
+        let pose = Affine3A::from_translation(Vec3::new(0.12, 0.8, 0.0));
         let mut sim = ClothSim::new(params(contact, integrator), Arc::clone(&topology), pose, &[]).unwrap();
         for _ in 0..180 {
             sim.tick(1.0 / 60.0, &colliders);

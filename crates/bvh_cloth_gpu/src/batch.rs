@@ -34,6 +34,9 @@ pub enum Kernel {
     VbdSolve,
     /// `vbd_finish`: block descent's velocity update, with the collision response.
     VbdFinish,
+    /// `vbd_drift_blocks` or `vbd_drift`: the drift of the centre of mass of the block-descent
+    /// cloths that nothing holds.
+    VbdDrift,
     /// `contact_begin`: self-contact's substep start kept, its sums and bucket counts cleared.
     ContactBegin,
     /// `contact_count`: each triangle counted in its grid buckets.
@@ -93,6 +96,8 @@ struct Slot {
     aerodynamics: Aerodynamics,
     mass: f32,
     wind: Wind,
+    /// Whether no particle with mass is pinned ([`ClothSim::is_free_body`]).
+    free_body: bool,
 }
 
 impl Slot {
@@ -122,6 +127,8 @@ struct Buffers {
     slope_sum: Buffer,
     info: Buffer,
     colour_list: Buffer,
+    /// Block descent's drift sums, one per 64 particle slots.
+    drift_blocks: Buffer,
     spring_ends: Buffer,
     surface_words: Buffer,
     cloth_constants: Buffer,
@@ -153,6 +160,7 @@ impl Buffers {
             slope_sum: storage("bvh_cloth_slope_sum", particle_bytes),
             info: storage("bvh_cloth_particle_info", u64::from(particles) * 16),
             colour_list: storage("bvh_cloth_colour_list", u64::from(particles) * 4),
+            drift_blocks: storage("bvh_cloth_drift_blocks", u64::from(particles.div_ceil(64)) * 16),
             spring_ends: storage("bvh_cloth_spring_ends", u64::from(ends) * 16),
             surface_words: storage("bvh_cloth_surface", u64::from(surface) * 4),
             cloth_constants: storage("bvh_cloth_cloths", u64::from(cloths) * size_of::<GpuBatchCloth>() as u64),
@@ -199,6 +207,8 @@ struct Groups {
     predict: BindGroup,
     solve: BindGroup,
     finish: BindGroup,
+    /// The two levels of the drift sums.
+    drift: [BindGroup; 2],
     apply_anchors: Option<BindGroup>,
     /// Self-contact's kernels, when a cloth has it.
     contact: Option<[BindGroup; 8]>,
@@ -224,6 +234,8 @@ struct DescentPlan {
     /// Most iterations and substeps of any block-descent cloth.
     iterations: u32,
     substeps: u32,
+    /// Whether a block-descent cloth is held by nothing, so that its drift is summed.
+    free_bodies: bool,
 }
 
 /// Every cloth on the GPU in one batch: shared, packed buffers, and one dispatch per integrator
@@ -374,6 +386,7 @@ impl ClothBatch {
             aerodynamics: sim.params().aerodynamics,
             mass: sim.params().mass,
             wind: *sim.wind(),
+            free_body: sim.is_free_body(),
         };
         let index = match self.slots.iter().position(Option::is_none) {
             Some(free) => free,
@@ -473,13 +486,17 @@ impl ClothBatch {
             let (len, ends, surface) =
                 (slot.topology.len() as u32, slot.topology.spring_ends().len() as u32, slot.surface_len());
             if slot.pending_state.is_none() {
-                encoder.copy_buffer_to_buffer(
-                    &old.base,
-                    u64::from(slot.particle_start) * particle_size,
-                    &self.buffers.base,
-                    u64::from(used.0) * particle_size,
-                    u64::from(len) * particle_size,
-                );
+                // The state, and block descent's acceleration estimates (kept in the inertial
+                // target's buffer between substeps).
+                for (from, to) in [(&old.base, &self.buffers.base), (&old.stage_b, &self.buffers.stage_b)] {
+                    encoder.copy_buffer_to_buffer(
+                        from,
+                        u64::from(slot.particle_start) * particle_size,
+                        to,
+                        u64::from(used.0) * particle_size,
+                        u64::from(len) * particle_size,
+                    );
+                }
             }
             self.place(queue, index, used.0, used.1, used.2);
             used = (used.0 + len, used.1 + ends, used.2 + surface);
@@ -563,6 +580,7 @@ impl ClothBatch {
         let substeps = params.substeps(tick_seconds, &slot.topology).min(MAX_SUBSTEPS);
         let h = tick_seconds / substeps as f32;
         slot.constants = GpuBatchCloth::new(params, &slot.topology, slot.particle_start, slot.ends_start, substeps, h);
+        slot.constants.free_body = u32::from(slot.free_body);
         slot.own_substeps = substeps;
         slot.tick_seconds = tick_seconds;
         slot.aerodynamics = params.aerodynamics;
@@ -820,11 +838,13 @@ impl ClothBatch {
         let iterations =
             descent.iter().map(|(_, slot, _)| slot.constants.iterations).max().unwrap_or(0).min(MAX_ITERATIONS);
         let substeps = descent.iter().map(|(_, slot, _)| slot.constants.substeps).max().unwrap_or(0);
+        let free_bodies = descent.iter().any(|(_, slot, _)| slot.free_body);
         if let Some(plan) = self.descent.as_mut()
             && plan.cloths == cloths
         {
             plan.iterations = iterations;
             plan.substeps = substeps;
+            plan.free_bodies = free_bodies;
             return;
         }
         let colours = descent.iter().map(|(_, _, colouring)| colouring.len()).max().unwrap_or(0);
@@ -857,7 +877,7 @@ impl ClothBatch {
             }
         }
         queue.write_buffer(&self.colour_passes, 0, &bytes);
-        self.descent = Some(DescentPlan { cloths, colours: ranges, iterations, substeps });
+        self.descent = Some(DescentPlan { cloths, colours: ranges, iterations, substeps, free_bodies });
     }
 
     fn write_anchor_targets(&mut self, device: &Device, queue: &Queue) {
@@ -1020,7 +1040,23 @@ impl ClothBatch {
                 buffer(12, &colliders.1),
                 buffer(19, &b.base),
                 buffer(20, &b.stage_a),
+                buffer(21, &b.stage_b),
             ],
+        });
+        let drift = [0, 1].map(|level| {
+            device.create_bind_group(&wgpu::BindGroupDescriptor {
+                label: Some("bvh_cloth_vbd_drift"),
+                layout: &kernels.vbd_drift_layouts[level],
+                entries: &[
+                    frame.clone(),
+                    step.clone(),
+                    buffer(6, &b.info),
+                    buffer(8, &b.cloth_constants),
+                    buffer(19, &b.base),
+                    buffer(20, &b.stage_a),
+                    buffer(48, &b.drift_blocks),
+                ],
+            })
         });
         let contact = self.contact.as_ref().map(|plan| {
             let shared = SharedBuffers {
@@ -1045,7 +1081,7 @@ impl ClothBatch {
             };
             plan.bind_groups(device, kernels, &shared)
         });
-        Groups { colliders, anchors, stages, last, predict, solve, finish, apply_anchors, contact, air }
+        Groups { colliders, anchors, stages, last, predict, solve, finish, drift, apply_anchors, contact, air }
     }
 
     /// Records `ticks` ticks of every cloth: per tick the anchors, then per substep the
@@ -1206,6 +1242,17 @@ impl ClothBatch {
                     pass.set_pipeline(&kernels.vbd_solve);
                     pass.set_bind_group(0, &groups.solve, &offsets);
                     pass.dispatch_workgroups(range.workgroups.0, range.workgroups.1, 1);
+                });
+            }
+        }
+        if plan.free_bodies {
+            let cloths = self.slots.len() as u32;
+            for (level, (pipeline, group)) in kernels.vbd_drift.iter().zip(&groups.drift).enumerate() {
+                let (gx, gy) = if level == 0 { (x, y) } else { (cloths, 1) };
+                each(Kernel::VbdDrift, &|pass| {
+                    pass.set_pipeline(pipeline);
+                    pass.set_bind_group(0, group, &offset);
+                    pass.dispatch_workgroups(gx, gy, 1);
                 });
             }
         }

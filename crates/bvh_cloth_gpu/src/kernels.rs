@@ -133,11 +133,12 @@ pub struct KernelDescriptor {
 }
 
 /// Number of kernels (entry points): the length of [`ClothKernels::descriptors`].
-pub const KERNEL_COUNT: usize = 23;
+pub const KERNEL_COUNT: usize = 25;
 
 /// The compiled kernels: `node_update` (RK4's first three stages, the stage named by the step
 /// uniform), `node_update_final` (the last stage with the collision response), block descent's
-/// `vbd_predict` (or `vbd_predict_air`), `vbd_solve` and `vbd_finish`, `apply_anchors`, `normal_shader`, a skinned
+/// `vbd_predict` (or `vbd_predict_air`), `vbd_solve`, `vbd_drift_blocks` and `vbd_drift` (the
+/// drift of a free cloth's centre of mass) and `vbd_finish`, `apply_anchors`, `normal_shader`, a skinned
 /// collider's refit (`skin_vertices`, `fit_leaves`, `refit_nodes`, `refit_reach`), and
 /// self-contact's eight kernels (`contact_begin` to `contact_apply`) and aerodynamics' three
 /// ([`AIR_KERNELS`]), with their bind group layouts.
@@ -150,6 +151,8 @@ pub struct ClothKernels {
     pub(crate) vbd_predict_air: ComputePipeline,
     pub(crate) vbd_solve: ComputePipeline,
     pub(crate) vbd_finish: ComputePipeline,
+    /// The two levels of the drift sums of the cloths that nothing holds.
+    pub(crate) vbd_drift: [ComputePipeline; 2],
     pub(crate) anchors: ComputePipeline,
     pub(crate) normal: ComputePipeline,
     /// The refit's four kernels, in order, and their layouts (the same entries).
@@ -167,6 +170,7 @@ pub struct ClothKernels {
     pub(crate) vbd_predict_air_layout: BindGroupLayout,
     pub(crate) vbd_solve_layout: BindGroupLayout,
     pub(crate) vbd_finish_layout: BindGroupLayout,
+    pub(crate) vbd_drift_layouts: [BindGroupLayout; 2],
     pub(crate) anchors_layout: BindGroupLayout,
     pub(crate) normal_layout: BindGroupLayout,
 }
@@ -186,8 +190,8 @@ fn storage(binding: u32, read_only: bool) -> BindGroupLayoutEntry {
 
 impl ClothKernels {
     /// The kernels, in the order [`Self::from_parts`] takes them: `node_update`,
-    /// `node_update_final`, `vbd_predict`, `vbd_predict_air`, `vbd_solve`, `vbd_finish`,
-    /// `apply_anchors`, `normal_shader`, `skin_vertices`, `fit_leaves`, `refit_nodes`,
+    /// `node_update_final`, `vbd_predict`, `vbd_predict_air`, `vbd_solve`, `vbd_drift_blocks`,
+    /// `vbd_drift`, `vbd_finish`, `apply_anchors`, `normal_shader`, `skin_vertices`, `fit_leaves`, `refit_nodes`,
     /// `refit_reach`, then [`CONTACT_KERNELS`], then [`AIR_KERNELS`].
     pub fn descriptors() -> [KernelDescriptor; KERNEL_COUNT] {
         let frame = entry(0, BufferBindingType::Uniform, false);
@@ -200,6 +204,17 @@ impl ClothKernels {
             storage(19, false),
             storage(20, false),
             storage(21, false),
+        ];
+        // Both levels of the drift sums: the cloths, the state and the substep's start, the
+        // per-block sums.
+        let drift = vec![
+            frame,
+            step,
+            storage(6, true),
+            storage(8, false),
+            storage(19, false),
+            storage(20, false),
+            storage(48, false),
         ];
         let contact = |entry_point, mut layout: Vec<BindGroupLayoutEntry>| {
             layout.insert(0, entry(35, BufferBindingType::Uniform, false));
@@ -275,6 +290,8 @@ impl ClothKernels {
                     entry(25, BufferBindingType::Uniform, true),
                 ],
             },
+            KernelDescriptor { entry_point: "vbd_drift_blocks", file: "block_descent.wgsl", layout: drift.clone() },
+            KernelDescriptor { entry_point: "vbd_drift", file: "block_descent.wgsl", layout: drift },
             KernelDescriptor {
                 entry_point: "vbd_finish",
                 file: "block_descent.wgsl",
@@ -287,6 +304,7 @@ impl ClothKernels {
                     storage(12, true),
                     storage(19, false),
                     storage(20, false),
+                    storage(21, false),
                 ],
             },
             KernelDescriptor {
@@ -449,6 +467,8 @@ impl ClothKernels {
             vbd_predict,
             vbd_predict_air,
             vbd_solve,
+            vbd_drift_blocks,
+            vbd_drift,
             vbd_finish,
             anchors,
             normal,
@@ -474,6 +494,8 @@ impl ClothKernels {
             vbd_predict_layout,
             vbd_predict_air_layout,
             vbd_solve_layout,
+            vbd_drift_blocks_layout,
+            vbd_drift_layout,
             vbd_finish_layout,
             anchors_layout,
             normal_layout,
@@ -500,6 +522,7 @@ impl ClothKernels {
             vbd_predict_air,
             vbd_solve,
             vbd_finish,
+            vbd_drift: [vbd_drift_blocks, vbd_drift],
             anchors,
             normal,
             refit: [r0, r1, r2, r3],
@@ -514,6 +537,7 @@ impl ClothKernels {
             vbd_predict_air_layout,
             vbd_solve_layout,
             vbd_finish_layout,
+            vbd_drift_layouts: [vbd_drift_blocks_layout, vbd_drift_layout],
             anchors_layout,
             normal_layout,
         }

@@ -54,6 +54,8 @@ fn wgsl_is_valid() {
             "vbd_predict",
             "vbd_predict_air",
             "vbd_solve",
+            "vbd_drift_blocks",
+            "vbd_drift",
             "vbd_finish",
             "apply_anchors",
             "normal_shader",
@@ -75,11 +77,12 @@ fn wgsl_is_valid() {
         ]
     );
     for entry in &module.entry_points {
-        // The refit's kernels and the prefix sum's run one row of 64 threads.
+        // The refit's kernels, the prefix sum's and the drift sums run one row of 64 threads.
         let size = if entry.name.contains("refit")
             || entry.name.ends_with("_leaves")
             || entry.name.starts_with("skin")
             || entry.name.contains("_scan_")
+            || entry.name.starts_with("vbd_drift")
         {
             [64, 1, 1]
         } else {
@@ -112,8 +115,9 @@ fn wgsl_structs_match_the_rust_layouts() {
             iterations,
             contact_thickness,
             contact_friction,
-            pad,
-            faults
+            free_body,
+            faults,
+            drift
         ]
     );
     assert_layout!(

@@ -119,3 +119,30 @@ pub fn torus(major: f32, minor: f32, rings: u32, sides: u32) -> (Vec<[f32; 3]>, 
     }
     (positions, indices)
 }
+
+/// A 1 m square sheet of `side x side` vertices as an authored mesh (its first row on the x
+/// axis, so that a tiny offset from it is representable), with a sliver "ear" on
+/// each edge of its first row: a triangle whose third corner sits `offset` metres off the
+/// edge's middle, so that the ear's particle carries a mass share of about `offset / 6 side`.
+pub fn sliver_sheet(side: u32, offset: f32) -> ClothTopology {
+    let step = 1.0 / (side - 1) as f32;
+    let mut positions: Vec<[f32; 3]> = Vec::new();
+    for r in 0..side {
+        for c in 0..side {
+            positions.push([c as f32 * step - 0.5, 0.0, r as f32 * step]);
+        }
+    }
+    let mut indices = Vec::new();
+    for r in 0..side - 1 {
+        for c in 0..side - 1 {
+            let a = r * side + c;
+            indices.extend_from_slice(&[a, a + side, a + 1, a + 1, a + side, a + side + 1]);
+        }
+    }
+    for c in 0..side - 1 {
+        let ear = positions.len() as u32;
+        positions.push([(c as f32 + 0.5) * step - 0.5, 0.0, -offset]);
+        indices.extend_from_slice(&[c, c + 1, ear]);
+    }
+    ClothTopology::from_mesh(bvh_cloth_core::MeshRef { positions: &positions, indices: Some(&indices) }).unwrap()
+}

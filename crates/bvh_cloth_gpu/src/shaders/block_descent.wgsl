@@ -1,14 +1,19 @@
-// Vertex block descent (bvh_cloth_core::block_descent), three kernels per substep for every
-// block-descent cloth of the batch:
+// Vertex block descent (bvh_cloth_core::block_descent), per substep for every block-descent
+// cloth of the batch:
 // - vbd_predict, one thread per particle slot: keeps the substep's start state, the inertial
-//   target y = x + h v + h^2 g, and the first iterate x + h v; in a batch with aerodynamics,
+//   target y = x + h v + h^2 g, and the first iterate x + (h v + h^2 a) / (1 + c h), with a the
+//   particle's estimate of the acceleration it follows; in a batch with aerodynamics,
 //   vbd_predict_air instead, which first gives a cloth in the wind its kick (air.wgsl);
 // - vbd_solve, one dispatch per iteration and colour, one thread per particle of that colour in
 //   the batch's colour list: one Newton step on the particle's block of the incremental
 //   potential, against its neighbours' current positions (no neighbour shares its colour, so no
 //   thread reads what another writes);
-// - vbd_finish, one thread per particle slot: v = (x - x0) / h, quarantine, then the collision
-//   response from x0 to x, as node_update_final does.
+// - for a batch with a cloth that nothing holds, vbd_drift_blocks (one workgroup per 64 particle
+//   slots) and vbd_drift (one workgroup per cloth): the drift of each such cloth's centre of
+//   mass, summed in two levels;
+// - vbd_finish, one thread per particle slot: the drift taken back, v = (x - x0) / h,
+//   quarantine, the collision response from x0 to x, as node_update_final does, and the
+//   particle's acceleration estimate for the next substep.
 // Cloths of other integrators, and cloths past their own substeps or iterations, sit out.
 
 #import bvh_cloth::types::{GpuParticle, ColourPass, NO_CLOTH, INTEGRATOR_BLOCK_DESCENT, frame, step, thread_index, all_finite}
@@ -18,7 +23,8 @@
 
 @group(0) @binding(19) var<storage, read_write> iterate: array<GpuParticle>;       // the state, solved in place
 @group(0) @binding(20) var<storage, read_write> substep_start: array<GpuParticle>; // x0, v0
-@group(0) @binding(21) var<storage, read_write> inertial: array<GpuParticle>;      // y in position.xyz
+@group(0) @binding(21) var<storage, read_write> inertial: array<GpuParticle>;      // y in position.xyz, the estimate in velocity.x
+@group(0) @binding(48) var<storage, read_write> drift_blocks: array<vec4<f32>>;   // per 64 slots: sum of m (x - x*), sum of m
 @group(0) @binding(22) var<storage, read> colour_list: array<u32>;                 // particles, colour by colour
 @group(0) @binding(25) var<uniform> colour_pass: ColourPass;
 
@@ -34,18 +40,38 @@ fn descent_cloth(i: u32) -> u32 {
     return c;
 }
 
+// The direction of cloth c's uniform acceleration (zero when it has none) and its size:
+// bvh_cloth_core::block_descent::AccelAxis.
+fn accel_axis(c: u32) -> vec4<f32> {
+    let uniform = cloths[c].uniform_accel.xyz;
+    let size = sqrt(dot(uniform, uniform));
+    if (size > 0.0) {
+        return vec4(uniform / size, size);
+    }
+    return vec4(0.0);
+}
+
+// 1 / (1 + c h) of cloth c.
+fn inverse_damping(c: u32) -> f32 {
+    return 1.0 / (1.0 + cloths[c].damping * cloths[c].h);
+}
+
 // The substep's start of particle i of block-descent cloth c, whose state is `me`.
 fn predict(i: u32, c: u32, me: GpuParticle) {
+    // The acceleration the particle followed in its last substep (vbd_finish), before the
+    // target overwrites it.
+    let estimate = inertial[i].velocity.x;
     substep_start[i] = me;
     let free = me.position.w;
     let h = cloths[c].h;
-    // The first iterate moves with the velocity only: a cloth at rest starts where it was, so
-    // that with any number of sweeps its equilibrium is the springs' own.
+    // bvh_cloth_core::block_descent::first_iterate: a falling particle starts where gravity
+    // takes it, one at rest where it was.
     var x = me.position.xyz;
     var y = x;
     if (free != 0.0) {
-        x = x + h * me.velocity.xyz;
-        y = x + (h * h) * cloths[c].uniform_accel.xyz;
+        y = x + h * me.velocity.xyz + (h * h) * cloths[c].uniform_accel.xyz;
+        let accel = accel_axis(c).xyz * estimate;
+        x = x + (h * me.velocity.xyz + (h * h) * accel) * inverse_damping(c);
     }
     var goal: GpuParticle;
     goal.position = vec4(y, free);
@@ -151,6 +177,104 @@ fn vbd_solve(@builtin(global_invocation_id) id: vec3<u32>) {
     iterate[i].position = vec4(x, me.position.w);
 }
 
+// Sums of the drift terms of the 64 threads of a workgroup.
+var<workgroup> drift_sums: array<vec4<f32>, 64>;
+
+// The sum of every lane's drift_sums entry, for every lane: a tree over the workgroup. Call it
+// from uniform control flow.
+fn sum_lanes(lane: u32) -> vec4<f32> {
+    for (var width = 32u; width > 0u; width >>= 1u) {
+        workgroupBarrier();
+        if (lane < width) {
+            drift_sums[lane] += drift_sums[lane + width];
+        }
+    }
+    workgroupBarrier();
+    return drift_sums[0];
+}
+
+// Particle i's term of cloth c's centre-of-mass drift, m (x - x*) and m, with m its mass share
+// and x* = x0 + (h v0 + h^2 g) / (1 + c h) (bvh_cloth_core::block_descent::centre_of_mass_drift);
+// zero for a held particle.
+fn drift_term(i: u32, c: u32) -> vec4<f32> {
+    let me = iterate[i];
+    if (me.position.w == 0.0) {
+        return vec4(0.0);
+    }
+    let b = substep_start[i];
+    let h = cloths[c].h;
+    let fall = (h * h) * cloths[c].uniform_accel.xyz;
+    let off = me.position.xyz - (b.position.xyz + (h * b.velocity.xyz + fall) * inverse_damping(c));
+    let m = 1.0 / bitcast<f32>(particle_info[i].z);
+    return vec4(m * off, m);
+}
+
+// The block-descent cloth particle slot i belongs to, if it is active in this substep and
+// nothing holds it.
+fn free_body(i: u32) -> u32 {
+    let c = descent_cloth(i);
+    if (c == NO_CLOTH || cloths[c].free_body == 0u) {
+        return NO_CLOTH;
+    }
+    return c;
+}
+
+// The first level of the drift sums: block b of 64 slots sums the terms of the slots that
+// belong to the cloth of its first slot. vbd_drift adds the slots of a cloth that starts
+// inside a block led by another.
+@compute @workgroup_size(64, 1, 1)
+fn vbd_drift_blocks(
+    @builtin(workgroup_id) group: vec3<u32>,
+    @builtin(num_workgroups) groups: vec3<u32>,
+    @builtin(local_invocation_index) lane: u32,
+) {
+    let block = group.y * groups.x + group.x;
+    let first = block * 64u;
+    let owner = free_body(first);
+    var term = vec4(0.0);
+    if (owner != NO_CLOTH && free_body(first + lane) == owner) {
+        term = drift_term(first + lane, owner);
+    }
+    drift_sums[lane] = term;
+    let total = sum_lanes(lane);
+    if (lane == 0u && first < frame.particle_slots) {
+        drift_blocks[block] = total;
+    }
+}
+
+// The second level: workgroup c sums cloth c's blocks and the slots of its first block when
+// another cloth leads that block, and keeps the drift in cloths[c].drift.
+@compute @workgroup_size(64, 1, 1)
+fn vbd_drift(@builtin(workgroup_id) group: vec3<u32>, @builtin(local_invocation_index) lane: u32) {
+    let c = group.x;
+    var summed = false;
+    var term = vec4(0.0);
+    if (c < arrayLength(&cloths) && cloths[c].particle_count > 0u) {
+        let start = cloths[c].particle_start;
+        summed = free_body(start) == c;
+        if (summed) {
+            let end = start + cloths[c].particle_count;
+            let first_block = (start + 63u) / 64u;
+            let head = start + lane;
+            if (head < min(first_block * 64u, end)) {
+                term = drift_term(head, c);
+            }
+            for (var b = first_block + lane; b * 64u < end; b += 64u) {
+                term += drift_blocks[b];
+            }
+        }
+    }
+    drift_sums[lane] = term;
+    let total = sum_lanes(lane);
+    if (summed && lane == 0u) {
+        var drift = vec3(0.0);
+        if (total.w > 0.0) {
+            drift = total.xyz / total.w;
+        }
+        cloths[c].drift = vec4(drift, 0.0);
+    }
+}
+
 @compute @workgroup_size(8, 8, 1)
 fn vbd_finish(@builtin(global_invocation_id) id: vec3<u32>) {
     let i = thread_index(id, frame.dispatch_width);
@@ -164,7 +288,13 @@ fn vbd_finish(@builtin(global_invocation_id) id: vec3<u32>) {
     if (free == 0.0) {
         return;
     }
-    let inv_h = 1.0 / cloths[c].h;
+    // The springs are internal forces: a cloth that nothing holds keeps the centre of mass
+    // that inertia, damping and the uniform acceleration give it.
+    if (cloths[c].free_body != 0u) {
+        out.position = vec4(out.position.xyz - cloths[c].drift.xyz, out.position.w);
+    }
+    let h = cloths[c].h;
+    let inv_h = 1.0 / h;
     out.velocity = vec4((out.position.xyz - b.position.xyz) * inv_h, 0.0);
     // Quarantine, as node_update_final: a particle whose substep went non-finite keeps its last
     // finite state, at rest.
@@ -173,5 +303,10 @@ fn vbd_finish(@builtin(global_invocation_id) id: vec3<u32>) {
         out.velocity = vec4(0.0);
         atomicAdd(&cloths[c].faults, 1u);
     }
-    iterate[i] = collide(b.position.xyz, out);
+    let done = collide(b.position.xyz, out);
+    iterate[i] = done;
+    // bvh_cloth_core::block_descent::AccelAxis::estimate.
+    let axis = accel_axis(c);
+    let along = dot(done.velocity.xyz / inverse_damping(c) - b.velocity.xyz, axis.xyz) / h;
+    inertial[i].velocity = vec4(clamp(along, 0.0, axis.w), 0.0, 0.0, 0.0);
 }

@@ -51,8 +51,9 @@ struct BatchCloth {
     iterations: u32,
     contact_thickness: f32,
     contact_friction: f32,
-    pad: u32,
+    free_body: u32,
     faults: atomic<u32>,
+    drift: vec4<f32>,
 }
 
 struct ColourPass {
