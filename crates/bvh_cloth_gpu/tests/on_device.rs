@@ -1233,7 +1233,9 @@ fn centre_of_mass(sim: &ClothSim, positions: &[Vec3]) -> Vec3 {
 fn the_default_solver_falls_and_keeps_momentum_on_the_gpu() {
     let Some(rig) = rig() else { return };
     let params = ClothParams::default();
-    let upright = |x: f32| Affine3A::from_rotation_translation(Quat::from_rotation_x(1.5708), Vec3::new(x, 2.0, 0.0));
+    let upright = |x: f32| {
+        Affine3A::from_rotation_translation(Quat::from_rotation_x(core::f32::consts::FRAC_PI_2), Vec3::new(x, 2.0, 0.0))
+    };
     let mut cloths: Vec<(&str, ClothSim)> = vec![
         (
             "hanging 16x16",
