@@ -205,17 +205,9 @@ impl ClothKernels {
             storage(20, false),
             storage(21, false),
         ];
-        // Both levels of the drift sums: the cloths, the state and the substep's start, the
-        // per-block sums.
-        let drift = vec![
-            frame,
-            step,
-            storage(6, true),
-            storage(8, false),
-            storage(19, false),
-            storage(20, false),
-            storage(48, false),
-        ];
+        // Both levels of the drift sums: the prediction's bindings but the inertial target, and
+        // the per-block sums.
+        let drift = [&predict[..6], &[storage(48, false)]].concat();
         let contact = |entry_point, mut layout: Vec<BindGroupLayoutEntry>| {
             layout.insert(0, entry(35, BufferBindingType::Uniform, false));
             KernelDescriptor { entry_point, file: "self_contact.wgsl", layout }
