@@ -24,9 +24,9 @@
 //! ## Free fall and momentum, whatever the sweeps leave unconverged
 //! Two things keep an unconverged sweep from changing how a cloth falls and drifts:
 //! - **The first iterate** is where inertia, damping and the acceleration the particle is
-//!   estimated to follow take it, `x⁰ + (h v⁰ + h² ã) / (1 + c h)` ([`first_iterate`]), with
+//!   estimated to follow take it, `x⁰ + (h v⁰ + h² ã) / (1 + c h)` (`first_iterate`), with
 //!   `ã` the part of the uniform acceleration the particle followed in its last substep, along
-//!   it and clamped to `[0, |g|]` ([`AccelAxis::estimate`]; the adaptive initial guess of Chen
+//!   it and clamped to `[0, |g|]` (`AccelAxis::estimate`; the adaptive initial guess of Chen
 //!   et al. 2024, with the damping taken out of the estimate so that a falling particle's is the
 //!   whole of `g`). A cloth in free fall starts each substep at the exact minimiser of `G`, so
 //!   the sweeps have nothing to carry; a cloth at rest on a collider or hanging still starts
@@ -38,7 +38,7 @@
 //!   moves the centre of mass of a cloth that nothing holds exactly as inertia, damping and
 //!   the uniform acceleration say; a Gauss–Seidel sweep that has not converged does not. For
 //!   such a cloth (no particle with mass pinned), the sweeps' drift of the centre of mass
-//!   ([`centre_of_mass_drift`]) is taken back from every free particle before the collision
+//!   (`centre_of_mass_drift`) is taken back from every free particle before the collision
 //!   response, which changes no spring's length. A held cloth's pins take up momentum anyway,
 //!   and its drift is not summed.
 //!
