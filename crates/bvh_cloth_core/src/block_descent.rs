@@ -44,10 +44,12 @@
 //!
 //! Measured on the 2-core development machine with the cloths of the core's `free_fall` tests
 //! (default parameters, 60 ticks of 1/60 s; the bundled bunny and dragon as authored cloth
-//! 0.5 m across, dropped flat here), each part switched off in turn: the drop in 1 s, against
+//! 0.5 m across, dropped flat here, their particles' masses their area shares without the
+//! mass floor), each part switched off in turn: the drop in 1 s, against
 //! `g/c (t - (1 - e^{-ct})/c)` = 4.180 m, and how far the centre of mass moves sideways on a
-//! frictionless ground in 3 s. `cargo test -p bvh_cloth_core --release --test free_fall --
-//! --nocapture` prints the figures of the solver as it is for the tests' poses.
+//! frictionless ground in 3 s. The report's `motion` section gives the solver as it is, and
+//! `cargo test -p bvh_cloth_core --release --test free_fall -- --nocapture` prints its figures
+//! for the tests' poses.
 //!
 //! | cloth | before: fell | drifted on the ground | first iterate alone: fell | on the ground | both: fell | on the ground |
 //! |---|---|---|---|---|---|---|
@@ -57,9 +59,9 @@
 //!
 //! The drift that remains on the ground comes from the collision response, which moves a
 //! particle that crossed the ground back along its path and so takes back the sideways part of
-//! the rest of that path too: it depends on how a cloth lands (a sheet with sliver triangles
-//! landing on an edge, 3.1 mm; a 30 x 30 grid upright from 0.3 m, about 10 mm on both
-//! backends).
+//! the rest of that path too: it depends on how a cloth lands (a 30 x 30 grid upright from
+//! 0.3 m, about 10 mm on both backends; the tests' sheet with sliver triangles landing on an
+//! edge, 0.2 mm).
 //!
 //! Every quantity is divided by the particle's mass and multiplied by `h²`, so that the 3x3
 //! system is of order one (`H = (1 + c h) I + h² Σ κ H_spring`, `κ` the spring's stiffness over

@@ -19,7 +19,11 @@
 //!   length, so the tension per metre is `spring_k e` whatever the spacing. On a square grid
 //!   every weight is exactly 1.
 //! - **Mass.** Each particle carries a third of the area of its triangles, as a share of the
-//!   whole surface; the grid gives every particle an equal share, as the paper does.
+//!   whole surface, but never less than [`MASS_FLOOR`] of the mean share: a scanned mesh's sliver
+//!   triangles would otherwise leave particles with a ten-billionth of the cloth's mass on
+//!   springs as stiff as any, which no explicit step can hold (the stability guard's substeps
+//!   grow with the inverse square root of the lightest share) and which only slow a sweep's
+//!   convergence. The grid gives every particle an equal share, as the paper does.
 //! - **Per-particle lists (CSR).** Each particle lists its springs ([`SpringEnd`]) and its
 //!   triangles, so that a kernel can gather everything a particle needs and write only that
 //!   particle, with no atomics.
@@ -33,6 +37,21 @@ use crate::colouring::ParticleColouring;
 use crate::error::ClothError;
 use crate::grid::{ClothGrid, MAX_PARTICLES, STENCIL, SpringKind};
 use crate::voxel_spheres::MeshRef;
+
+/// The least mass share of a particle with mass on an authored mesh, as a fraction of the
+/// mean share of the particles with mass (before the shares are scaled back to a sum of 1).
+pub const MASS_FLOOR: f64 = 0.1;
+
+/// `shares` (area shares summing to 1) with every nonzero share raised to [`MASS_FLOOR`] of the
+/// mean nonzero share, scaled back to a sum of 1. A zero share (a particle no triangle with area
+/// uses, which is held) stays zero.
+fn floored_shares(shares: &[f64]) -> Vec<f32> {
+    let massive = shares.iter().filter(|&&s| s > 0.0).count().max(1);
+    let floor = MASS_FLOOR / massive as f64;
+    let raised: Vec<f64> = shares.iter().map(|&s| if s > 0.0 { s.max(floor) } else { 0.0 }).collect();
+    let total: f64 = raised.iter().sum();
+    raised.iter().map(|&s| (s / total) as f32).collect()
+}
 
 /// One spring as seen from one of its ends: the other end, its kind, rest length and weight.
 /// Uploaded unchanged to the GPU. 16 bytes.
@@ -212,7 +231,7 @@ impl ClothTopology {
         let (spring_offsets, spring_ends) = springs.into_csr(&rest);
         Ok(Self::finish(
             rest,
-            mass_share.into_iter().map(|s| s as f32).collect(),
+            floored_shares(&mass_share),
             spring_offsets,
             spring_ends,
             triangles,
@@ -541,6 +560,25 @@ mod tests {
         let across = t.springs_of(1).iter().find(|e| e.other == 4).expect("a spring across the fold");
         assert!((across.rest - 3.0f32.sqrt()).abs() < 1e-6, "{}", across.rest);
         assert_eq!(across.kind, SpringKind::Bending as u32);
+    }
+
+    /// A sliver triangle's corner off an edge carries a billionth of the sheet's area; it gets
+    /// [`MASS_FLOOR`] of the mean share instead, the others keep their proportions, and the
+    /// shares still sum to 1.
+    #[test]
+    fn a_sliver_triangle_gets_the_mass_floor() {
+        let positions = [[0.0, 0.0, 0.0], [1.0, 0.0, 0.0], [0.0, 0.0, 1.0], [1.0, 0.0, 1.0], [0.5, 0.0, -1.0e-9]];
+        let indices = [0, 2, 1, 1, 2, 3, 0, 1, 4];
+        let t = ClothTopology::from_mesh(MeshRef { positions: &positions, indices: Some(&indices) }).unwrap();
+        let share = t.mass_share();
+        let mean = 1.0 / 5.0;
+        let floor = MASS_FLOOR as f32 * mean;
+        assert!((share.iter().sum::<f32>() - 1.0).abs() < 1e-6);
+        assert!(share[4] >= floor / (1.0 + MASS_FLOOR as f32) && share[4] <= floor, "{}", share[4]);
+        // The square's corners keep their area shares' proportions: 0 and 3 touch one triangle,
+        // 1 and 2 two.
+        assert!((share[1] / share[0] - 2.0).abs() < 1e-5 && (share[0] - share[3]).abs() < 1e-7, "{share:?}");
+        assert!(t.stiffness_bound().iter().all(|&b| b.is_finite() && b < 1.0e4), "{:?}", t.stiffness_bound());
     }
 
     #[test]

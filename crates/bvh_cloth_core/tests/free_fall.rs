@@ -8,7 +8,7 @@ mod common;
 use std::sync::Arc;
 
 use bvh_cloth_core::obj::parse_obj;
-use bvh_cloth_core::{Affine3A, ClothParams, ClothSim, ClothTopology, Collider, MeshRef, Primitive, Vec3};
+use bvh_cloth_core::{Affine3A, ClothParams, ClothSim, ClothTopology, Collider, Integrator, MeshRef, Primitive, Vec3};
 use common::{grid_topology, sliver_sheet};
 
 const TICK: f32 = 1.0 / 60.0;
@@ -36,11 +36,9 @@ fn model_cloth(name: &str) -> Arc<ClothTopology> {
 
 /// The cloths a scene drops, with how each is turned: the 64 x 64 grid flat and upright (a
 /// quarter turn about x, its springs along gravity), the bundled bunny and dragon as authored
-/// cloth, and a sheet with sliver triangles (mass shares down to 1e-10).
+/// cloth, and a sheet with sliver triangles (areas down to 1e-10 of the sheet's).
 fn cloths() -> Vec<(&'static str, Arc<ClothTopology>, Affine3A)> {
     let sliver = sliver_sheet(12, 1.0e-8);
-    let lightest = sliver.mass_share().iter().copied().filter(|&s| s > 0.0).fold(f32::MAX, f32::min);
-    assert!(lightest < 1.0e-9, "the sliver sheet's lightest particle carries {lightest} of the mass");
     vec![
         ("flat grid", grid_topology(1.0, 64, 64), Affine3A::IDENTITY),
         ("upright grid", grid_topology(1.0, 64, 64), Affine3A::from_rotation_x(core::f32::consts::FRAC_PI_2)),
@@ -63,11 +61,21 @@ fn centre_of_mass(sim: &ClothSim) -> Vec3 {
 /// analytic answer says at every quarter second to 1 s, within 1 %, and moves less than 1 mm
 /// sideways. One block-descent sweep a substep used to leave the fall to the springs: an
 /// upright grid fell 1.82 m in 1 s instead of 4.18 m, the dragon 2.14 m, drifting 80 mm.
+///
+/// RK4 too, which on the sliver sheet went non-finite in its first tick while its lightest
+/// particles carried a ten-billionth of the mass (the stability guard's 256 substeps could not
+/// hold them; the mass floor of `ClothTopology::from_mesh` lets it).
 #[test]
 fn every_cloth_falls_as_gravity_and_damping_say() {
-    let params = ClothParams::default();
+    for integrator in [Integrator::BLOCK_DESCENT, Integrator::Rk4] {
+        falls_as_gravity_and_damping_say(ClothParams { integrator, ..Default::default() });
+    }
+}
+
+fn falls_as_gravity_and_damping_say(params: ClothParams) {
     let (g, c) = (f64::from(params.gravity.length()), f64::from(params.damping));
     for (name, topology, pose) in cloths() {
+        let name = format!("{name} ({:?})", params.integrator);
         let mut sim = ClothSim::new(params.clone(), topology, pose, &[]).unwrap();
         assert!(sim.is_free_body(), "{name}");
         let start = centre_of_mass(&sim);
@@ -93,13 +101,8 @@ fn every_cloth_falls_as_gravity_and_damping_say() {
 /// Dropped onto a frictionless ground, which pushes only upwards, no cloth's centre of mass
 /// moves more than 1 mm sideways in 3 s (RK4: none), however it crumples. An unconverged sweep
 /// does not keep momentum: without the drift taken back, the bunny wandered 144 mm, the dragon
-/// 300 mm and the sliver sheet 81 mm.
-///
-/// The sliver sheet, landing on an edge, still moves 3.1 mm (measured): the collision response
-/// moves a particle that crosses the ground back along its path to where it crossed, which
-/// takes back the sideways part of the rest of the path as well, and the ears' light particles,
-/// held by stiff springs, cross it on long slanted paths. Its bound is 5 mm until the response
-/// keeps the sideways motion.
+/// 300 mm and the sliver sheet 81 mm (3.1 mm with it, while the sliver triangles' particles
+/// carried a ten-billionth of the mass, before the mass floor).
 #[test]
 fn a_frictionless_ground_pushes_no_cloth_sideways() {
     let ground = Collider::primitive(Primitive::HalfSpace { normal: Vec3::Y }).unwrap();
@@ -115,7 +118,6 @@ fn a_frictionless_ground_pushes_no_cloth_sideways() {
         assert!(end.y < 0.3, "{name} reached the ground: centre of mass at {} m", end.y);
         let sideways = (end - start).with_y(0.0).length();
         eprintln!("{name} on the ground after 3 s: {sideways:.2e} m sideways");
-        let bound = if name == "sliver sheet" { 5.0e-3 } else { 1.0e-3 };
-        assert!(sideways < bound, "{name}: the centre of mass moved {sideways} m sideways on the ground");
+        assert!(sideways < 1.0e-3, "{name}: the centre of mass moved {sideways} m sideways on the ground");
     }
 }
