@@ -86,9 +86,14 @@
 //! ## Its limits
 //! One sweep per substep moves information one spring per colour pass, so the slowest, largest
 //! modes of a big cloth converge over many substeps: the same 64x64 cloth at Looper 2 still hangs
-//! 29 % short of its sag after 8 s. While a stiff, fine cloth moves, it also stretches more than
-//! RK4's would. Implicit Euler damps fast motion a little more than RK4. All of these shrink
-//! as `looper` grows; at rest every setting reaches the springs' own equilibrium.
+//! 29 % short of its sag after 8 s. While a fine cloth moves, it stretches far more than RK4's
+//! would, the more the finer: hanging from two corners and dropped flat, at Looper 16 its sag at
+//! 1 s is 15 % more than RK4's at 32 x 32, 47 % at 64 x 64, 135 % at 128 x 128 and 285 % at
+//! 256 x 256, where the structural springs' p99 strain is 37 times RK4's (the report's `motion`
+//! section; BENCHMARKS.md). Implicit Euler also damps fast motion more than RK4: converged, at
+//! 32 x 32 it still sags 8 % more than RK4 at 1 s, having given up some of the springs' energy
+//! that swings RK4's cloth back up. All of these shrink as `looper` grows; at rest every setting
+//! reaches the springs' own equilibrium.
 
 use glam::{Vec3, Vec3A, Vec3Swizzles};
 use rayon::prelude::*;
@@ -242,7 +247,7 @@ pub(crate) struct BlockDescent {
     pub(crate) x: Vec<Vec3A>,
     pub(crate) v: Vec<Vec3A>,
     /// Each particle's estimate of the uniform acceleration it follows, along the uniform
-    /// acceleration, in m/s² (see [`estimate_acceleration`]).
+    /// acceleration, in m/s² (see [`AccelAxis::estimate`]).
     pub(crate) accel: Vec<f32>,
     start: Vec<Vec3A>,
     target: Vec<Vec3A>,
@@ -399,7 +404,7 @@ impl AccelAxis {
 /// acceleration it is estimated to follow, `accel`, take it in `h` seconds,
 /// `x + (h v + h² accel) / (1 + c h)`.
 ///
-/// This is the adaptive initial guess of Chen et al. (2024, section 3.6): a falling particle
+/// This is the adaptive initial guess of Chen et al. (2024): a falling particle
 /// starts where gravity takes it, so that a sweep never has to carry the fall against stiff
 /// springs whose other ends have not moved yet, while a particle at rest on a collider or
 /// hanging still starts where it was, so that the sweeps settle on the springs' own
