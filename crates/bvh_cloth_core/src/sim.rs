@@ -363,6 +363,15 @@ impl ClothSim {
         (0..self.len()).filter(|&i| !(self.position(i).is_finite() && self.velocity(i).is_finite())).count()
     }
 
+    /// The centre of mass, in metres (each particle weighed by its mass).
+    pub fn centre_of_mass(&self) -> Vec3 {
+        let (moment, mass) = (0..self.len()).fold((glam::DVec3::ZERO, 0.0f64), |(moment, mass), i| {
+            let m = f64::from(self.particle_mass(i));
+            (moment + m * self.position(i).as_dvec3(), mass + m)
+        });
+        (moment / mass).as_vec3()
+    }
+
     /// Total mechanical energy in joules: kinetic + spring potential − work of the uniform
     /// acceleration (gravity and external force, taken from the origin).
     pub fn energy(&self) -> f64 {

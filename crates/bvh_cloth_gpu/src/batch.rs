@@ -999,18 +999,19 @@ impl ClothBatch {
         fn buffer(binding: u32, buffer: &Buffer) -> wgpu::BindGroupEntry<'_> {
             wgpu::BindGroupEntry { binding, resource: buffer.as_entire_binding() }
         }
+        let predict_entries = [
+            frame.clone(),
+            step.clone(),
+            buffer(6, &b.info),
+            buffer(8, &b.cloth_constants),
+            buffer(19, &b.base),
+            buffer(20, &b.stage_a),
+            buffer(21, &b.stage_b),
+        ];
         let predict = device.create_bind_group(&wgpu::BindGroupDescriptor {
             label: Some("bvh_cloth_vbd_predict"),
             layout: &kernels.vbd_predict_layout,
-            entries: &[
-                frame.clone(),
-                step.clone(),
-                buffer(6, &b.info),
-                buffer(8, &b.cloth_constants),
-                buffer(19, &b.base),
-                buffer(20, &b.stage_a),
-                buffer(21, &b.stage_b),
-            ],
+            entries: &predict_entries,
         });
         let solve = device.create_bind_group(&wgpu::BindGroupDescriptor {
             label: Some("bvh_cloth_vbd_solve"),
@@ -1043,19 +1044,14 @@ impl ClothBatch {
                 buffer(21, &b.stage_b),
             ],
         });
+        // The prediction's bindings but the inertial target, and the per-block sums (as the
+        // kernels' layouts say).
+        let drift_entries = [&predict_entries[..6], &[buffer(48, &b.drift_blocks)]].concat();
         let drift = [0, 1].map(|level| {
             device.create_bind_group(&wgpu::BindGroupDescriptor {
                 label: Some("bvh_cloth_vbd_drift"),
                 layout: &kernels.vbd_drift_layouts[level],
-                entries: &[
-                    frame.clone(),
-                    step.clone(),
-                    buffer(6, &b.info),
-                    buffer(8, &b.cloth_constants),
-                    buffer(19, &b.base),
-                    buffer(20, &b.stage_a),
-                    buffer(48, &b.drift_blocks),
-                ],
+                entries: &drift_entries,
             })
         });
         let contact = self.contact.as_ref().map(|plan| {

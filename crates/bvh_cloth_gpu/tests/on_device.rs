@@ -6,7 +6,7 @@
 //! `.ci/run` sets it), where a missing adapter fails them.
 
 use bvh_cloth_core::gpu_layout::{GpuCollider, GpuMeshWriteback, GpuParticle, load_gpu_particles};
-use bvh_cloth_core::obj::parse_obj;
+use bvh_cloth_core::obj::{ObjMesh, parse_obj};
 use bvh_cloth_core::self_contact::ContactSolver;
 use bvh_cloth_core::triangles::crossing_pairs;
 use std::sync::Arc;
@@ -486,13 +486,15 @@ fn hanging_cloth_agrees_with_the_cpu() {
     assert!(worst < 1e-5, "GPU and CPU differ by {worst} m after one tick");
 }
 
+/// The bundled low-resolution bunny.
+fn bunny_low() -> ObjMesh {
+    let path =
+        format!("{}/../../assets/models/bunny_low.obj", std::env::var("CARGO_MANIFEST_DIR").expect("run by cargo"));
+    parse_obj(&std::fs::read_to_string(path).unwrap()).unwrap()
+}
+
 fn bunny(n: u32) -> Collider {
-    let text = std::fs::read_to_string(format!(
-        "{}/../../assets/models/bunny_low.obj",
-        std::env::var("CARGO_MANIFEST_DIR").expect("run by cargo")
-    ))
-    .unwrap();
-    let obj = parse_obj(&text).unwrap();
+    let obj = bunny_low();
     Collider::from_mesh(MeshRef { positions: &obj.positions, indices: Some(&obj.indices) }, n)
         .unwrap()
         .with_margin(0.01)
@@ -617,12 +619,7 @@ fn two_colliders_one_moving_agree_with_the_cpu() {
 /// The low bunny as a skinned collider: its lower half on joint 0, its upper half on joint 1,
 /// blended across the middle 20 cm.
 fn skinned_bunny(n: u32) -> Collider {
-    let text = std::fs::read_to_string(format!(
-        "{}/../../assets/models/bunny_low.obj",
-        std::env::var("CARGO_MANIFEST_DIR").expect("run by cargo")
-    ))
-    .unwrap();
-    let obj = parse_obj(&text).unwrap();
+    let obj = bunny_low();
     let joints = vec![[0u16, 1, 0, 0]; obj.positions.len()];
     let weights: Vec<[f32; 4]> = obj
         .positions
@@ -808,12 +805,7 @@ fn refit_leaves(collider: &Collider) -> usize {
 #[test]
 fn exact_contact_agrees_with_the_cpu() {
     let Some(rig) = rig() else { return };
-    let text = std::fs::read_to_string(format!(
-        "{}/../../assets/models/bunny_low.obj",
-        std::env::var("CARGO_MANIFEST_DIR").expect("run by cargo")
-    ))
-    .unwrap();
-    let obj = parse_obj(&text).unwrap();
+    let obj = bunny_low();
     let bunny_mesh = MeshRef { positions: &obj.positions, indices: Some(&obj.indices) };
     let exact_bunny = Collider::from_mesh(bunny_mesh, 3)
         .unwrap()
@@ -1204,20 +1196,13 @@ fn block_descent_agrees_with_the_cpu_in_a_mixed_batch() {
 
 /// The bundled low-resolution bunny as authored cloth, half a metre across, around `centre`.
 fn bunny_cloth(centre: Vec3) -> ClothTopology {
-    let path = format!("{}/../../assets/models/bunny_low.obj", std::env::var("CARGO_MANIFEST_DIR").expect("by cargo"));
-    let obj = parse_obj(&std::fs::read_to_string(path).unwrap()).unwrap();
+    let obj = bunny_low();
     let (lo, hi) =
         obj.positions.iter().fold((Vec3::MAX, Vec3::MIN), |(lo, hi), &p| (lo.min(p.into()), hi.max(p.into())));
     let scale = 0.5 / (hi - lo).max_element();
     let positions: Vec<[f32; 3]> =
         obj.positions.iter().map(|&p| (centre + (Vec3::from(p) - 0.5 * (lo + hi)) * scale).to_array()).collect();
     ClothTopology::from_mesh(MeshRef { positions: &positions, indices: Some(&obj.indices) }).unwrap()
-}
-
-/// The centre of mass of `sim`'s cloth with its particles at `positions`.
-fn centre_of_mass(sim: &ClothSim, positions: &[Vec3]) -> Vec3 {
-    let mass: f32 = (0..sim.len()).map(|i| sim.particle_mass(i)).sum();
-    positions.iter().enumerate().map(|(i, &p)| sim.particle_mass(i) * p).sum::<Vec3>() / mass
 }
 
 /// The default solver on the GPU, against the analytic answer and the CPU: in one batch, a
@@ -1261,30 +1246,27 @@ fn the_default_solver_falls_and_keeps_momentum_on_the_gpu() {
         let (_, offset, _) = batch.particles(id).unwrap();
         assert_eq!(offset / size_of::<GpuParticle>() as u64, u64::from(start), "the batch packs the cloths in order");
     }
-    let at_start: Vec<Vec3> = cloths.iter().map(|(_, sim)| centre_of_mass(sim, &sim.positions())).collect();
+    let at_start: Vec<Vec3> = cloths.iter().map(|(_, sim)| sim.centre_of_mass()).collect();
     let (g, c) = (f64::from(params.gravity.length()), f64::from(params.damping));
     let expected = g / c * (1.0 - (1.0 - (-c).exp()) / c);
     let none = GpuColliders::new(&rig.device, &[]);
     rig.run(&mut batch, &none, 60);
-    for ((name, sim), &id) in cloths.iter_mut().zip(&ids) {
+    for (((name, sim), &id), &start) in cloths.iter_mut().zip(&ids).zip(&at_start) {
         for _ in 0..60 {
             sim.tick(tick, &[]);
         }
         if !sim.is_free_body() {
             continue;
         }
-        let k = cloths_index(name);
-        let on_gpu: Vec<Vec3> = rig.batch_particles(&batch, id).iter().map(position).collect();
-        let (gpu, cpu) = (centre_of_mass(sim, &on_gpu), centre_of_mass(sim, &sim.positions()));
-        let moved = gpu - at_start[k];
+        let mut on_gpu = sim.clone();
+        load_gpu_particles(&mut on_gpu, &rig.batch_particles(&batch, id));
+        let (gpu, cpu) = (on_gpu.centre_of_mass(), sim.centre_of_mass());
+        let moved = gpu - start;
         let fell = f64::from(-moved.y);
         eprintln!("{name}: fell {fell:.4} m on the GPU, CPU-GPU gap {:e} m", gpu.distance(cpu));
         assert!((fell - expected).abs() <= 0.01 * expected, "{name}: fell {fell} m, not {expected} m");
         assert!(moved.with_y(0.0).length() < 1.0e-3, "{name}: drifted {} m sideways", moved.with_y(0.0).length());
         assert!(gpu.distance(cpu) < 1.0e-3, "{name}: GPU and CPU centres of mass {} m apart", gpu.distance(cpu));
-    }
-    fn cloths_index(name: &str) -> usize {
-        ["hanging 16x16", "upright 30x30", "bunny cloth", "3x3"].iter().position(|n| *n == name).unwrap()
     }
 }
 

@@ -24,12 +24,6 @@ fn model_cloth(name: &str) -> Arc<ClothTopology> {
     Arc::new(ClothTopology::from_mesh(MeshRef { positions: &positions, indices: Some(&mesh.indices) }).expect("a mesh"))
 }
 
-/// The centre of mass.
-fn centre_of_mass(sim: &ClothSim) -> Vec3 {
-    let mass: f32 = (0..sim.len()).map(|i| sim.particle_mass(i)).sum();
-    (0..sim.len()).map(|i| sim.particle_mass(i) * sim.position(i)).sum::<Vec3>() / mass
-}
-
 /// The 99th percentile of the structural springs' stretch (0 for a compressed spring).
 fn strain_p99(sim: &ClothSim) -> f32 {
     let topology = sim.topology();
@@ -77,18 +71,18 @@ pub(super) fn motion() {
         for integrator in SETTINGS {
             let setting = ClothParams { integrator, ..params.clone() };
             let mut sim = ClothSim::new(setting.clone(), Arc::clone(topology), *pose, &[]).expect("a valid cloth");
-            let start = centre_of_mass(&sim);
+            let start = sim.centre_of_mass();
             for _ in 0..60 {
                 sim.tick(TICK, &[]);
             }
-            let moved = centre_of_mass(&sim) - start;
+            let moved = sim.centre_of_mass() - start;
             let lift = Affine3A::from_translation(Vec3::new(0.0, 0.3 + 0.25, 0.0)) * *pose;
             let mut landing = ClothSim::new(setting, Arc::clone(topology), lift, &[]).expect("a valid cloth");
-            let before = centre_of_mass(&landing);
+            let before = landing.centre_of_mass();
             for _ in 0..180 {
                 landing.tick(TICK, std::slice::from_ref(&ground));
             }
-            let drift = (centre_of_mass(&landing) - before).with_y(0.0).length();
+            let drift = (landing.centre_of_mass() - before).with_y(0.0).length();
             println!(
                 "| {name} | {} | {integrator:?} | {:.3} | {:+.2} % | {:.2} | {:.2} |",
                 topology.len(),
