@@ -50,12 +50,13 @@ fn cloths() -> Vec<(&'static str, Arc<ClothTopology>, Affine3A)> {
 
 /// With the default parameters and nothing to hit, every cloth's centre of mass falls as the
 /// analytic answer says at every quarter second to 1 s, within 1 %, and moves less than 1 mm
-/// sideways. One block-descent sweep a substep used to leave the fall to the springs: an
-/// upright grid fell 1.82 m in 1 s instead of 4.18 m, the dragon 2.14 m, drifting 80 mm.
+/// sideways. A block-descent sweep that starts from `x + h v` leaves the fall to the springs:
+/// from there an upright grid falls 1.82 m in 1 s instead of 4.18 m, the dragon 2.14 m,
+/// drifting 80 mm.
 ///
-/// RK4 too, which on the sliver sheet went non-finite in its first tick while its lightest
-/// particles carried a ten-billionth of the mass (the stability guard's 256 substeps could not
-/// hold them; the mass floor of `ClothTopology::from_mesh` lets it).
+/// RK4 too: without the mass floor of `ClothTopology::from_mesh`, the sliver sheet's lightest
+/// particles carry a ten-billionth of the mass, more than the stability guard's 256 substeps can
+/// hold, and RK4 goes non-finite in its first tick.
 #[test]
 fn every_cloth_falls_as_gravity_and_damping_say() {
     for integrator in [Integrator::BLOCK_DESCENT, Integrator::Rk4] {
@@ -92,8 +93,8 @@ fn falls_as_gravity_and_damping_say(params: ClothParams) {
 /// Dropped onto a frictionless ground, which pushes only upwards, no cloth's centre of mass
 /// moves more than 1 mm sideways in 3 s (RK4: none), however it crumples. An unconverged sweep
 /// does not keep momentum: without the drift taken back, the bunny wandered 144 mm, the dragon
-/// 300 mm and the sliver sheet 81 mm (3.1 mm with it, while the sliver triangles' particles
-/// carried a ten-billionth of the mass, before the mass floor).
+/// 300 mm and the sliver sheet 81 mm (3.1 mm with it but without the mass floor, its sliver
+/// triangles' particles then carrying a ten-billionth of the mass).
 #[test]
 fn a_frictionless_ground_pushes_no_cloth_sideways() {
     let ground = Collider::primitive(Primitive::HalfSpace { normal: Vec3::Y }).unwrap();
