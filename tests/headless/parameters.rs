@@ -147,6 +147,40 @@ fn absurd_iteration_counts_are_refused_naming_the_field() {
     }));
 }
 
+/// A NaN, negative or absurd tether slack is refused with a message naming the field, at spawn
+/// and at run time; a running cloth keeps its last valid tethers and carries on.
+#[test]
+fn absurd_tether_slack_is_refused_naming_the_field() {
+    let mut app = app();
+    let held = |slack| {
+        Cloth::grid(Vec2::splat(1.0), UVec2::splat(8))
+            .with_params(ClothParams { tethers: Some(Tethers { slack }), ..default() })
+            .with_pins(ClothPins::Indices(vec![0, 7]))
+    };
+    let bad = app.world_mut().spawn(held(f32::NAN)).id();
+    let good = app.world_mut().spawn((held(0.05), Transform::from_xyz(0.0, 2.0, 0.0))).id();
+    run(&mut app, 0.2);
+    assert!(app.world().get::<ClothSimulation>(bad).is_none());
+    assert!(sent(&app).iter().any(|m| matches!(
+        m,
+        ClothMessage::Rejected { entity, error: ClothError::OutOfRange { field: "tethers.slack", .. } } if *entity == bad
+    )));
+
+    for slack in [-0.1, 50.0] {
+        let before = positions(&app, good);
+        app.world_mut().get_mut::<Cloth>(good).unwrap().params.tethers = Some(Tethers { slack });
+        run(&mut app, 0.3);
+        let sim = app.world().get::<ClothSimulation>(good).unwrap().sim();
+        assert_eq!(sim.params().tethers, Some(Tethers { slack: 0.05 }), "the last valid tethers are kept");
+        assert!(max_distance(&before, &positions(&app, good)) > 0.01, "the cloth stopped moving");
+        assert!(sent(&app).iter().any(|m| matches!(
+            m,
+            ClothMessage::Rejected { entity, error: ClothError::OutOfRange { field: "tethers.slack", value, .. } }
+                if *entity == good && *value == slack
+        )));
+    }
+}
+
 #[test]
 fn changing_the_grid_rebuilds_the_cloth_and_its_mesh() {
     let mut app = app();

@@ -123,7 +123,7 @@ use bevy::transform::systems::{mark_dirty_trees, propagate_parent_transforms, sy
 pub use backend::{ActiveClothBackend, ClothBackend};
 pub use bvh_cloth_core;
 pub use bvh_cloth_core::{
-    Aerodynamics, ClothParams, ClothPins, ColorChannel, Integrator, SelfContact, SpringStiffness, Wind,
+    Aerodynamics, ClothParams, ClothPins, ColorChannel, Integrator, SelfContact, SpringStiffness, Tethers, Wind,
 };
 pub use clock::ClothClock;
 pub use cloth::{Cloth, ClothAnchor, ClothShape};
@@ -148,8 +148,8 @@ pub mod prelude {
         Cloth, ClothAnchor, ClothBackend, ClothClock, ClothDebugViewPlugin, ClothDiverged, ClothMessage, ClothParams,
         ClothPins, ClothReadback, ClothRejected, ClothSettings, ClothShape, ClothSimulation, ClothStats, ClothSystems,
         ColliderContact, ColliderFailed, ColliderHierarchy, ColliderReady, ColliderStatus, ColorChannel, Integrator,
-        LocalWind, PrimitiveCollider, PrimitiveShape, ResetCloth, SelfContact, SpringStiffness, Wind, WindBlast,
-        WindFan, WindSourceRejected,
+        LocalWind, PrimitiveCollider, PrimitiveShape, ResetCloth, SelfContact, SpringStiffness, Tethers, Wind,
+        WindBlast, WindFan, WindSourceRejected,
     };
 }
 

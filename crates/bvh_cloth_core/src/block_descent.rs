@@ -86,20 +86,23 @@
 //! ## Its limits
 //! One sweep per substep moves information one spring per colour pass, so the slowest, largest
 //! modes of a big cloth converge over many substeps: the same 64x64 cloth at Looper 2 still hangs
-//! 29 % short of its sag after 8 s. While a fine cloth moves, it stretches far more than RK4's
-//! would, the more the finer: hanging from two corners and dropped flat, at Looper 16 its sag at
-//! 1 s is 15 % more than RK4's at 32 x 32, 47 % at 64 x 64, 135 % at 128 x 128 and 285 % at
-//! 256 x 256, where the structural springs' p99 strain is 37 times RK4's (the report's `motion`
-//! section; BENCHMARKS.md). Implicit Euler also damps fast motion more than RK4: converged, at
-//! 32 x 32 it still sags 8 % more than RK4 at 1 s, having given up some of the springs' energy
-//! that swings RK4's cloth back up. All of these shrink as `looper` grows; at rest every setting
-//! reaches the springs' own equilibrium.
+//! 29 % short of its sag after 8 s. While a fine cloth moves, the load of the particles far from
+//! its pins reaches them late, and the cloth stretches far more than RK4's would, the more the
+//! finer. A held cloth's tethers ([`crate::tethers`], on by default) carry that load to the pins
+//! in every substep; the figures with and without them are in that module's docs. A cloth that
+//! nothing holds has no tethers, and there the stretch of a fine cloth in motion remains.
+//! Implicit Euler also damps fast motion more than RK4: converged, at 32 x 32 a hanging cloth
+//! still sags 8 % more than RK4's at 1 s, having given up some of the springs' energy that
+//! swings RK4's cloth back up. All of these shrink as `looper` grows. At rest the sweeps reach
+//! the springs' own equilibrium; the default tethers hold a hanging cloth a few per cent short
+//! of it (see [`crate::tethers`]).
 
 use glam::{Vec3, Vec3A, Vec3Swizzles};
 use rayon::prelude::*;
 
 use crate::collision::ColliderFrame;
 use crate::forces::ForceModel;
+use crate::tethers::TetherSet;
 use crate::topology::{ClothTopology, SpringEnd};
 
 /// Most block-descent iterations per substep. More buys less than more substeps do.
@@ -277,6 +280,7 @@ impl BlockDescent {
         h: f32,
         iterations: u32,
         free_body: bool,
+        tethers: Option<(&TetherSet, f32)>,
         frames: &[ColliderFrame<'_>],
     ) {
         let Ok(colouring) = topology.colouring() else { return };
@@ -328,6 +332,9 @@ impl BlockDescent {
                     x[i as usize] = p;
                 }
             }
+        }
+        if let Some((tethers, scale)) = tethers {
+            tethers.project(x, start, free, scale, MIN_TASK);
         }
         // The springs are internal forces: whatever the sweeps left unconverged, a cloth that
         // nothing holds keeps the centre of mass that inertia, damping and the uniform

@@ -13,6 +13,7 @@ use crate::lbvh::Lbvh;
 use crate::params::{ClothParams, Integrator};
 use crate::sim::ClothSim;
 use crate::skinning::SkinnedVertices;
+use crate::tethers::TetherSet;
 use crate::topology::ClothTopology;
 
 /// One particle: position and velocity in world space. 32 bytes.
@@ -37,9 +38,9 @@ pub const INTEGRATOR_EULER: u32 = 1;
 pub const INTEGRATOR_BLOCK_DESCENT: u32 = 2;
 
 /// One cloth of a batch: where its data lies in the shared buffers, and its constants for the
-/// coming ticks. An array of these is one storage buffer. 80 bytes; the last word is the
-/// cloth's count of quarantined particles, which the kernels add to and the host reads and
-/// clears (so the host writes only the first 76 bytes).
+/// coming ticks. An array of these is one storage buffer. 112 bytes; the host writes the
+/// first [`Self::HOST_BYTES`], up to the count of quarantined particles, which the kernels add
+/// to and the host reads and clears, and the drift, which only the kernels write.
 #[repr(C)]
 #[derive(Clone, Copy, Debug, Default, PartialEq, Pod, Zeroable)]
 pub struct GpuBatchCloth {
@@ -70,8 +71,16 @@ pub struct GpuBatchCloth {
     /// 1 when no particle with mass is pinned (block descent then keeps the cloth's momentum:
     /// `bvh_cloth_core::block_descent`), else 0.
     pub free_body: u32,
+    /// Where the cloth's tethers start in the spring-end buffer, after its springs: one entry
+    /// per particle (see [`gpu_tether_ends`]); meaningless while `tether_scale` is 0.
+    pub tether_start: u32,
+    /// `1 + slack` of the cloth's [`crate::Tethers`], or 0 when it has none (no pin, block
+    /// descent not its integrator, or [`ClothParams::tethers`] `None`).
+    pub tether_scale: f32,
     /// Particles quarantined since the host last cleared this word.
     pub faults: u32,
+    /// Unused: aligns `drift` to 16 bytes.
+    pub reserved: [u32; 2],
     /// Block descent's drift of the centre of mass in this substep (`xyz`, metres), which the
     /// kernels compute and read; the host never writes it.
     pub drift: [f32; 4],
@@ -79,7 +88,7 @@ pub struct GpuBatchCloth {
 
 impl GpuBatchCloth {
     /// Bytes of a [`GpuBatchCloth`] the host writes: everything but the fault count.
-    pub const HOST_BYTES: u64 = 76;
+    pub const HOST_BYTES: u64 = 84;
 
     /// The constants of a cloth with `params` on `topology`, whose particles and spring ends
     /// start at the given indices, for `substeps` substeps of `h` seconds per tick (as a held
@@ -115,7 +124,10 @@ impl GpuBatchCloth {
             contact_thickness: params.self_contact.map_or(0.0, |c| c.thickness),
             contact_friction: params.self_contact.map_or(0.0, |c| c.friction),
             free_body: 0,
+            tether_start: 0,
+            tether_scale: 0.0,
             faults: 0,
+            reserved: [0; 2],
             drift: [0.0; 4],
         }
     }
@@ -280,6 +292,13 @@ pub fn gpu_contact_triangles(topology: &ClothTopology, particle_start: u32, slot
 pub fn gpu_particle_info(topology: &ClothTopology, slot: u32) -> Vec<[u32; 4]> {
     let offsets = topology.spring_offsets();
     (0..topology.len()).map(|i| [offsets[i], offsets[i + 1], topology.inv_mass_share()[i].to_bits(), slot]).collect()
+}
+
+/// A cloth's tethers as the GPU reads them, one entry per particle after its springs in the
+/// spring-end buffer: the pin (relative to the cloth, [`crate::tethers::UNTETHERED`] for none)
+/// and the rest distance's bits; the other two words are unused. Empty for a cloth with no pin.
+pub fn gpu_tether_ends(tethers: &TetherSet) -> Vec<[u32; 4]> {
+    tethers.pin.iter().zip(&tethers.length).map(|(&pin, length)| [pin, 0, length.to_bits(), 0]).collect()
 }
 
 /// What `normal_shader` reads of a cloth's surface, as `u32` words: the particle of each of
@@ -514,7 +533,7 @@ mod tests {
     #[test]
     fn sizes_are_multiples_of_sixteen() {
         assert_eq!(size_of::<GpuParticle>(), 32);
-        assert_eq!(size_of::<GpuBatchCloth>(), 96);
+        assert_eq!(size_of::<GpuBatchCloth>(), 112);
         assert_eq!(size_of::<GpuColourPass>(), 16);
         assert_eq!(size_of::<GpuContactFrame>(), 32);
         assert_eq!(std::mem::offset_of!(GpuBatchCloth, faults) as u64, GpuBatchCloth::HOST_BYTES);

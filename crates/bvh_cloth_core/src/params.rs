@@ -8,6 +8,7 @@ use crate::aerodynamics::Aerodynamics;
 pub use crate::block_descent::MAX_ITERATIONS;
 use crate::error::ClothError;
 use crate::self_contact::SelfContact;
+use crate::tethers::Tethers;
 use crate::topology::ClothTopology;
 
 /// Most substeps one tick may take when the stability guard raises `looper` (see
@@ -121,6 +122,10 @@ pub struct ClothParams {
     /// wind and against its own motion. The default, [`Aerodynamics::NONE`], is the paper's
     /// model, a cloth in vacuum that no wind moves; [`Aerodynamics::FABRIC`] is a woven fabric.
     pub aerodynamics: Aerodynamics,
+    /// Tethers from each particle to its nearest pin ([`crate::tethers`]), for block descent:
+    /// they keep a fine held cloth from stretching like rubber while it moves. `None` leaves
+    /// the load to the springs alone. A cloth with no pin has no tethers.
+    pub tethers: Option<Tethers>,
 }
 
 impl Default for ClothParams {
@@ -136,6 +141,7 @@ impl Default for ClothParams {
             integrator: Integrator::default(),
             self_contact: None,
             aerodynamics: Aerodynamics::NONE,
+            tethers: Some(Tethers::default()),
         }
     }
 }
@@ -210,6 +216,9 @@ impl ClothParams {
         finite("gravity", self.gravity)?;
         if let Some(contact) = &self.self_contact {
             contact.validate()?;
+        }
+        if let Some(tethers) = &self.tethers {
+            tethers.validate()?;
         }
         self.aerodynamics.validate()
     }

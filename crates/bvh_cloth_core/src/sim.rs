@@ -20,6 +20,7 @@ use crate::error::ClothError;
 use crate::forces::{ForceModel, LANES, SpringScratch};
 use crate::params::{ClothParams, Integrator};
 use crate::self_contact::{ContactBody, ContactSolver, ContactStats, SelfContact};
+use crate::tethers::TetherSet;
 use crate::topology::ClothTopology;
 
 /// Rows per band: the unit of parallel work, and of spring reuse (see
@@ -49,6 +50,8 @@ pub struct ClothSim {
     /// self-contact weighs it as pinned.
     held: Vec<f32>,
     pins: Vec<u32>,
+    /// Each particle's nearest pin and rest distance to it, for the tethers.
+    tethers: Arc<TetherSet>,
     /// Working state of block descent, which keeps positions by particle during a tick.
     descent: BlockDescent,
     /// Self-contact's grid and scratch, and the positions and velocities it works on.
@@ -113,6 +116,7 @@ impl ClothSim {
         let mut pins = pins.to_vec();
         pins.sort_unstable();
         pins.dedup();
+        let tethers = Arc::new(if pins.is_empty() { TetherSet::default() } else { TetherSet::new(&topology, &pins) });
         let mut sim = Self {
             params,
             topology,
@@ -123,6 +127,7 @@ impl ClothSim {
             slope_sum: vec![0.0; slots * LANES],
             held: vec![0.0; free.len()],
             free,
+            tethers,
             pins,
             descent: BlockDescent::default(),
             contact: ContactSolver::default(),
@@ -287,6 +292,12 @@ impl ClothSim {
         self.topology.is_empty()
     }
 
+    /// Each particle's nearest pin and its rest distance to it, which the tethers hold
+    /// ([`crate::tethers`]; empty for a cloth with no pin).
+    pub fn tethers(&self) -> &Arc<TetherSet> {
+        &self.tethers
+    }
+
     /// The pinned particle indices, sorted.
     pub fn pins(&self) -> &[u32] {
         &self.pins
@@ -421,6 +432,8 @@ impl ClothSim {
         let mut descent = core::mem::take(&mut self.descent);
         descent.resize(n);
         let free_body = self.is_free_body();
+        let tether_set = Arc::clone(&self.tethers);
+        let tethers = self.params.tethers.filter(|_| !tether_set.pin.is_empty()).map(|t| (&*tether_set, 1.0 + t.slack));
         let w = self.width;
         for (r, row) in self.state.chunks_exact(LANES * w).enumerate() {
             for c in 0..w.min(n.saturating_sub(r * w)) {
@@ -444,6 +457,7 @@ impl ClothSim {
                 h,
                 iterations,
                 free_body,
+                tethers,
                 &frames,
             );
             if let Some(contact) = self.params.self_contact {

@@ -8,9 +8,13 @@ use bvh_cloth_core::gpu_layout::GpuAirCloth;
 use bvh_cloth_core::gpu_layout::{
     GpuBatchCloth, GpuBatchFrame, GpuBatchStep, GpuBatchWriteback, GpuColourPass, GpuMeshWriteback, GpuParticle,
     GpuWritebackGroup, INTEGRATOR_BLOCK_DESCENT, NO_CLOTH, gpu_particle_info, gpu_particles, gpu_surface_words,
+    gpu_tether_ends,
 };
 use bvh_cloth_core::params::MAX_ITERATIONS;
-use bvh_cloth_core::{Aerodynamics, ClothError, ClothParams, ClothSim, ClothTopology, Vec3, Wind, WindSource};
+use bvh_cloth_core::tethers::TetherSet;
+use bvh_cloth_core::{
+    Aerodynamics, ClothError, ClothParams, ClothSim, ClothTopology, Integrator, Vec3, Wind, WindSource,
+};
 use wgpu::util::DeviceExt;
 use wgpu::{BindGroup, Buffer, BufferUsages, CommandEncoder, Device, Queue};
 
@@ -98,11 +102,23 @@ struct Slot {
     wind: Wind,
     /// Whether no particle with mass is pinned ([`ClothSim::is_free_body`]).
     free_body: bool,
+    /// Each particle's nearest pin and rest distance ([`ClothSim::tethers`]).
+    tethers: Arc<TetherSet>,
 }
 
 impl Slot {
     fn surface_len(&self) -> u32 {
         surface_len(&self.topology)
+    }
+
+    /// Entries of the spring-end buffer the cloth takes: its springs, then its tethers.
+    fn ends_len(&self) -> u32 {
+        (self.topology.spring_ends().len() + self.tethers.pin.len()) as u32
+    }
+
+    /// Where the cloth's tethers start in the spring-end buffer.
+    fn tether_start(&self) -> u32 {
+        self.ends_start + self.topology.spring_ends().len() as u32
     }
 }
 
@@ -368,7 +384,7 @@ impl ClothBatch {
     /// when the batch would outgrow the device.
     pub fn insert(&mut self, device: &Device, queue: &Queue, sim: &ClothSim) -> Result<ClothId, KernelError> {
         let topology = Arc::clone(sim.topology());
-        let (n, e, s) = (topology.len() as u32, topology.spring_ends().len() as u32, surface_len(&topology));
+        let (n, s) = (topology.len() as u32, surface_len(&topology));
         ClothKernels::workgroups(device, topology.vertex_particle().len() as u32)?;
         ClothKernels::workgroups(device, self.used.0.saturating_add(n))?;
         let slot = Slot {
@@ -387,7 +403,9 @@ impl ClothBatch {
             mass: sim.params().mass,
             wind: *sim.wind(),
             free_body: sim.is_free_body(),
+            tethers: Arc::clone(sim.tethers()),
         };
+        let e = slot.ends_len();
         let index = match self.slots.iter().position(Option::is_none) {
             Some(free) => free,
             None => self.slots.len(),
@@ -420,6 +438,7 @@ impl ClothBatch {
         slot.surface_start = surface_start;
         slot.constants.particle_start = particle_start;
         slot.constants.ends_start = ends_start;
+        slot.constants.tether_start = slot.tether_start();
         let b = &self.buffers;
         queue.write_buffer(
             &b.info,
@@ -430,6 +449,11 @@ impl ClothBatch {
             &b.spring_ends,
             u64::from(ends_start) * 16,
             bytemuck::cast_slice(slot.topology.spring_ends()),
+        );
+        queue.write_buffer(
+            &b.spring_ends,
+            u64::from(slot.tether_start()) * 16,
+            bytemuck::cast_slice(&gpu_tether_ends(&slot.tethers)),
         );
         queue.write_buffer(
             &b.surface_words,
@@ -455,11 +479,7 @@ impl ClothBatch {
     /// zero.
     fn rebuild(&mut self, device: &Device, queue: &Queue) -> Result<(), KernelError> {
         let (n, e, s) = self.slots.iter().flatten().fold((0u64, 0u64, 0u64), |(n, e, s), slot| {
-            (
-                n + slot.topology.len() as u64,
-                e + slot.topology.spring_ends().len() as u64,
-                s + u64::from(slot.surface_len()),
-            )
+            (n + slot.topology.len() as u64, e + u64::from(slot.ends_len()), s + u64::from(slot.surface_len()))
         });
         let max = storage_binding_limit(device);
         let particle_size = size_of::<GpuParticle>() as u64;
@@ -483,8 +503,7 @@ impl ClothBatch {
         let mut used = (0u32, 0u32, 0u32);
         for index in 0..self.slots.len() {
             let Some(slot) = self.slots[index].as_ref() else { continue };
-            let (len, ends, surface) =
-                (slot.topology.len() as u32, slot.topology.spring_ends().len() as u32, slot.surface_len());
+            let (len, ends, surface) = (slot.topology.len() as u32, slot.ends_len(), slot.surface_len());
             if slot.pending_state.is_none() {
                 // The state, and block descent's acceleration estimates (kept in the inertial
                 // target's buffer between substeps).
@@ -535,7 +554,7 @@ impl ClothBatch {
             &bytemuck::bytes_of(&inactive)[..GpuBatchCloth::HOST_BYTES as usize],
         );
         if slot.particle_start + len == self.used.0
-            && slot.ends_start + slot.topology.spring_ends().len() as u32 == self.used.1
+            && slot.ends_start + slot.ends_len() == self.used.1
             && slot.surface_start + slot.surface_len() == self.used.2
         {
             self.used = (slot.particle_start, slot.ends_start, slot.surface_start);
@@ -581,6 +600,11 @@ impl ClothBatch {
         let h = tick_seconds / substeps as f32;
         slot.constants = GpuBatchCloth::new(params, &slot.topology, slot.particle_start, slot.ends_start, substeps, h);
         slot.constants.free_body = u32::from(slot.free_body);
+        slot.constants.tether_start = slot.tether_start();
+        slot.constants.tether_scale = match (params.integrator, params.tethers) {
+            (Integrator::BlockDescent { .. }, Some(tethers)) if !slot.tethers.is_empty() => 1.0 + tethers.slack,
+            _ => 0.0,
+        };
         slot.own_substeps = substeps;
         slot.tick_seconds = tick_seconds;
         slot.aerodynamics = params.aerodynamics;
@@ -1036,6 +1060,7 @@ impl ClothBatch {
                 frame.clone(),
                 step.clone(),
                 buffer(6, &b.info),
+                buffer(7, &b.spring_ends),
                 buffer(8, &b.cloth_constants),
                 buffer(11, &colliders.0),
                 buffer(12, &colliders.1),

@@ -291,6 +291,7 @@ impl ClothKernels {
                     frame,
                     step,
                     storage(6, true),
+                    storage(7, true),
                     storage(8, false),
                     storage(11, true),
                     storage(12, true),

@@ -116,7 +116,10 @@ fn wgsl_structs_match_the_rust_layouts() {
             contact_thickness,
             contact_friction,
             free_body,
+            tether_start,
+            tether_scale,
             faults,
+            reserved,
             drift
         ]
     );
@@ -240,6 +243,7 @@ fn shared_constants_match_the_core() {
     assert_eq!(constant("CONTACT_BAND").parse::<f32>().unwrap(), bvh_cloth_core::collision::CONTACT_BAND);
     assert_eq!(constant("LOOKOUT_ROUNDING").parse::<f32>().unwrap(), bvh_cloth_core::exact_contact::LOOKOUT_ROUNDING);
     assert_eq!(constant("NO_CLOTH"), format!("{:#x}u", bvh_cloth_core::gpu_layout::NO_CLOTH));
+    assert_eq!(constant("UNTETHERED"), format!("{:#x}u", bvh_cloth_core::tethers::UNTETHERED));
     assert_eq!(constant("SHAPE_SPHERES"), format!("{}u", bvh_cloth_core::gpu_layout::SHAPE_SPHERES));
     assert_eq!(constant("SHAPE_TRIANGLES"), format!("{}u", bvh_cloth_core::gpu_layout::SHAPE_TRIANGLES));
     assert_eq!(constant("EDGE_SLACK").parse::<f32>().unwrap(), bvh_cloth_core::triangles::EDGE_SLACK);

@@ -16,7 +16,7 @@
 //   particle's acceleration estimate for the next substep.
 // Cloths of other integrators, and cloths past their own substeps or iterations, sit out.
 
-#import bvh_cloth::types::{GpuParticle, ColourPass, NO_CLOTH, INTEGRATOR_BLOCK_DESCENT, frame, step, thread_index, all_finite}
+#import bvh_cloth::types::{GpuParticle, ColourPass, NO_CLOTH, UNTETHERED, INTEGRATOR_BLOCK_DESCENT, frame, step, thread_index, all_finite}
 #import bvh_cloth::springs::{particle_info, ends, cloths}
 #import bvh_cloth::collision::collide
 #import bvh_cloth::air::{air_cloth, air_kick_of}
@@ -287,6 +287,22 @@ fn vbd_finish(@builtin(global_invocation_id) id: vec3<u32>) {
     var out = iterate[i];
     if (free == 0.0) {
         return;
+    }
+    // bvh_cloth_core::tethers: back within its tether's reach of its pin, which is held (so
+    // its position is the substep's start).
+    let scale = cloths[c].tether_scale;
+    if (scale > 0.0) {
+        let first = cloths[c].particle_start;
+        let tether = ends[cloths[c].tether_start + (i - first)];
+        if (tether.x != UNTETHERED) {
+            let pin = substep_start[first + tether.x].position.xyz;
+            let limit = scale * bitcast<f32>(tether.z);
+            let d = out.position.xyz - pin;
+            let len2 = dot(d, d);
+            if (len2 > limit * limit) {
+                out.position = vec4(pin + d * (limit / sqrt(len2)), out.position.w);
+            }
+        }
     }
     // The springs are internal forces: a cloth that nothing holds keeps the centre of mass
     // that inertia, damping and the uniform acceleration give it.

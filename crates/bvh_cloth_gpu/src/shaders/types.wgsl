@@ -52,7 +52,10 @@ struct BatchCloth {
     contact_thickness: f32,
     contact_friction: f32,
     free_body: u32,
+    tether_start: u32,
+    tether_scale: f32,
     faults: atomic<u32>,
+    reserved: vec2<u32>,
     drift: vec4<f32>,
 }
 
@@ -107,6 +110,7 @@ struct WritebackGroup {
 }
 
 const NO_CLOTH: u32 = 0xffffffffu;         // bvh_cloth_core::gpu_layout::NO_CLOTH
+const UNTETHERED: u32 = 0xffffffffu;       // bvh_cloth_core::tethers::UNTETHERED
 const INTEGRATOR_EULER: u32 = 1u;          // bvh_cloth_core::gpu_layout::INTEGRATOR_EULER
 const INTEGRATOR_BLOCK_DESCENT: u32 = 2u;  // bvh_cloth_core::gpu_layout::INTEGRATOR_BLOCK_DESCENT
 const SHAPE_SPHERES: u32 = 0u;            // bvh_cloth_core::gpu_layout::SHAPE_SPHERES
