@@ -93,9 +93,8 @@
 //! nothing holds has no tethers, and there the stretch of a fine cloth in motion remains.
 //! Implicit Euler also damps fast motion more than RK4: converged, at 32 x 32 a hanging cloth
 //! still sags 8 % more than RK4's at 1 s, having given up some of the springs' energy that
-//! swings RK4's cloth back up. All of these shrink as `looper` grows. At rest the sweeps reach
-//! the springs' own equilibrium; the default tethers hold a hanging cloth a few per cent short
-//! of it (see [`crate::tethers`]).
+//! swings RK4's cloth back up. All of these shrink as `looper` grows; at rest every setting
+//! reaches the springs' own equilibrium (the tethers take speed, not position).
 
 use glam::{Vec3, Vec3A, Vec3Swizzles};
 use rayon::prelude::*;
@@ -333,9 +332,6 @@ impl BlockDescent {
                 }
             }
         }
-        if let Some((tethers, scale)) = tethers {
-            tethers.project(x, start, free, scale, MIN_TASK);
-        }
         // The springs are internal forces: whatever the sweeps left unconverged, a cloth that
         // nothing holds keeps the centre of mass that inertia, damping and the uniform
         // acceleration give it (the exact minimiser of `G` does).
@@ -345,14 +341,16 @@ impl BlockDescent {
             Vec3A::ZERO
         };
         let inv_h = 1.0 / h;
+        let starts: &[Vec3A] = start;
         x.par_iter_mut()
             .zip(v.par_iter_mut())
             .zip(accel.par_iter_mut())
             .zip(start.par_iter())
             .zip(free.par_iter())
             .zip(held.par_iter_mut())
+            .enumerate()
             .with_min_len(MIN_TASK)
-            .for_each(|(((((x, v), estimate), &start), &free), held)| {
+            .for_each(|(i, (((((x, v), estimate), &start), &free), held))| {
                 *held = 0.0;
                 if free == 0.0 {
                     return;
@@ -360,6 +358,10 @@ impl BlockDescent {
                 let v0 = *v;
                 *x -= drift;
                 *v = (*x - start) * inv_h;
+                // The pins are held, so their positions are the substep's start.
+                if let Some((tethers, scale)) = tethers {
+                    tethers.hold(i, *x, v, scale, |pin| starts[pin as usize]);
+                }
                 if !frames.is_empty() {
                     let (mut p, mut velocity) = (Vec3::from(*x), Vec3::from(*v));
                     let mut touched = false;

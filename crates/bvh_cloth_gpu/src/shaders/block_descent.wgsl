@@ -288,22 +288,6 @@ fn vbd_finish(@builtin(global_invocation_id) id: vec3<u32>) {
     if (free == 0.0) {
         return;
     }
-    // bvh_cloth_core::tethers: back within its tether's reach of its pin, which is held (so
-    // its position is the substep's start).
-    let scale = cloths[c].tether_scale;
-    if (scale > 0.0) {
-        let first = cloths[c].particle_start;
-        let tether = ends[cloths[c].tether_start + (i - first)];
-        if (tether.x != UNTETHERED) {
-            let pin = substep_start[first + tether.x].position.xyz;
-            let limit = scale * bitcast<f32>(tether.z);
-            let d = out.position.xyz - pin;
-            let len2 = dot(d, d);
-            if (len2 > limit * limit) {
-                out.position = vec4(pin + d * (limit / sqrt(len2)), out.position.w);
-            }
-        }
-    }
     // The springs are internal forces: a cloth that nothing holds keeps the centre of mass
     // that inertia, damping and the uniform acceleration give it.
     if (cloths[c].free_body != 0u) {
@@ -312,6 +296,22 @@ fn vbd_finish(@builtin(global_invocation_id) id: vec3<u32>) {
     let h = cloths[c].h;
     let inv_h = 1.0 / h;
     out.velocity = vec4((out.position.xyz - b.position.xyz) * inv_h, 0.0);
+    // bvh_cloth_core::tethers: beyond its tether's reach of its pin (held, so at the substep's
+    // start), a particle loses its velocity away from the pin.
+    let scale = cloths[c].tether_scale;
+    if (scale > 0.0) {
+        let first = cloths[c].particle_start;
+        let tether = ends[cloths[c].tether_start + (i - first)];
+        if (tether.x != UNTETHERED) {
+            let limit = scale * bitcast<f32>(tether.z);
+            let d = out.position.xyz - substep_start[first + tether.x].position.xyz;
+            let len2 = dot(d, d);
+            if (len2 > limit * limit) {
+                let away = d / sqrt(len2);
+                out.velocity = vec4(out.velocity.xyz - max(dot(out.velocity.xyz, away), 0.0) * away, 0.0);
+            }
+        }
+    }
     // Quarantine, as node_update_final: a particle whose substep went non-finite keeps its last
     // finite state, at rest.
     if (!(all_finite(out.position.xyz) && all_finite(out.velocity.xyz))) {
