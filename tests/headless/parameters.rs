@@ -181,6 +181,39 @@ fn absurd_tether_slack_is_refused_naming_the_field() {
     }
 }
 
+/// An explicit integrator that its stability guard cannot keep stable at the clock's tick
+/// (it would need more than 256 substeps) is refused with a message naming the substeps it
+/// needs, at spawn and at run time; a running cloth keeps its last valid stiffness.
+#[test]
+fn an_explicit_cloth_beyond_its_stability_guard_is_refused_naming_the_substeps() {
+    let mut app = app();
+    let rk4 = |spring_k| {
+        Cloth::grid(Vec2::splat(1.0), UVec2::splat(8)).with_params(ClothParams {
+            integrator: Integrator::Rk4,
+            spring_k,
+            ..default()
+        })
+    };
+    let bad = app.world_mut().spawn(rk4(1.0e9)).id();
+    let good = app.world_mut().spawn((rk4(200.0), Transform::from_xyz(0.0, 2.0, 0.0))).id();
+    run(&mut app, 0.2);
+    assert!(app.world().get::<ClothSimulation>(bad).is_none());
+    let beyond = |m: &ClothMessage, cloth: Entity| {
+        matches!(m, ClothMessage::Rejected { entity, error: ClothError::BeyondStabilityGuard { needed, max: 256 } }
+            if *entity == cloth && *needed > 256)
+    };
+    assert!(sent(&app).iter().any(|m| beyond(m, bad)));
+
+    let before = positions(&app, good);
+    app.world_mut().get_mut::<Cloth>(good).unwrap().params.spring_k = 1.0e9;
+    run(&mut app, 0.3);
+    let sim = app.world().get::<ClothSimulation>(good).unwrap().sim();
+    assert_eq!(sim.params().spring_k, 200.0, "the last valid stiffness is kept");
+    assert!(sim.is_finite());
+    assert!(max_distance(&before, &positions(&app, good)) > 0.1, "the cloth stopped falling");
+    assert!(sent(&app).iter().any(|m| beyond(m, good)));
+}
+
 #[test]
 fn changing_the_grid_rebuilds_the_cloth_and_its_mesh() {
     let mut app = app();

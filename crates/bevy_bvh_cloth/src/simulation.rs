@@ -143,6 +143,7 @@ fn build(
     source: Option<Handle<Mesh>>,
     meshes: &Assets<Mesh>,
     target_pose: impl Fn(Entity) -> Option<Affine3A>,
+    tick_seconds: Option<f32>,
 ) -> Result<Option<Built>, ClothError> {
     let params = cloth.to_params()?;
     let pose = rigid_pose(transform);
@@ -200,6 +201,9 @@ fn build(
         .collect::<Vec<_>>();
     let pins: Vec<u32> =
         (0..topology.len() as u32).filter(|&i| held[i as usize] || holder[i as usize].is_some()).collect();
+    if let Some(dt) = tick_seconds {
+        params.check_tick(dt, &topology)?;
+    }
     let sim = ClothSim::new(params, Arc::new(topology), pose, &pins)?;
     let (mesh, source) = match from {
         Made::Grid(grid, _) => (new_grid_mesh(&grid, &sim, transform), None),
@@ -219,7 +223,11 @@ pub(crate) fn sync_cloths(
     mut messages: MessageWriter<ClothMessage>,
     mut loading: Local<EntityHashSet>,
     mut start: ColliderWait,
+    settings: Res<ClothSettings>,
 ) {
+    // The tick the clock runs, which the explicit integrators' stability guard depends on.
+    let rate = settings.tick_rate;
+    let tick_seconds = (rate.is_finite() && rate > 0.0).then(|| 1.0 / rate);
     let resets: Vec<ResetCloth> = resets.read().copied().collect();
     // The colliders still being built, found when a new cloth first asks.
     let mut pending: Option<Vec<Entity>> = None;
@@ -233,7 +241,13 @@ pub(crate) fn sync_cloths(
         match state {
             Some(mut state) if !state.built_from.shape_differs(&cloth) => {
                 if cloth.is_changed() {
-                    match cloth.to_params().and_then(|params| state.sim.set_params(params)) {
+                    let checked = cloth.to_params().and_then(|params| {
+                        if let Some(dt) = tick_seconds {
+                            params.check_tick(dt, state.sim.topology())?;
+                        }
+                        state.sim.set_params(params)
+                    });
+                    match checked {
                         Ok(()) => {
                             state.built_from = Cloth::clone(&cloth);
                             state.divergence_warned = false;
@@ -262,7 +276,7 @@ pub(crate) fn sync_cloths(
                     None => mesh3d.map(|m| m.0.clone()),
                 };
                 let target_pose = |target| targets.get(target).ok().map(rigid_pose);
-                let built = match build(&cloth, transform, source, &meshes, target_pose) {
+                let built = match build(&cloth, transform, source, &meshes, target_pose, tick_seconds) {
                     Ok(Some(built)) => built,
                     Ok(None) => {
                         loading.insert(entity);

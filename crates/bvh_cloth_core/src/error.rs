@@ -118,6 +118,15 @@ pub enum ClothError {
         /// Largest particle count accepted.
         max: u32,
     },
+    /// An explicit integrator would need more substeps a tick than the stability guard allows
+    /// ([`crate::params::MAX_SUBSTEPS_PER_TICK`]) to stay stable: stepped anyway, the cloth
+    /// would go non-finite.
+    BeyondStabilityGuard {
+        /// Substeps a tick the integrator would need.
+        needed: u32,
+        /// Most substeps a tick the guard takes.
+        max: u32,
+    },
     /// A parameter lies outside the range the model accepts (a wind speed no air reaches, a
     /// coefficient no fabric has).
     OutOfRange {
@@ -211,6 +220,12 @@ impl fmt::Display for ClothError {
             Self::TooManyParticles { particles, max } => {
                 write!(f, "cloth has {particles} particles; at most {max} are supported")
             }
+            Self::BeyondStabilityGuard { needed, max } => write!(
+                f,
+                "the explicit integrator would need {needed} substeps a tick to stay stable, more than the {max} \
+                 the stability guard takes: lower `spring_k`, raise `mass`, coarsen the cloth, or use \
+                 `Integrator::BlockDescent`, which is stable at every stiffness"
+            ),
             Self::OutOfRange { field, value, min, max } => {
                 write!(f, "cloth parameter `{field}` must be in [{min}, {max}], got {value}")
             }

@@ -183,6 +183,34 @@ impl ClothParams {
         }
     }
 
+    /// Substeps one tick of `dt` seconds needs on `topology` to keep an explicit integrator
+    /// within its stability limit, without the guard's cap: at least `looper`, and `looper`
+    /// for block descent. Beyond [`MAX_SUBSTEPS_PER_TICK`], see [`Self::check_tick`].
+    pub fn substeps_needed(&self, dt: f32, topology: &ClothTopology) -> u32 {
+        let needed = (dt / self.max_stable_substep(topology)).ceil();
+        if needed.is_finite() && needed > self.looper as f32 {
+            if needed >= u32::MAX as f32 { u32::MAX } else { needed as u32 }
+        } else if needed.is_finite() {
+            self.looper
+        } else {
+            u32::MAX
+        }
+    }
+
+    /// Whether a cloth on `topology` can be stepped with these parameters at ticks of `dt`
+    /// seconds: an explicit integrator that would need more than [`MAX_SUBSTEPS_PER_TICK`]
+    /// substeps a tick is refused with [`ClothError::BeyondStabilityGuard`], naming the count,
+    /// since the guard's cap would leave it unstable and the cloth would go non-finite.
+    /// [`crate::ClothSim::new`] and [`crate::ClothSim::set_params`] do not know the tick; the
+    /// plugin checks this with its clock's tick when a cloth is built or its parameters change.
+    pub fn check_tick(&self, dt: f32, topology: &ClothTopology) -> Result<(), ClothError> {
+        let needed = self.substeps_needed(dt, topology);
+        if self.integrator.is_explicit() && needed > MAX_SUBSTEPS_PER_TICK {
+            return Err(ClothError::BeyondStabilityGuard { needed, max: MAX_SUBSTEPS_PER_TICK });
+        }
+        Ok(())
+    }
+
     /// Checks that a cloth can be stepped with these parameters.
     pub fn validate(&self) -> Result<(), ClothError> {
         ClothError::check_positive("mass", self.mass)?;
@@ -263,6 +291,18 @@ mod tests {
         assert!(n > base.looper && (1.0 / 60.0) / n as f32 <= stiff.max_stable_substep(&grid), "{n}");
         let absurd = ClothParams { spring_k: 1.0e12, ..base.clone() };
         assert_eq!(absurd.substeps(1.0 / 60.0, &grid), MAX_SUBSTEPS_PER_TICK);
+        // Beyond the cap the guard cannot keep it stable: refused, naming the count it needs.
+        assert_eq!(base.check_tick(1.0 / 60.0, &grid), Ok(()));
+        assert_eq!(stiff.check_tick(1.0 / 60.0, &grid), Ok(()));
+        let needed = absurd.substeps_needed(1.0 / 60.0, &grid);
+        assert!(needed > MAX_SUBSTEPS_PER_TICK && needed < u32::MAX, "{needed}");
+        let error = absurd.check_tick(1.0 / 60.0, &grid).unwrap_err();
+        assert_eq!(error, ClothError::BeyondStabilityGuard { needed, max: MAX_SUBSTEPS_PER_TICK });
+        assert!(error.to_string().contains(&format!("{needed} substeps")), "{error}");
+        assert_eq!(
+            ClothParams { integrator: Integrator::BLOCK_DESCENT, ..absurd.clone() }.check_tick(1.0 / 60.0, &grid),
+            Ok(())
+        );
         // Block descent is stable at any stiffness: the guard leaves it alone.
         let descent = ClothParams { integrator: Integrator::BLOCK_DESCENT, ..absurd.clone() };
         assert_eq!(descent.substeps(1.0 / 60.0, &grid), descent.looper);

@@ -405,7 +405,10 @@ impl ClothSim {
 
     /// Advances one tick of `dt` seconds: `looper` substeps of equal length (more when the
     /// stability guard asks for them, see [`ClothParams::substeps`]), each followed by collision
-    /// against every collider. Returns the number of substeps run.
+    /// against every collider. Returns the number of substeps run. An explicit integrator that
+    /// would need more substeps than the guard takes goes non-finite: check the parameters
+    /// against the tick with [`ClothParams::check_tick`] first (the plugin does), and the state
+    /// with [`Self::is_finite`] after.
     pub fn tick(&mut self, dt: f32, colliders: &[Collider]) -> u32 {
         if !(dt.is_finite() && dt > 0.0) {
             return 0;
