@@ -21,14 +21,15 @@
 //!     both backends, GPU against CPU in gusty wind, and what drag and lift cost.
 //! 13. Motion ([`motion`]): each solver setting's free fall and drift against the analytic
 //!     answer, a hanging cloth's sag and strain in motion against RK4 from 32 x 32 to 256 x 256,
-//!     and the flag's flutter.
+//!     and the flag's flutter; and what the tethers cost a tick (`motion_cost`).
 //!
 //! `WGPU_BACKEND=vulkan cargo bench -p bvh_cloth_bench --bench report`
 //! (without a GPU adapter the GPU columns say so and the rest still runs). Append `-- NAME...`
 //! to run only the sections whose name contains one of the NAMEs: `table_vii`, `queries`,
 //! `fidelity`, `step_scaling`, `topology`, `gpu_profile`, `many_cloths`, `build_scaling`,
 //! `far_from_origin`, `solver`, `solver_gpu`, `primitives`, `skinned_refit`, `exact_contact`,
-//! `exact_contact_gpu`, `self_contact`, `self_contact_gpu`, `wind`, `wind_gpu`, `motion`. The
+//! `exact_contact_gpu`, `self_contact`, `self_contact_gpu`, `wind`, `wind_gpu`, `motion`,
+//! `motion_cost`. The
 //! GPU halves of the solver, exact-contact, self-contact and wind tables are sections of their
 //! own, so `-- gpu` runs every GPU-only table without their CPU simulations.
 
@@ -159,6 +160,9 @@ fn main() {
     }
     if run("motion") {
         motion::motion();
+    }
+    if run("motion_cost") {
+        motion::motion_cost();
     }
     println!("\nCSV written to docs/benchmarks/ (plot: python3 scripts/plot_benchmarks.py)");
 }

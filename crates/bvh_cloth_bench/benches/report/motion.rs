@@ -3,7 +3,7 @@
 
 use std::sync::Arc;
 
-use bvh_cloth_bench::{TICK, model};
+use bvh_cloth_bench::{TICK, model, time};
 use bvh_cloth_core::{Affine3A, ClothParams, ClothSim, ClothTopology, Collider, Integrator, MeshRef, Primitive, Vec3};
 
 use super::{flutter_on_cpu, hanging, sag_of, spectral_peak};
@@ -162,5 +162,31 @@ pub(super) fn motion() {
             amplitude * 1e3,
             100.0 * (amplitude / ref_amplitude - 1.0)
         );
+    }
+}
+
+/// The section `motion_cost`: what the tethers cost a tick of a hanging cloth at the default
+/// settings, the same state ticked with and without them, alternated, best of each.
+pub(super) fn motion_cost() {
+    println!("\n### What the tethers cost: a cloth of 1 m hanging from two corners for 0.5 s, then one tick\n");
+    println!("| side | tick with tethers ms | without ms | with / without |");
+    println!("|---|---|---|---|");
+    for (side, rounds) in [(64u32, 40), (256, 8)] {
+        let settle = |params: ClothParams| {
+            let mut sim = hanging(side, params);
+            for _ in 0..30 {
+                sim.tick(TICK, &[]);
+            }
+            sim
+        };
+        let with = settle(ClothParams::default());
+        let without = settle(ClothParams { tethers: None, ..ClothParams::default() });
+        let (mut best_with, mut best_without) = (f64::INFINITY, f64::INFINITY);
+        for _ in 0..rounds {
+            let (mut a, mut b) = (with.clone(), without.clone());
+            best_with = best_with.min(time(|| _ = a.tick(TICK, &[])));
+            best_without = best_without.min(time(|| _ = b.tick(TICK, &[])));
+        }
+        println!("| {side} | {:.3} | {:.3} | {:.2}x |", best_with * 1e3, best_without * 1e3, best_with / best_without);
     }
 }
