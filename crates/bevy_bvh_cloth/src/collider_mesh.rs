@@ -128,8 +128,7 @@ impl TriangleList {
     /// has a skin; otherwise, when `exact`, with exact contact against the triangles.
     pub fn build(&self, voxels: Voxels, exact: bool) -> Result<Collider, ColliderFailure> {
         let built = match &self.skin {
-            None if exact => Collider::from_mesh_in(self.as_mesh_ref(), voxels)
-                .and_then(|collider| collider.with_exact_contact(self.as_mesh_ref())),
+            None if exact => Collider::from_mesh_in_exact(self.as_mesh_ref(), voxels),
             None => Collider::from_mesh_in(self.as_mesh_ref(), voxels),
             Some(skin) => {
                 let skin = SkinRef { joints: &skin.joints, weights: &skin.weights, joint_count: skin.joint_count };

@@ -113,14 +113,48 @@ impl Collider {
         Ok(Self::with_shape(ColliderShape::Spheres { lbvh: Arc::new(lbvh), counts, skin, surface: None }))
     }
 
-    /// The same collider with exact contact against `mesh`'s triangles (the mesh it was built
-    /// from; see [`crate::exact_contact`]). A primitive is exact already and is returned as it
-    /// is; a skinned collider keeps sphere contact, since its triangles move with the joints.
-    pub fn with_exact_contact(mut self, mesh: MeshRef<'_>) -> Result<Self, ColliderError> {
-        if let ColliderShape::Spheres { surface, skin: None, .. } = &mut self.shape {
+    /// Voxelises `mesh` at resolution `n`, as [`Self::from_mesh`], with exact contact against
+    /// the same mesh's triangles ([`crate::exact_contact`]).
+    pub fn from_mesh_exact(mesh: MeshRef<'_>, n: u32) -> Result<Self, ColliderError> {
+        Self::from_mesh_in_exact(mesh, Voxels::PerAxis(n))
+    }
+
+    /// As [`Self::from_mesh_exact`], with the voxels `voxels` gives.
+    pub fn from_mesh_in_exact(mesh: MeshRef<'_>, voxels: Voxels) -> Result<Self, ColliderError> {
+        let mut collider = Self::from_mesh_in(mesh, voxels)?;
+        if let ColliderShape::Spheres { surface, .. } = &mut collider.shape {
             *surface = Some(Arc::new(TriangleSurface::build(mesh)?));
         }
+        Ok(collider)
+    }
+
+    /// The same collider with exact contact against `mesh`'s triangles, which must be the mesh
+    /// its spheres were built from (see [`crate::exact_contact`]): a mesh whose triangles'
+    /// box does not fit the spheres' box (it holds the triangles, and reaches at most a
+    /// sphere's diameter past them) is refused with [`ColliderError::ExactMeshMismatch`].
+    /// [`Self::from_mesh_exact`] takes the mesh once. A primitive is exact already and is
+    /// returned as it is; a skinned collider keeps sphere contact, since its triangles move
+    /// with the joints.
+    pub fn with_exact_contact(mut self, mesh: MeshRef<'_>) -> Result<Self, ColliderError> {
+        if let ColliderShape::Spheres { lbvh, surface, skin: None, .. } = &mut self.shape {
+            let built = TriangleSurface::build(mesh)?;
+            if !fits_spheres(lbvh, &built) {
+                return Err(ColliderError::ExactMeshMismatch);
+            }
+            *surface = Some(Arc::new(built));
+        }
         Ok(self)
+    }
+
+    /// How far the collision response keeps a particle off this collider, in metres: the
+    /// margin, and with exact contact at least the surface's least thickness
+    /// ([`TriangleSurface::min_thickness`], a millionth of its box's diagonal) at the pose's
+    /// scale, which is what a zero margin gives.
+    pub fn contact_thickness(&self) -> f32 {
+        match self.surface() {
+            Some(surface) => self.margin.max(surface.min_thickness * self.pose.scale),
+            None => self.margin,
+        }
     }
 
     /// The triangles of a collider with exact contact.
@@ -222,4 +256,18 @@ impl Collider {
     pub fn contains(&self, p: Vec3) -> bool {
         crate::collision::ColliderFrame::new(self).is_some_and(|frame| frame.contains(p))
     }
+}
+
+/// Whether `surface`'s triangles are those `lbvh`'s spheres were built around: the spheres'
+/// box holds the triangles' box, and reaches at most the largest sphere's diameter past it
+/// (both within a ten-thousandth of the triangles' diagonal).
+fn fits_spheres(lbvh: &Lbvh, surface: &TriangleSurface) -> bool {
+    let Some((lo, hi)) = lbvh.bounds() else { return false };
+    let (t_lo, t_hi) =
+        surface.triangles.iter().flatten().fold((Vec3::MAX, Vec3::MIN), |(lo, hi), &p| (lo.min(p), hi.max(p)));
+    let tolerance = 1.0e-4 * (t_hi - t_lo).length();
+    let reach = 2.0 * lbvh.spheres.iter().map(|s| s.radius).fold(0.0, f32::max) + tolerance;
+    let holds = (lo - tolerance).cmple(t_lo).all() && (hi + tolerance).cmpge(t_hi).all();
+    let close = (t_lo - reach).cmple(lo).all() && (t_hi + reach).cmpge(hi).all();
+    holds && close
 }

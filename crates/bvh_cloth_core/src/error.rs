@@ -283,6 +283,9 @@ pub enum ColliderError {
     ZeroExtent,
     /// The voxel resolution `n` must be at least 1.
     ZeroResolution,
+    /// The mesh given for exact contact is not the one the collider's spheres were built from:
+    /// its triangles' box does not fit the spheres' box.
+    ExactMeshMismatch,
     /// The voxel resolution is larger than the core accepts.
     ResolutionTooHigh {
         /// The requested resolution.
@@ -381,6 +384,11 @@ impl fmt::Display for ColliderError {
             ),
             Self::ZeroExtent => write!(f, "collider mesh has zero extent: all of its vertices are at one point"),
             Self::ZeroResolution => write!(f, "collider voxel resolution `n` must be at least 1"),
+            Self::ExactMeshMismatch => write!(
+                f,
+                "the mesh given for exact contact is not the one the collider's spheres were built from (their bounds \
+                 differ); build both from one mesh with `Collider::from_mesh_exact`"
+            ),
             Self::ResolutionTooHigh { n, max } => {
                 write!(f, "collider voxel resolution n = {n} is above the maximum of {max}")
             }

@@ -428,3 +428,53 @@ fn a_short_path_is_free_exactly_when_no_step_would_touch_it() {
     eprintln!("{free} free, {touched} touched");
     assert!(free > 1000 && touched > 1000, "{free} free and {touched} touched: the paths do not test both cases");
 }
+
+/// The one-step constructor takes the mesh once; the two-step form refuses a mesh other than
+/// the one the spheres were built from (moved, grown, or another), and accepts the same one.
+#[test]
+fn exact_contact_takes_the_mesh_the_spheres_were_built_from() {
+    let (positions, indices) = common::uv_sphere(Vec3::new(0.0, 0.5, 0.0), 0.5, 12, 16);
+    let mesh = MeshRef { positions: &positions, indices: Some(&indices) };
+    let once = Collider::from_mesh_exact(mesh, 8).unwrap();
+    let twice = Collider::from_mesh(mesh, 8).unwrap().with_exact_contact(mesh).unwrap();
+    assert_eq!(once.surface().unwrap().triangles, twice.surface().unwrap().triangles);
+    assert_eq!(once.sphere_count(), twice.sphere_count());
+    let moved: Vec<[f32; 3]> = positions.iter().map(|p| [p[0] + 0.3, p[1], p[2]]).collect();
+    let grown: Vec<[f32; 3]> = positions.iter().map(|p| [p[0] * 1.5, p[1] * 1.5, p[2] * 1.5]).collect();
+    let (other, other_indices) = common::uv_sphere(Vec3::new(2.0, 0.5, 0.0), 0.2, 8, 8);
+    for (name, p, i) in [("moved", &moved, &indices), ("grown", &grown, &indices), ("another", &other, &other_indices)]
+    {
+        let wrong = MeshRef { positions: p, indices: Some(i) };
+        let error = Collider::from_mesh(mesh, 8).unwrap().with_exact_contact(wrong).unwrap_err();
+        assert_eq!(error, bvh_cloth_core::ColliderError::ExactMeshMismatch, "{name}");
+        assert!(error.to_string().contains("from_mesh_exact"), "{error}");
+    }
+    // The bundled models are accepted with their own meshes at coarse and fine voxels.
+    for name in ["bunny", "dragon"] {
+        let path =
+            format!("{}/../../assets/models/{name}.obj", std::env::var("CARGO_MANIFEST_DIR").expect("run by cargo"));
+        let model = bvh_cloth_core::obj::parse_obj(&std::fs::read_to_string(path).unwrap()).unwrap();
+        for n in [1, 5, 16] {
+            let spheres = Collider::from_mesh(model.as_mesh_ref(), n).unwrap();
+            assert!(spheres.with_exact_contact(model.as_mesh_ref()).is_ok(), "{name} at n = {n}");
+        }
+    }
+}
+
+/// The collider says how far its response keeps a particle off: its margin, and with exact
+/// contact at a zero margin the surface's least thickness, at the pose's scale.
+#[test]
+fn a_collider_says_its_contact_thickness() {
+    let (positions, indices) = common::uv_sphere(Vec3::new(0.0, 0.5, 0.0), 0.5, 12, 16);
+    let mesh = MeshRef { positions: &positions, indices: Some(&indices) };
+    let spheres = Collider::from_mesh(mesh, 8).unwrap();
+    assert_eq!(spheres.contact_thickness(), 0.0);
+    assert_eq!(spheres.clone().with_margin(0.004).contact_thickness(), 0.004);
+    let exact = Collider::from_mesh_exact(mesh, 8).unwrap();
+    let least = exact.surface().unwrap().min_thickness;
+    assert!(least > 0.0);
+    assert_eq!(exact.contact_thickness(), least);
+    assert_eq!(exact.clone().with_margin(0.004).contact_thickness(), 0.004);
+    let scaled = exact.with_pose(bvh_cloth_core::ColliderPose { scale: 2.0, ..Default::default() });
+    assert_eq!(scaled.contact_thickness(), 2.0 * least);
+}
