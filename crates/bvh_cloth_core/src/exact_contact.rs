@@ -1,6 +1,10 @@
 //! Exact contact: the cloth collides with a mesh's own triangles, held at a thickness above
 //! them, instead of with the voxel spheres around them.
 //!
+//! A collider gets it from [`Collider::from_mesh_exact`](crate::Collider::from_mesh_exact),
+//! which builds the spheres and the triangles from one mesh, and says the thickness it keeps
+//! with [`Collider::contact_thickness`](crate::Collider::contact_thickness).
+//!
 //! # Broad phase
 //!
 //! The triangles are arranged in the same Morton-code LBVH as the voxel spheres ([`Lbvh`]), one
