@@ -932,7 +932,7 @@ fn solver(single: &rayon::ThreadPool, threads: usize) {
             let mut sim =
                 hanging(side, ClothParams { spring_k, integrator: Integrator::BLOCK_DESCENT, ..base.clone() });
             let ticks = if side >= 1024 { 3 } else { 60 };
-            let substeps: Vec<u32> = (0..ticks).map(|_| sim.tick(TICK, &[])).collect();
+            let substeps: Vec<u32> = (0..ticks).map(|_| sim.tick(TICK, &[]).substeps).collect();
             let same = if substeps.iter().all(|&n| n == substeps[0]) {
                 format!("{}", substeps[0])
             } else {

@@ -87,7 +87,7 @@ pub use params::{ClothParams, Integrator, SpringStiffness};
 pub use pins::{ClothPins, ColorChannel, MeshVertices};
 pub use primitives::Primitive;
 pub use self_contact::SelfContact;
-pub use sim::ClothSim;
+pub use sim::{ClothSim, Ticked};
 pub use skinning::{SkinRef, SkinScratch, SkinnedSpheres};
 pub use tethers::Tethers;
 pub use topology::{ClothTopology, SpringEnd};

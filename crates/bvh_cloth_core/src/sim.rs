@@ -31,6 +31,24 @@ const BAND_ROWS: usize = 8;
 /// are its own).
 const GENERAL_ROW: usize = 64;
 
+/// What one [`ClothSim::tick`] did.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct Ticked {
+    /// Substeps run (`looper`, or more when the stability guard asked for them).
+    pub substeps: u32,
+    /// Particles the tick left with a NaN or infinite position or velocity: 0 for a healthy
+    /// cloth. A cloth that went non-finite stays so; reset it ([`ClothSim::reset`]) or give it
+    /// parameters that [`ClothParams::check_tick`] accepts.
+    pub non_finite: usize,
+}
+
+impl Ticked {
+    /// Whether the tick left any particle non-finite.
+    pub fn diverged(&self) -> bool {
+        self.non_finite > 0
+    }
+}
+
 /// A simulated cloth.
 #[derive(Clone, Debug)]
 pub struct ClothSim {
@@ -405,13 +423,13 @@ impl ClothSim {
 
     /// Advances one tick of `dt` seconds: `looper` substeps of equal length (more when the
     /// stability guard asks for them, see [`ClothParams::substeps`]), each followed by collision
-    /// against every collider. Returns the number of substeps run. An explicit integrator that
-    /// would need more substeps than the guard takes goes non-finite: check the parameters
-    /// against the tick with [`ClothParams::check_tick`] first (the plugin does), and the state
-    /// with [`Self::is_finite`] after.
-    pub fn tick(&mut self, dt: f32, colliders: &[Collider]) -> u32 {
+    /// against every collider. Returns the substeps run and how many particles went
+    /// non-finite. An explicit integrator that would need more substeps than the guard takes
+    /// goes non-finite: check the parameters against the tick with [`ClothParams::check_tick`]
+    /// first (the plugin does).
+    pub fn tick(&mut self, dt: f32, colliders: &[Collider]) -> Ticked {
         if !(dt.is_finite() && dt > 0.0) {
-            return 0;
+            return Ticked { substeps: 0, non_finite: self.non_finite_count() };
         }
         let substeps = self.substeps(dt);
         let h = dt / substeps as f32;
@@ -424,7 +442,12 @@ impl ClothSim {
             }
         }
         self.wind_time += f64::from(dt);
-        substeps
+        Ticked { substeps, non_finite: self.non_finite_count() }
+    }
+
+    /// [`Self::non_finite_particles`], with a vectorised pass first for the healthy cloth.
+    fn non_finite_count(&self) -> usize {
+        if self.is_finite() { 0 } else { self.non_finite_particles() }
     }
 
     /// Runs `substeps` block-descent substeps of `h` seconds on positions kept by particle.

@@ -5,7 +5,7 @@ mod common;
 
 use std::sync::Arc;
 
-use bvh_cloth_core::{Affine3A, ClothParams, ClothSim, ClothTopology, Collider, Integrator, MeshRef, Vec3};
+use bvh_cloth_core::{Affine3A, ClothError, ClothParams, ClothSim, ClothTopology, Collider, Integrator, MeshRef, Vec3};
 use common::{grid_topology, square_grid, uv_sphere};
 
 fn hanging(rows: u32, cols: u32) -> ClothSim {
@@ -155,7 +155,7 @@ fn stiff_springs_stay_stable_under_the_guard() {
         ClothSim::new(params, grid_topology(1.0, 24, 24), Affine3A::from_translation(Vec3::Y), &pins).unwrap();
     let mut substeps = 0;
     for _ in 0..120 {
-        substeps = sim.tick(1.0 / 60.0, &[]);
+        substeps = sim.tick(1.0 / 60.0, &[]).substeps;
     }
     assert!(substeps > 4, "the guard kept {substeps} substeps");
     assert!(sim.is_finite());
@@ -233,4 +233,31 @@ fn an_authored_dome_hangs_from_its_rim() {
     // The crown (0.5 m above the rim when built) hangs below the held points.
     let centroid = sim.positions().iter().copied().sum::<Vec3>() / sim.len() as f32;
     assert!(centroid.y < 1.0 - 0.1, "the dome did not fall: centroid at {centroid}");
+}
+
+/// A tick says how many particles it left non-finite: none for a healthy cloth; some for an
+/// explicit cloth past its stability guard's cap (which `ClothParams::check_tick` refuses
+/// beforehand), and for a cloth given a NaN.
+#[test]
+fn a_tick_reports_the_particles_it_left_non_finite() {
+    let healthy = ClothParams { integrator: Integrator::Rk4, ..Default::default() };
+    let absurd = ClothParams { spring_k: 1.0e12, ..healthy.clone() };
+    let topology = grid_topology(1.0, 16, 16);
+    assert!(healthy.check_tick(1.0 / 60.0, &topology).is_ok());
+    assert!(matches!(absurd.check_tick(1.0 / 60.0, &topology), Err(ClothError::BeyondStabilityGuard { .. })));
+    let pose = Affine3A::from_translation(Vec3::Y);
+    let mut sim = ClothSim::new(healthy, grid_topology(1.0, 16, 16), pose, &[0, 15]).unwrap();
+    let ticked = sim.tick(1.0 / 60.0, &[]);
+    assert_eq!((ticked.substeps, ticked.non_finite, ticked.diverged()), (16, 0, false));
+
+    let mut beyond = ClothSim::new(absurd, grid_topology(1.0, 16, 16), pose, &[0, 15]).unwrap();
+    let reports: Vec<_> = (0..30).map(|_| beyond.tick(1.0 / 60.0, &[])).collect();
+    assert!(reports.iter().all(|t| t.substeps == 256));
+    let last = reports.last().unwrap();
+    assert!(last.diverged() && last.non_finite == beyond.non_finite_particles(), "{last:?}");
+
+    let mut poisoned = ClothSim::new(ClothParams::default(), grid_topology(1.0, 16, 16), pose, &[]).unwrap();
+    poisoned.set_position(40, Vec3::NAN);
+    let ticked = poisoned.tick(1.0 / 60.0, &[]);
+    assert!(ticked.non_finite >= 1 && ticked.non_finite == poisoned.non_finite_particles(), "{ticked:?}");
 }
