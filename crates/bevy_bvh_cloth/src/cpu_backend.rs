@@ -41,13 +41,14 @@ pub(crate) fn step_cloths(
             continue;
         }
         let state = &mut *state;
+        let mut non_finite = 0;
         for k in 0..ticks {
             if let Some(targets) = state.anchor_targets.get(k) {
                 state.sim.move_pins(targets);
             }
-            state.sim.tick(clock.tick_seconds, &colliders);
+            non_finite = state.sim.tick(clock.tick_seconds, &colliders).non_finite;
         }
-        finish_ticks(entity, state, transform, &mut messages);
+        finish_ticks(entity, state, non_finite, transform, &mut messages);
     }
     if !together.is_empty() {
         for k in 0..ticks {
@@ -62,22 +63,25 @@ pub(crate) fn step_cloths(
             ClothSim::tick_together(&mut sims, clock.tick_seconds, &colliders, &mut contact);
         }
         for (entity, mut state, transform) in together {
-            finish_ticks(entity, &mut state, transform, &mut messages);
+            let non_finite = state.sim.non_finite_particles();
+            finish_ticks(entity, &mut state, non_finite, transform, &mut messages);
         }
     }
     stats.step_time = start.elapsed();
 }
 
-/// Marks a stepped cloth for write-back, and resets it if it diverged.
+/// Marks a stepped cloth for write-back, and resets it if its ticks left `non_finite`
+/// particles non-finite.
 fn finish_ticks(
     entity: Entity,
     state: &mut ClothSimulation,
+    non_finite: usize,
     transform: &GlobalTransform,
     messages: &mut MessageWriter<ClothMessage>,
 ) {
     state.dirty = true;
-    if !state.sim.is_finite() {
-        let particles = u32::try_from(state.sim.non_finite_particles()).unwrap_or(u32::MAX);
+    if non_finite > 0 {
+        let particles = u32::try_from(non_finite).unwrap_or(u32::MAX);
         state.diverged(entity, particles, rigid_pose(transform), messages);
     }
 }

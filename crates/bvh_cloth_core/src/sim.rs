@@ -134,7 +134,7 @@ impl ClothSim {
         let mut pins = pins.to_vec();
         pins.sort_unstable();
         pins.dedup();
-        let tethers = Arc::new(if pins.is_empty() { TetherSet::default() } else { TetherSet::new(&topology, &pins) });
+        let tethers = Arc::new(TetherSet::new(&topology, &pins));
         let mut sim = Self {
             params,
             topology,
@@ -387,8 +387,12 @@ impl ClothSim {
         self.state.iter().all(|v| v.is_finite())
     }
 
-    /// How many particles have a NaN or infinite position or velocity.
+    /// How many particles have a NaN or infinite position or velocity. A healthy cloth is
+    /// answered by one vectorised pass over the state.
     pub fn non_finite_particles(&self) -> usize {
+        if self.is_finite() {
+            return 0;
+        }
         (0..self.len()).filter(|&i| !(self.position(i).is_finite() && self.velocity(i).is_finite())).count()
     }
 
@@ -429,7 +433,7 @@ impl ClothSim {
     /// first (the plugin does).
     pub fn tick(&mut self, dt: f32, colliders: &[Collider]) -> Ticked {
         if !(dt.is_finite() && dt > 0.0) {
-            return Ticked { substeps: 0, non_finite: self.non_finite_count() };
+            return Ticked { substeps: 0, non_finite: self.non_finite_particles() };
         }
         let substeps = self.substeps(dt);
         let h = dt / substeps as f32;
@@ -442,12 +446,7 @@ impl ClothSim {
             }
         }
         self.wind_time += f64::from(dt);
-        Ticked { substeps, non_finite: self.non_finite_count() }
-    }
-
-    /// [`Self::non_finite_particles`], with a vectorised pass first for the healthy cloth.
-    fn non_finite_count(&self) -> usize {
-        if self.is_finite() { 0 } else { self.non_finite_particles() }
+        Ticked { substeps, non_finite: self.non_finite_particles() }
     }
 
     /// Runs `substeps` block-descent substeps of `h` seconds on positions kept by particle.
@@ -459,7 +458,7 @@ impl ClothSim {
         descent.resize(n);
         let free_body = self.is_free_body();
         let tether_set = Arc::clone(&self.tethers);
-        let tethers = self.params.tethers.filter(|_| !tether_set.pin.is_empty()).map(|t| (&*tether_set, 1.0 + t.slack));
+        let tethers = self.params.tethers.filter(|_| !tether_set.is_empty()).map(|t| (&*tether_set, 1.0 + t.slack));
         let w = self.width;
         for (r, row) in self.state.chunks_exact(LANES * w).enumerate() {
             for c in 0..w.min(n.saturating_sub(r * w)) {

@@ -26,18 +26,18 @@
 //!   between, which pull it back at their own pace. Only kinetic energy is taken, so the
 //!   tethers never add energy at any stiffness, and a cloth that starts stretched, or whose
 //!   anchor jumps, is not flung. Kim et al. also move the particle back onto its reach; on
-//!   this solver that move stores energy in stiff springs across the tether (a 16 x 16 cloth at
-//!   SpringK 1e5 falling from its rest shape without damping peaked 17 % above its starting
-//!   energy and kept 10 % after 4 s), for less stretch at 256 x 256 (3.0x RK4's p99 at 1 s
-//!   where the rope leaves 3.9x) but more at 128 x 128 (1.8x against 1.44x). The pin does not
-//!   move (it is held).
+//!   this solver that move stores energy in stiff springs across the tether: a 16 x 16 cloth
+//!   at SpringK 1e5 falling from its rest shape without damping rose above its starting
+//!   energy, which `energy_never_grows_without_input` (the core's `block_descent` tests)
+//!   forbids. The pin does not move (it is held).
 //! - Only block descent is tethered: the explicit integrators carry a load through the cloth
 //!   within each substep, and RK4 stays the reference of the spring model.
 //!
 //! A cloth with no pin has no tethers. `slack` is how far beyond its rest distance a particle
 //! may move away from its pin at its own speed. The rope takes speed, not position, so a
 //! cloth still settles where its springs hold it: hanging from two corners (damping 2, after
-//! 8 s), 0.4 % short of RK4's sag at 32 x 32.
+//! 8 s), 0.33 % short of RK4's sag at 32 x 32
+//! (`cargo test -p bvh_cloth_core --release --test block_descent -- --nocapture hangs_to`).
 //!
 //! ## Measured
 //! The same cloth, dropped flat, at the defaults (Looper 16, one sweep), against RK4 at the same
@@ -124,8 +124,12 @@ pub struct TetherSet {
 
 impl TetherSet {
     /// Every particle's nearest pin among `pins` over `topology`'s springs, by any-angle
-    /// shortest paths on the rest shape (see the [module docs](self)).
+    /// shortest paths on the rest shape (see the [module docs](self)); the empty set when
+    /// there is no pin.
     pub fn new(topology: &ClothTopology, pins: &[u32]) -> Self {
+        if pins.is_empty() {
+            return Self::default();
+        }
         let n = topology.len();
         let rest = topology.rest_positions();
         let mut pin = vec![UNTETHERED; n];
@@ -178,9 +182,9 @@ impl TetherSet {
         Self { pin, length }
     }
 
-    /// Whether any particle is tethered.
+    /// Whether the set holds no tether: the cloth has no pin.
     pub fn is_empty(&self) -> bool {
-        self.pin.iter().all(|&p| p == UNTETHERED)
+        self.pin.is_empty()
     }
 
     /// Holds particle `i`, at `x` moving at `v`, by its tether of `scale` times its length to

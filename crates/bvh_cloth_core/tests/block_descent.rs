@@ -26,7 +26,8 @@ fn sag(sim: &mut ClothSim, seconds: f32) -> f32 {
 }
 
 /// A 32x32 cloth hanging from two corners settles to within 5 % of RK4's sag at the same
-/// stiffness, with one sweep per substep (measured: 0.01 % at 16 substeps, 0.5 % at 4).
+/// stiffness, with one sweep per substep and the default tethers (measured: 0.33 % at 16
+/// substeps, 0.20 % at 4).
 #[test]
 fn hangs_to_the_sag_rk4_hangs_to() {
     let base = ClothParams { damping: 2.0, looper: 16, ..Default::default() };
@@ -35,6 +36,7 @@ fn hangs_to_the_sag_rk4_hangs_to() {
         let params = ClothParams { integrator: Integrator::BLOCK_DESCENT, looper, ..base.clone() };
         let got = sag(&mut hanging(32, params), 8.0);
         let off = (got - reference).abs() / reference;
+        eprintln!("looper {looper}: sag {got:.4} m against RK4's {reference:.4} m ({:.2} %)", 100.0 * off);
         assert!(off < 0.05, "looper {looper}: sag {got} m against RK4's {reference} m ({:.1} %)", 100.0 * off);
     }
 }

@@ -6,8 +6,9 @@
 //! unconverged while it moves, and the tethers ([`bvh_cloth_core::tethers`]) hang it on the
 //! pins. Measured at 0.5 s (the bottom of the swing) and 1 s (near its top): the sag of the
 //! last row's middle below the pins and the p99 strain of the structural springs. Without
-//! tethers the default's sag at 1 s was 47 % above RK4's at 64 x 64 and 135 % at 128 x 128,
-//! its p99 strain 2.6x and 8.9x RK4's; this test fails on that.
+//! tethers the same solver's sag at 1 s is 47 % above RK4's at 64 x 64 and 135 % at
+//! 128 x 128, its p99 strain 2.6x and 8.9x RK4's (the report's `motion` section); this test
+//! fails on that.
 //!
 //! A free cloth, which has no tethers, landing on the bunny stretches at most half again as
 //! much as RK4's.
