@@ -584,7 +584,7 @@ fn fidelity(meshes: &[ObjMesh], parry: &[TriMesh]) -> String {
         TOUCH * 1e3
     );
     println!(
-        "The exact-contact columns: the same cloth on the same model with exact contact (`Collider::with_exact_contact`, margin 0, so the surface's least thickness, a millionth of its diagonal). Exact contact does not use the voxel spheres, so it is run once per model and its figures stand in every row of that model; resting means within {} mm of the triangles.\n",
+        "The exact-contact columns: the same cloth on the same model with exact contact (`Collider::with_exact_contact`, margin 0, so the surface's least thickness: a millionth of its diagonal, and at least 256 steps of `f32` at its coordinates' magnitude). Exact contact does not use the voxel spheres, so it is run once per model and its figures stand in every row of that model; resting means within {} mm of the triangles.\n",
         TOUCH * 1e3
     );
     println!(

@@ -147,12 +147,13 @@ impl Collider {
     }
 
     /// How far the collision response keeps a particle off this collider, in metres: the
-    /// margin, and with exact contact at least the surface's least thickness
-    /// ([`TriangleSurface::min_thickness`], a millionth of its box's diagonal) at the pose's
-    /// scale, which is what a zero margin gives.
+    /// margin, and with exact contact at least the surface's least thickness at its pose
+    /// ([`TriangleSurface::least_thickness`]: a millionth of its box's diagonal, and enough
+    /// steps of `f32` at its coordinates' magnitude that rounding cannot put a particle
+    /// through it), which is what a zero margin gives.
     pub fn contact_thickness(&self) -> f32 {
         match self.surface() {
-            Some(surface) => self.margin.max(surface.min_thickness * self.pose.scale),
+            Some(surface) => self.margin.max(surface.least_thickness(&self.pose) * self.pose.scale),
             None => self.margin,
         }
     }

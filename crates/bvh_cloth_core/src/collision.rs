@@ -77,7 +77,8 @@ pub struct ColliderFrame<'a> {
     world_to_local: Affine3A,
     local_to_world: Affine3A,
     rotation: Quat,
-    /// The margin divided by the collider's scale.
+    /// The margin divided by the collider's scale; for exact contact at least the surface's
+    /// [least thickness](TriangleSurface::least_thickness) at the pose.
     pub margin_local: f32,
     /// The friction coefficient (0 when the collider's is negative or not finite).
     pub friction: f32,
@@ -95,10 +96,13 @@ impl<'a> ColliderFrame<'a> {
         }
         let local_to_world = pose.to_affine();
         let usable = |v: f32| if v.is_finite() { v.max(0.0) } else { 0.0 };
-        let margin_local = usable(collider.margin) / pose.scale;
+        let mut margin_local = usable(collider.margin) / pose.scale;
         let (shape, contact_reach) = match &collider.shape {
             ColliderShape::Spheres { lbvh, .. } if lbvh.spheres.is_empty() => return None,
-            ColliderShape::Spheres { surface: Some(surface), .. } => (FrameShape::Triangles(surface), 0.0),
+            ColliderShape::Spheres { surface: Some(surface), .. } => {
+                margin_local = margin_local.max(surface.least_thickness(&pose));
+                (FrameShape::Triangles(surface), 0.0)
+            }
             ColliderShape::Spheres { lbvh, .. } => {
                 (FrameShape::Spheres(lbvh), contact_reach(lbvh.max_radius, margin_local))
             }
@@ -130,9 +134,7 @@ impl<'a> ColliderFrame<'a> {
             // The response holds a particle at the margin, and lets it rest within the contact
             // band below it where a neighbouring triangle's plane put it (see
             // `exact_contact`): closer than that is inside.
-            FrameShape::Triangles(surface) => {
-                surface.within(local, self.margin_local.max(surface.min_thickness) * (1.0 - CONTACT_BAND))
-            }
+            FrameShape::Triangles(surface) => surface.within(local, self.margin_local * (1.0 - CONTACT_BAND)),
             FrameShape::Primitive(primitive) => primitive.contains(local, self.margin_local),
         }
     }

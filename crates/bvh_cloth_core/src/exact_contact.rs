@@ -45,7 +45,16 @@
 //! # The guarantee
 //!
 //! For a collider that does not move during the substep, the straight path between a
-//! particle's two positions crosses no triangle. So a particle never passes through the
+//! particle's two positions crosses no triangle, at any margin, zero included.
+//!
+//! Two things make that hold in `f32`. The thickness is never less than the surface's
+//! [least thickness](TriangleSurface::least_thickness): a millionth of its diagonal, and
+//! [`ROUNDING_THICKNESS`] of the coordinates' magnitude, hundreds of times the rounding of a
+//! position there, so a particle held at the thickness is clearly on its side. And the
+//! crossing test ([`segment_hit`]) counts a path that ends on a plane, or past it by less than
+//! the rounding of its distance to it, as reaching it, and decides which side of an edge a
+//! path passes from the edge alone, so two triangles that share an edge cannot both miss a
+//! path through it. So a particle never passes through the
 //! surface, whatever its thickness or speed: not through a thin plate, not through an open
 //! mesh, and not into a closed one. A particle that starts inside a closed mesh (the collider
 //! was placed over it) stays inside; nothing here can tell the inside of an open mesh.
@@ -60,6 +69,7 @@
 use glam::Vec3;
 use rayon::prelude::*;
 
+use crate::collider::ColliderPose;
 use crate::collision::{CONTACT_BAND, MAX_PASSES, Response};
 use crate::error::ColliderError;
 use crate::lbvh::{Lbvh, Sphere};
@@ -78,10 +88,18 @@ pub struct TriangleSurface {
     pub triangles: Vec<[Vec3; 3]>,
     /// Triangles of the mesh left out because they have no area (or a non-finite corner).
     pub dropped: usize,
-    /// The least thickness a response uses: a millionth of the surface's bounding box diagonal,
-    /// so that a zero margin still keeps a particle off the plane it rests on.
+    /// The least thickness a response uses, in the mesh's units: a millionth of the surface's
+    /// bounding box diagonal, and at least [`ROUNDING_THICKNESS`] of its largest coordinate, so
+    /// that a zero margin keeps a particle off the plane it rests on by far more than `f32` can
+    /// round a position there. [`Self::least_thickness`] adds the collider's placement.
     pub min_thickness: f32,
 }
+
+/// The least thickness of exact contact relative to the coordinates' magnitude: 256 times
+/// `f32::EPSILON`, so 256 steps of `f32` at that magnitude (15 µm for a mesh reaching 0.5 m
+/// from its origin), far above the rounding of a position, of a distance to a plane
+/// ([`PLANE_ROUNDING`](crate::triangles::PLANE_ROUNDING)) and of the move between the world and the collider's frame.
+pub const ROUNDING_THICKNESS: f32 = 256.0 * f32::EPSILON;
 
 /// The rounding of a distance at a point, relative to the point's largest coordinate, ten
 /// times over: the lookout of [`TriangleSurface::respond`] is widened by it.
@@ -140,12 +158,14 @@ impl TriangleSurface {
         };
         lbvh.fit_boxes_by(triangle_box);
         let wide = WideBvh::from_lbvh(&lbvh, triangle_box);
-        let diagonal = match (lbvh.nodes.first(), triangles.first()) {
-            (Some(root), _) => Vec3::from(root.aabb_min).distance(Vec3::from(root.aabb_max)),
-            (None, Some([a, b, c])) => a.min(b.min(*c)).distance(a.max(b.max(*c))),
-            (None, None) => 0.0,
+        let (lo, hi) = match (lbvh.nodes.first(), triangles.first()) {
+            (Some(root), _) => (Vec3::from(root.aabb_min), Vec3::from(root.aabb_max)),
+            (None, Some([a, b, c])) => (a.min(b.min(*c)), a.max(b.max(*c))),
+            (None, None) => (Vec3::ZERO, Vec3::ZERO),
         };
-        Ok(Self { lbvh, wide, triangles, dropped: count - kept.len(), min_thickness: 1.0e-6 * diagonal })
+        let magnitude = lo.abs().max(hi.abs()).max_element();
+        let min_thickness = (1.0e-6 * lo.distance(hi)).max(ROUNDING_THICKNESS * magnitude);
+        Ok(Self { lbvh, wide, triangles, dropped: count - kept.len(), min_thickness })
     }
 
     /// The point of the surface closest to `p` within `reach`, if any is.
@@ -175,6 +195,14 @@ impl TriangleSurface {
     /// `prev`'s size) before it calls a short path free.
     pub fn sweep_slack(&self) -> f32 {
         20.0 * EDGE_SLACK * self.lbvh.max_radius
+    }
+
+    /// The least thickness of a response at `pose`, in the mesh's units: [`Self::min_thickness`],
+    /// and [`ROUNDING_THICKNESS`] of the pose's distance from the world's origin, since a
+    /// particle's position is rounded there too.
+    pub fn least_thickness(&self, pose: &ColliderPose) -> f32 {
+        let placed = ROUNDING_THICKNESS * pose.translation.abs().max_element() / pose.scale;
+        if placed.is_finite() { self.min_thickness.max(placed) } else { self.min_thickness }
     }
 
     /// Whether `p` is closer than `thickness` to the surface.

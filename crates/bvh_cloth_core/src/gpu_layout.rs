@@ -402,7 +402,7 @@ impl GpuCollider {
         let (node_count, sphere_count, shape, size) = match &collider.shape {
             ColliderShape::Spheres { surface: Some(surface), .. } => {
                 let tree = &surface.lbvh;
-                let size = [surface.min_thickness, surface.sweep_slack(), 0.0, 0.0];
+                let size = [surface.least_thickness(&collider.pose), surface.sweep_slack(), 0.0, 0.0];
                 (tree.nodes.len() as u32, tree.spheres.len() as u32, SHAPE_TRIANGLES, size)
             }
             ColliderShape::Spheres { lbvh, .. } => {

@@ -64,35 +64,58 @@ fn closest_on_longest_edge(p: Vec3, [a, b, c]: [Vec3; 3]) -> Vec3 {
 }
 
 /// Barycentric slack allowed at a triangle's edges by [`segment_hit`], relative to the
-/// triangle: a segment through an edge two triangles share hits at least one of them.
+/// triangle.
 pub const EDGE_SLACK: f32 = 1.0e-5;
+
+/// The rounding [`segment_hit`] allows in a signed distance to a triangle's plane, as a
+/// multiple of `f32::EPSILON` times the distance from the triangle's corner and over the sine
+/// of the corner's angle: four times a bound on the rounding of the distance itself.
+pub const PLANE_ROUNDING: f32 = 4.0 * f32::EPSILON;
 
 /// Where the segment from `p` to `q` first meets the triangle `[a, b, c]` (either side), as
 /// the parameter `t` in `[0, 1]` along it; `None` if it misses, runs in the triangle's plane,
 /// or the triangle has no area.
+///
+/// The test is robust to `f32` rounding where a miss would let a particle through:
+/// - An end point on the plane, or past it by less than the rounding of its distance to it,
+///   counts as reaching it. Only a start point clearly off the plane can go through it; one
+///   on the plane hits at `t = 0` when the segment leaves the plane within the triangle.
+/// - Which side of each edge the segment passes is one signed volume per edge, computed from
+///   the edge's corners in a fixed order, so two triangles that share an edge answer it
+///   with the same number: a segment through the edge hits at least one of them.
 pub fn segment_hit(p: Vec3, q: Vec3, [a, b, c]: [Vec3; 3]) -> Option<f32> {
-    let d = q - p;
-    let (e1, e2) = (b - a, c - a);
-    let h = d.cross(e2);
-    let det = e1.dot(h);
-    // Parallel to the plane, or no area: relative to the sizes involved.
-    let scale = e1.length() * e2.length() * d.length();
-    if det.is_nan() || det.abs() <= 1.0e-7 * scale {
+    let n = (b - a).cross(c - a);
+    let (sp, sq) = ((p - a).dot(n), (q - a).dot(n));
+    // The rounding of each signed distance (scaled by |n|), squared.
+    let corner = PLANE_ROUNDING * PLANE_ROUNDING * (b - a).length_squared() * (c - a).length_squared();
+    let (on_p, on_q) = (sp * sp <= corner * (p - a).length_squared(), sq * sq <= corner * (q - a).length_squared());
+    if !(sp.is_finite() && sq.is_finite()) || n == Vec3::ZERO {
         return None;
     }
-    let inv = 1.0 / det;
-    let s = p - a;
-    let u = s.dot(h) * inv;
-    if !(-EDGE_SLACK..=1.0 + EDGE_SLACK).contains(&u) {
+    let t = if on_p {
+        // From the plane: out of it through the triangle, at its start.
+        if on_q {
+            return None;
+        }
+        0.0
+    } else if on_q || (sp > 0.0) != (sq > 0.0) {
+        (sp / (sp - sq)).clamp(0.0, 1.0)
+    } else {
+        return None;
+    };
+    // Barycentric coordinates of the line through `p` and `q` from the three edges' volumes,
+    // whose sum is (q - p) . n; the line is taken along the normal where it starts on the plane.
+    let (from, dir) = if on_p { (p, n) } else { (p, q - p) };
+    let edge = |s: Vec3, e: Vec3| {
+        let (lo, hi, sign) = if (s.x, s.y, s.z) <= (e.x, e.y, e.z) { (s, e, 1.0) } else { (e, s, -1.0) };
+        sign * dir.cross(lo - from).dot(hi - from)
+    };
+    let volumes = [edge(b, c), edge(c, a), edge(a, b)];
+    let sum = volumes[0] + volumes[1] + volumes[2];
+    if sum == 0.0 || sum.is_nan() {
         return None;
     }
-    let r = s.cross(e1);
-    let v = d.dot(r) * inv;
-    if v < -EDGE_SLACK || u + v > 1.0 + EDGE_SLACK {
-        return None;
-    }
-    let t = e2.dot(r) * inv;
-    (0.0..=1.0).contains(&t).then_some(t)
+    volumes.iter().all(|&v| v / sum >= -EDGE_SLACK).then_some(t)
 }
 
 /// Whether two triangles intersect: an edge of either crosses the other ([`segment_hit`], so
@@ -233,6 +256,25 @@ mod tests {
         let (p, q) = (Vec3::new(0.5, 0.5, 1.0), Vec3::new(0.5, 0.5, -1.0));
         assert!(segment_hit(p, q, T).is_some() || segment_hit(p, q, other).is_some());
         assert_eq!(face_normal(T), Some(Vec3::Z));
+    }
+
+    /// An end point on the plane, or a rounding past it, reaches it; a start on the plane hits
+    /// at its start when it leaves through the triangle; a grazing path that dips a micrometre
+    /// through it over 23 mm is found.
+    #[test]
+    fn paths_ending_on_the_plane_hit_and_paths_in_it_do_not() {
+        let on = segment_hit(Vec3::new(0.25, 0.25, 1.0), Vec3::new(0.25, 0.25, 0.0), T);
+        assert_eq!(on, Some(1.0));
+        let past = segment_hit(Vec3::new(0.25, 0.25, 1.0e-6), Vec3::new(0.25, 0.25, -1.0e-12), T);
+        assert!(past.is_some_and(|t| t > 0.99), "{past:?}");
+        // Short of the plane by more than the rounding at 0.35 m from the corner (4e-8 m).
+        let short = segment_hit(Vec3::new(0.25, 0.25, 1.0e-5), Vec3::new(0.25, 0.25, 1.0e-6), T);
+        assert_eq!(short, None);
+        assert_eq!(segment_hit(Vec3::new(0.25, 0.25, 0.0), Vec3::new(0.25, 0.25, 1.0), T), Some(0.0));
+        assert_eq!(segment_hit(Vec3::new(0.25, 0.25, 0.0), Vec3::new(0.3, 0.25, 0.0), T), None);
+        assert_eq!(segment_hit(Vec3::new(2.0, 2.0, 0.0), Vec3::new(2.0, 2.0, 1.0), T), None);
+        let graze = segment_hit(Vec3::new(0.1, 0.3, 1.0e-6), Vec3::new(0.123, 0.3, -1.0e-8), T);
+        assert!(graze.is_some_and(|t| t > 0.98), "{graze:?}");
     }
 
     #[test]

@@ -247,6 +247,7 @@ fn shared_constants_match_the_core() {
     assert_eq!(constant("SHAPE_SPHERES"), format!("{}u", bvh_cloth_core::gpu_layout::SHAPE_SPHERES));
     assert_eq!(constant("SHAPE_TRIANGLES"), format!("{}u", bvh_cloth_core::gpu_layout::SHAPE_TRIANGLES));
     assert_eq!(constant("EDGE_SLACK").parse::<f32>().unwrap(), bvh_cloth_core::triangles::EDGE_SLACK);
+    assert_eq!(constant("PLANE_ROUNDING").parse::<f32>().unwrap(), bvh_cloth_core::triangles::PLANE_ROUNDING);
     use bvh_cloth_core::Primitive;
     let shapes = [
         ("SHAPE_SPHERE", Primitive::Sphere { radius: 1.0 }),

@@ -370,30 +370,52 @@ fn closest_on_triangle(p: vec3<f32>, a: vec3<f32>, b: vec3<f32>, c: vec3<f32>) -
 
 const EDGE_SLACK: f32 = 1.0e-5;            // bvh_cloth_core::triangles::EDGE_SLACK
 
+const PLANE_ROUNDING: f32 = 4.7683716e-7;  // bvh_cloth_core::triangles::PLANE_ROUNDING
+
+// One edge's signed volume against the line from `origin` along `dir`, from its corners in a
+// fixed order, so that the two triangles sharing the edge get the same number.
+fn edge_volume(s: vec3<f32>, e: vec3<f32>, origin: vec3<f32>, dir: vec3<f32>) -> f32 {
+    var swap = s.x > e.x;
+    if (s.x == e.x) {
+        swap = s.y > e.y || (s.y == e.y && s.z > e.z);
+    }
+    if (swap) {
+        return -dot(cross(dir, e - origin), s - origin);
+    }
+    return dot(cross(dir, s - origin), e - origin);
+}
+
 // bvh_cloth_core::triangles::segment_hit: the parameter along p..q, or -1 for a miss.
 fn segment_hit(p: vec3<f32>, q: vec3<f32>, a: vec3<f32>, b: vec3<f32>, c: vec3<f32>) -> f32 {
-    let d = q - p;
-    let e1 = b - a;
-    let e2 = c - a;
-    let h = cross(d, e2);
-    let det = dot(e1, h);
-    let scale = length(e1) * length(e2) * length(d);
-    if (!(abs(det) > 1.0e-7 * scale)) {
+    let n = cross(b - a, c - a);
+    let sp = dot(p - a, n);
+    let sq = dot(q - a, n);
+    let corner = PLANE_ROUNDING * PLANE_ROUNDING * dot(b - a, b - a) * dot(c - a, c - a);
+    let on_p = sp * sp <= corner * dot(p - a, p - a);
+    let on_q = sq * sq <= corner * dot(q - a, q - a);
+    if (!(abs(sp) <= 3.0e38 && abs(sq) <= 3.0e38) || all(n == vec3<f32>(0.0))) {
         return -1.0;
     }
-    let inv = 1.0 / det;
-    let s = p - a;
-    let u = dot(s, h) * inv;
-    if (u < -EDGE_SLACK || u > 1.0 + EDGE_SLACK) {
+    var t = 0.0;
+    var dir = q - p;
+    if (on_p) {
+        if (on_q) {
+            return -1.0;
+        }
+        dir = n;
+    } else if (on_q || (sp > 0.0) != (sq > 0.0)) {
+        t = clamp(sp / (sp - sq), 0.0, 1.0);
+    } else {
         return -1.0;
     }
-    let r = cross(s, e1);
-    let v = dot(d, r) * inv;
-    if (v < -EDGE_SLACK || u + v > 1.0 + EDGE_SLACK) {
+    let va = edge_volume(b, c, p, dir);
+    let vb = edge_volume(c, a, p, dir);
+    let vc = edge_volume(a, b, p, dir);
+    let sum = va + vb + vc;
+    if (!(abs(sum) > 0.0)) {
         return -1.0;
     }
-    let t = dot(e2, r) * inv;
-    if (t >= 0.0 && t <= 1.0) {
+    if (va / sum >= -EDGE_SLACK && vb / sum >= -EDGE_SLACK && vc / sum >= -EDGE_SLACK) {
         return t;
     }
     return -1.0;
