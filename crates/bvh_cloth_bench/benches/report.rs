@@ -14,7 +14,10 @@
 //!    on the GPU.
 //! 8. Exact primitives against voxelised meshes: collision cost per particle.
 //! 9. Skinned colliders: one frame's refit against skinning the mesh's vertices.
-//! 10. Exact contact against sphere contact: the resting air gap, queries and build.
+//! 10. Exact contact against sphere contact: the resting air gap; its point query against
+//!     parry3d's bounded projection, on a draped cloth and on points near the surface, and its
+//!     build and memory up to 2 million triangles ([`exact_queries`], `exact_contact_queries`,
+//!     `exact_contact_build`).
 //! 11. Self-contact: a cloth folding over a bar and two cloths on the bunny, checked with an
 //!     exact triangle–triangle test, and its cost.
 //! 12. Wind: a flag's flutter in steady wind (the free edge's spectral peak) and its energy on
@@ -28,11 +31,13 @@
 //! to run only the sections whose name contains one of the NAMEs: `table_vii`, `queries`,
 //! `fidelity`, `step_scaling`, `topology`, `gpu_profile`, `many_cloths`, `build_scaling`,
 //! `far_from_origin`, `solver`, `solver_gpu`, `primitives`, `skinned_refit`, `exact_contact`,
-//! `exact_contact_gpu`, `self_contact`, `self_contact_gpu`, `wind`, `wind_gpu`, `motion`,
-//! `motion_cost`. The
+//! `exact_contact_queries`, `exact_contact_build`, `exact_contact_gpu`, `self_contact`,
+//! `self_contact_gpu`, `wind`, `wind_gpu`, `motion`, `motion_cost`. The
 //! GPU halves of the solver, exact-contact, self-contact and wind tables are sections of their
 //! own, so `-- gpu` runs every GPU-only table without their CPU simulations.
 
+#[path = "report/exact_queries.rs"]
+mod exact_queries;
 #[path = "report/motion.rs"]
 mod motion;
 
@@ -45,7 +50,7 @@ use bvh_cloth_bench::{
 };
 use bvh_cloth_core::obj::ObjMesh;
 
-use bvh_cloth_core::collision::{CONTACT_BAND, ColliderFrame};
+use bvh_cloth_core::collision::ColliderFrame;
 use bvh_cloth_core::gpu_layout::{GpuParticle, load_gpu_particles};
 use bvh_cloth_core::self_contact::{ContactSolver, SelfContact};
 use bvh_cloth_core::skinning::{SkinRef, SkinScratch, SkinnedVertices};
@@ -141,7 +146,13 @@ fn main() {
         skinned_refit(&meshes, &single, gpu.as_ref());
     }
     if run("exact_contact") {
-        exact_contact(&meshes, &parry, &single);
+        exact_contact(&meshes, &parry);
+    }
+    if run("exact_contact_queries") {
+        exact_queries::exact_queries(&meshes, &single);
+    }
+    if run("exact_contact_build") {
+        exact_queries::exact_build(&meshes);
     }
     if run("exact_contact_gpu") {
         exact_contact_on_gpu(&meshes, gpu.as_ref());
@@ -1177,15 +1188,14 @@ fn gpu_refit_ms(gpu: &Gpu, collider: &Collider, pose: &[Affine3A]) -> Option<(f6
     Some((median(samples), refit.dispatches()))
 }
 
-/// Exact contact against the paper's sphere contact, on the bundled models at n = 5 with a
-/// thickness (margin) of 5 mm: a 64 x 64 cloth falls onto each and rests 3 s (RK4, Looper 16),
-/// checked against the exact mesh (parry3d) every 20 ticks; then one thread's contact queries
-/// (the triangles within the thickness of a draped cloth's particles) against parry3d's exact
-/// projection of the same points, and the build with the triangle surface against without.
 /// The exact-contact sections' cloth thickness (m).
 const EXACT_THICKNESS: f32 = 0.005;
 
-fn exact_contact(meshes: &[ObjMesh], parry: &[TriMesh], single: &rayon::ThreadPool) {
+/// Exact contact against the paper's sphere contact, on the bundled models at n = 5 with a
+/// thickness (margin) of 5 mm: a 64 x 64 cloth falls onto each and rests 3 s (RK4, Looper 16),
+/// checked against the exact mesh (parry3d) every 20 ticks; then the drape's time with each
+/// contact.
+fn exact_contact(meshes: &[ObjMesh], parry: &[TriMesh]) {
     const THICKNESS: f32 = EXACT_THICKNESS;
     /// A particle within this distance (m) of the true surface at the end rests on the model.
     const ON_MODEL: f32 = 0.05;
@@ -1248,103 +1258,6 @@ fn exact_contact(meshes: &[ObjMesh], parry: &[TriMesh], single: &rayon::ThreadPo
             );
         }
     }
-
-    println!("\n### Queries (one thread) and build\n");
-    println!(
-        "Queries: the 4,096 positions of a cloth draped 2 s on the exact collider at n = 5; exact contact finds the closest point within the thickness (`TriangleSurface::closest_within`, what a contact asks), parry3d projects each point on its `TriMesh` (unbounded); alternating, best of 9 each. Each pass of all the points is timed twice in a row: first right after the other library's pass (its data evicted from the caches), then again (its data cached, as in a collision pass, which queries one collider for every particle in turn). Build: `Collider::from_mesh` at n = 16, and the same with `with_exact_contact`, on the whole pool ({} threads), alternating, best of 5 each.\n",
-        rayon::current_num_threads()
-    );
-    println!(
-        "| model | triangles | exact M/s | parry3d M/s | exact / parry3d | repeated: exact M/s | parry3d M/s | exact / parry3d | build ms | build with surface ms | ratio |"
-    );
-    println!("|---|---|---|---|---|---|---|---|---|---|---|");
-    // The second table's rows: what slows the pass that follows other work.
-    let mut after_rows = Vec::new();
-    let mut lines = vec![0u8; 64 << 20];
-    let mut words = [1u32; 4096];
-    for ((name, mesh), exact) in MODELS.iter().zip(meshes).zip(parry) {
-        let c = collider(mesh, 5).with_margin(THICKNESS).with_exact_contact(mesh.as_mesh_ref()).expect("area");
-        let surface = c.surface().expect("exact contact").clone();
-        let points = drape(&c, 2.0).positions();
-        let rate = |seconds: f64| points.len() as f64 / seconds;
-        let ours = || {
-            for &p in &points {
-                std::hint::black_box(surface.closest_within(p, THICKNESS * (1.0 + CONTACT_BAND)));
-            }
-        };
-        let theirs = || {
-            for &p in &points {
-                std::hint::black_box(exact.project_local_point(Vector::from(p.to_array()), true));
-            }
-        };
-        // Alternating, so that the machine's load falls on both alike; each pass twice in a
-        // row, after the other's pass and then repeated; best of 9 each. The untimed first
-        // pass of parry3d's puts the first of ours after one of theirs, as every other is.
-        let [exact_after, exact_repeated, parry_after, parry_repeated] = single.install(|| {
-            theirs();
-            (0..9).fold([f64::INFINITY; 4], |best, _| {
-                let times = [time(ours), time(ours), time(theirs), time(theirs)];
-                std::array::from_fn(|i| best[i].min(times[i]))
-            })
-        });
-        let [after_write, after_branches, after_both] = single.install(|| {
-            (0..9).fold([f64::INFINITY; 3], |best, _| {
-                write_every_line(&mut lines);
-                let write = time(ours);
-                train_other_branches(&mut words);
-                let branches = time(ours);
-                write_every_line(&mut lines);
-                train_other_branches(&mut words);
-                let both = time(ours);
-                [best[0].min(write), best[1].min(branches), best[2].min(both)]
-            })
-        });
-        after_rows.push(format!(
-            "| {name} | {:.2} | {:.2} | {:.2} | {:.2} | {:.2} |",
-            rate(exact_repeated) / 1e6,
-            rate(after_write) / 1e6,
-            rate(after_branches) / 1e6,
-            rate(after_both) / 1e6,
-            rate(exact_after) / 1e6
-        ));
-        let (exact_qps, parry_qps) = (rate(exact_after), rate(parry_after));
-        let (exact_warm_qps, parry_warm_qps) = (rate(exact_repeated), rate(parry_repeated));
-        // The builds on the whole pool, as a game's loading does, alternating; best of 5 each.
-        let (build_s, with_s) = (0..5).fold((f64::INFINITY, f64::INFINITY), |(plain, with), _| {
-            let p = best_of(1, || {
-                std::hint::black_box(Collider::from_mesh(mesh.as_mesh_ref(), 16).expect("valid"));
-            });
-            let w = best_of(1, || {
-                let built = Collider::from_mesh(mesh.as_mesh_ref(), 16).expect("valid");
-                std::hint::black_box(built.with_exact_contact(mesh.as_mesh_ref()).expect("area"));
-            });
-            (plain.min(p), with.min(w))
-        });
-        println!(
-            "| {name} | {} | {:.2} | {:.3} | {:.0}x | {:.2} | {:.3} | {:.0}x | {:.1} | {:.1} | {:.2}x |",
-            surface.triangles.len(),
-            exact_qps / 1e6,
-            parry_qps / 1e6,
-            exact_qps / parry_qps,
-            exact_warm_qps / 1e6,
-            parry_warm_qps / 1e6,
-            exact_warm_qps / parry_warm_qps,
-            build_s * 1e3,
-            with_s * 1e3,
-            with_s / build_s,
-        );
-    }
-
-    println!("\n### What slows the exact query's pass after other work\n");
-    println!(
-        "M/s of the same exact queries on one thread, each pass timed right after: the same pass (repeated, as above); a write to every cache line of 64 MiB (which evicts the caches and trains few branches); 3 million steps of a loop whose branches follow a pseudo-random sequence over 16 KiB (which trains the branch predictors on other code and evicts little); both; parry3d's pass (as above). Best of 9 each, in that order within each round.\n"
-    );
-    println!("| model | repeated | after the write | after the branches | after both | after parry3d |");
-    println!("|---|---|---|---|---|---|");
-    for row in after_rows {
-        println!("{row}");
-    }
-    drop(lines);
 
     println!("\n### CPU: the drape with exact against sphere contact\n");
     println!(

@@ -13,9 +13,10 @@
 //! triangles at the paper's `n = 5` (about 900 on the 70,000-triangle bunny), so a tree whose
 //! leaves are single triangles keeps the narrow phase to the few triangles within a thickness
 //! of the particle whatever `n` the voxel spheres were built with, and the same traversal
-//! serves both. The GPU walks that tree; the CPU walks a four-wide copy of it ([`WideBvh`]),
-//! whose nodes test four of the binary tree's boxes at once and which meets the triangles in
-//! the same order.
+//! serves both. The CPU walks a four-wide copy of it ([`WideBvh`]), whose nodes test four of the
+//! binary tree's boxes at once, kept in 8 bits a bound; the GPU walks the binary tree, built
+//! again from the triangles when it is uploaded ([`TriangleSurface::binary_tree`]), which meets
+//! the triangles in the same order.
 //!
 //! # Response
 //!
@@ -75,14 +76,17 @@ use crate::error::ColliderError;
 use crate::lbvh::{Lbvh, Sphere};
 use crate::triangles::{EDGE_SLACK, closest_point, face_normal, has_area, segment_hit};
 use crate::voxel_spheres::MeshRef;
-use crate::wide_bvh::WideBvh;
+use crate::wide_bvh::{WideBvh, WideNode};
 
 /// The triangles of a mesh in an LBVH, for exact contact.
+///
+/// It keeps the triangles and the four-wide tree the CPU's queries walk, about 70 bytes a
+/// triangle; the binary tree the GPU walks is built again from the triangles when it is
+/// uploaded ([`Self::binary_tree`]).
 #[derive(Clone, Debug)]
 pub struct TriangleSurface {
-    /// One bounding sphere per triangle: leaf `k` is `triangles[k]`. The GPU's tree.
-    pub lbvh: Lbvh,
-    /// The same tree four wide, each leaf's box the triangle's: the CPU's queries walk it.
+    /// The LBVH over the triangles' bounding spheres folded four wide, each leaf's box the
+    /// triangle's: leaf `k` is `triangles[k]`. The CPU's queries walk it.
     pub wide: WideBvh,
     /// The triangles in leaf order, in the mesh's coordinates.
     pub triangles: Vec<[Vec3; 3]>,
@@ -93,6 +97,8 @@ pub struct TriangleSurface {
     /// that a zero margin keeps a particle off the plane it rests on by far more than `f32` can
     /// round a position there. [`Self::least_thickness`] adds the collider's placement.
     pub min_thickness: f32,
+    /// The largest of the triangles' bounding radii.
+    pub max_radius: f32,
 }
 
 /// The least thickness of exact contact relative to the coordinates' magnitude: 256 times
@@ -158,6 +164,7 @@ impl TriangleSurface {
         };
         lbvh.fit_boxes_by(triangle_box);
         let wide = WideBvh::from_lbvh(&lbvh, triangle_box);
+        let max_radius = lbvh.max_radius;
         let (lo, hi) = match (lbvh.nodes.first(), triangles.first()) {
             (Some(root), _) => (Vec3::from(root.aabb_min), Vec3::from(root.aabb_max)),
             (None, Some([a, b, c])) => (a.min(b.min(*c)), a.max(b.max(*c))),
@@ -165,7 +172,13 @@ impl TriangleSurface {
         };
         let magnitude = lo.abs().max(hi.abs()).max_element();
         let min_thickness = (1.0e-6 * lo.distance(hi)).max(ROUNDING_THICKNESS * magnitude);
-        Ok(Self { lbvh, wide, triangles, dropped: count - kept.len(), min_thickness })
+        drop(lbvh);
+        Ok(Self { wide, triangles, dropped: count - kept.len(), min_thickness, max_radius })
+    }
+
+    /// The bytes the surface keeps on the heap: its triangles and its wide tree.
+    pub fn heap_bytes(&self) -> usize {
+        self.triangles.capacity() * size_of::<[Vec3; 3]>() + self.wide.nodes.capacity() * size_of::<WideNode>()
     }
 
     /// The point of the surface closest to `p` within `reach`, if any is.
@@ -194,7 +207,27 @@ impl TriangleSurface {
     /// [`Self::respond`] looks that much farther round `prev` (and [`LOOKOUT_ROUNDING`] of
     /// `prev`'s size) before it calls a short path free.
     pub fn sweep_slack(&self) -> f32 {
-        20.0 * EDGE_SLACK * self.lbvh.max_radius
+        20.0 * EDGE_SLACK * self.max_radius
+    }
+
+    /// The binary LBVH the wide tree was folded from, built again from the triangles: leaf `k`
+    /// is `triangles[k]` (the triangles are in its leaves' Morton order, which a stable sort
+    /// keeps), each leaf the triangle's bounding sphere, the inner boxes fitted to the
+    /// triangles. The GPU walks it; a box query meets the triangles in the order the wide tree
+    /// does.
+    pub fn binary_tree(&self) -> Lbvh {
+        let spheres: Vec<Sphere> = if self.triangles.len() >= PARALLEL_MIN {
+            self.triangles.par_iter().map(bounding_sphere).collect()
+        } else {
+            self.triangles.iter().map(bounding_sphere).collect()
+        };
+        let (mut tree, order) = Lbvh::build_unfitted(&spheres);
+        debug_assert!(order.iter().enumerate().all(|(k, &o)| k as u32 == o), "the triangles are in leaf order");
+        tree.fit_boxes_by(|k| {
+            let [a, b, c] = self.triangles[k as usize];
+            (a.min(b).min(c), a.max(b).max(c))
+        });
+        tree
     }
 
     /// The least thickness of a response at `pose`, in the mesh's units: [`Self::min_thickness`],

@@ -2,6 +2,8 @@
 //! field for field in WGSL (`bvh_cloth_gpu`'s `types.wgsl`, whose tests compare the two).
 //! [`crate::BvhNode`] and [`crate::Sphere`] are uploaded unchanged.
 
+use std::borrow::Cow;
+
 use bytemuck::{Pod, Zeroable};
 use glam::{Affine3A, Mat4, Vec3};
 
@@ -358,35 +360,44 @@ pub const SHAPE_SPHERES: u32 = 0;
 pub const SHAPE_TRIANGLES: u32 = 5;
 
 /// The tree a collider's frame points at on the GPU: a collider with exact contact uploads its
-/// triangle surface's (with the triangles after the spheres), any other mesh collider its
-/// sphere tree; `None` for a primitive.
-pub fn gpu_tree(collider: &Collider) -> Option<&Lbvh> {
+/// triangle surface's binary tree (built again from its triangles, see
+/// [`TriangleSurface::binary_tree`](crate::exact_contact::TriangleSurface::binary_tree)), with
+/// the triangles after its spheres, any other mesh collider its sphere tree; `None` for a
+/// primitive.
+pub fn gpu_tree(collider: &Collider) -> Option<Cow<'_, Lbvh>> {
     match &collider.shape {
-        ColliderShape::Spheres { surface: Some(surface), .. } => Some(&surface.lbvh),
-        ColliderShape::Spheres { lbvh, .. } => Some(lbvh),
+        ColliderShape::Spheres { surface: Some(surface), .. } => Some(Cow::Owned(surface.binary_tree())),
+        ColliderShape::Spheres { lbvh, .. } => Some(Cow::Borrowed(lbvh)),
         ColliderShape::Primitive(_) => None,
     }
 }
 
-/// The `vec4`s of the tree buffer's sphere region a collider takes: its spheres, and for exact
-/// contact its triangles after them ([`gpu_sphere_region`]).
-pub fn gpu_sphere_words(collider: &Collider) -> usize {
+/// The nodes of a collider's tree on the GPU ([`gpu_tree`]) and its spheres, without building
+/// it: a binary LBVH over `n` leaves has `n - 1` nodes (none for one leaf).
+fn gpu_tree_counts(collider: &Collider) -> (usize, usize) {
     match &collider.shape {
         ColliderShape::Spheres { surface: Some(surface), .. } => {
-            surface.lbvh.spheres.len() + 3 * surface.triangles.len()
+            let leaves = surface.triangles.len();
+            (leaves.saturating_sub(1), leaves)
         }
-        ColliderShape::Spheres { lbvh, .. } => lbvh.spheres.len(),
-        ColliderShape::Primitive(_) => 0,
+        ColliderShape::Spheres { lbvh, .. } => (lbvh.nodes.len(), lbvh.spheres.len()),
+        ColliderShape::Primitive(_) => (0, 0),
     }
 }
 
-/// A collider's part of the tree buffer's sphere region, as `vec4`s: its tree's spheres, then
-/// for exact contact its triangles' corners.
-pub fn gpu_sphere_region(collider: &Collider) -> Vec<[f32; 4]> {
-    let mut words: Vec<[f32; 4]> = Vec::with_capacity(gpu_sphere_words(collider));
-    if let Some(tree) = gpu_tree(collider) {
-        words.extend(tree.spheres.iter().map(|s| [s.center[0], s.center[1], s.center[2], s.radius]));
-    }
+/// The node count of a collider's tree on the GPU ([`gpu_tree`]), and the `vec4`s of its
+/// sphere region ([`gpu_sphere_region`]); zeros for a primitive.
+pub fn gpu_tree_size(collider: &Collider) -> (usize, usize) {
+    let (nodes, spheres) = gpu_tree_counts(collider);
+    let triangles = collider.surface().map_or(0, |surface| 3 * surface.triangles.len());
+    (nodes, spheres + triangles)
+}
+
+/// A collider's part of the tree buffer's sphere region, as `vec4`s: the spheres of `tree`
+/// (its [`gpu_tree`]), then for exact contact its triangles' corners in leaf order.
+pub fn gpu_sphere_region(collider: &Collider, tree: &Lbvh) -> Vec<[f32; 4]> {
+    let mut words: Vec<[f32; 4]> = Vec::with_capacity(gpu_tree_size(collider).1);
+    words.extend(tree.spheres.iter().map(|s| [s.center[0], s.center[1], s.center[2], s.radius]));
     if let Some(surface) = collider.surface() {
         words.extend(surface.triangles.iter().flatten().map(|p| p.extend(0.0).to_array()));
     }
@@ -401,9 +412,9 @@ impl GpuCollider {
         let world_from_local = collider.pose.to_affine();
         let (node_count, sphere_count, shape, size) = match &collider.shape {
             ColliderShape::Spheres { surface: Some(surface), .. } => {
-                let tree = &surface.lbvh;
+                let (nodes, spheres) = gpu_tree_counts(collider);
                 let size = [surface.least_thickness(&collider.pose), surface.sweep_slack(), 0.0, 0.0];
-                (tree.nodes.len() as u32, tree.spheres.len() as u32, SHAPE_TRIANGLES, size)
+                (nodes as u32, spheres as u32, SHAPE_TRIANGLES, size)
             }
             ColliderShape::Spheres { lbvh, .. } => {
                 (lbvh.nodes.len() as u32, lbvh.spheres.len() as u32, SHAPE_SPHERES, [0.0; 4])

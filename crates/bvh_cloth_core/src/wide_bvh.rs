@@ -12,49 +12,139 @@
 //! does (the GPU's order too), so a response that depends on the order of its contacts is the
 //! same on both.
 
-use glam::{Vec3, Vec4};
+use glam::{BVec4A, Vec3, Vec4};
 use rayon::prelude::*;
 
 use crate::lbvh::{LEAF_BIT, Lbvh};
 use crate::traversal::STACK_SIZE;
 
-/// A node of the wide tree: the boxes of up to four children, one lane per child, and the
-/// children's references. An unused lane has an empty box (`+inf` to `-inf`), which no query
-/// overlaps and whose distance is infinite.
+/// A node of the wide tree, one 64-byte cache line: the boxes of up to four children, one SIMD
+/// lane each, and the children's references.
+///
+/// The boxes are kept in 8 bits a bound: each axis of the node is cut into 255 steps from
+/// `origin`, and each child's box is rounded outwards to whole steps, so the box a query tests
+/// holds the child's own (and reaches at most a step of the node past it). Half the size of
+/// boxes in `f32`, so a walk pulls in half the memory; a caller's exact test at the leaf
+/// decides what a slightly larger box lets through.
 #[derive(Clone, Copy, Debug, PartialEq)]
 #[repr(C, align(64))]
 pub struct WideNode {
-    /// The children's box minima, per axis (x, y, z), one lane per child.
-    pub lo: [Vec4; 3],
-    /// The children's box maxima, per axis.
-    pub hi: [Vec4; 3],
+    /// The corner the boxes are measured from.
+    origin: [f32; 3],
+    /// The size of one step, per axis.
+    step: [f32; 3],
+    /// The children's box minima in steps from `origin`, per axis (x, y, z), one lane per child.
+    lo: [[u8; 4]; 3],
+    /// The children's box maxima in steps.
+    hi: [[u8; 4]; 3],
     /// `LEAF_BIT | leaf` or a wide node's index, in the order a depth-first walk of the binary
-    /// tree meets them; `u32::MAX` in an unused lane.
+    /// tree meets them; the used lanes come first, and an unused lane holds `u32::MAX`.
     pub child: [u32; 4],
 }
 
+/// The bounds `q` steps from `origin`, as the queries compute them: the build rounds each
+/// bound outwards with the same arithmetic (a product, then a sum, each rounded once), so that
+/// what it checks is what the queries see.
+#[inline]
+fn bound(origin: Vec4, q: Vec4, step: Vec4) -> Vec4 {
+    origin + q * step
+}
+
+/// The four bounds of one axis, as `f32` lanes.
+#[inline]
+fn lanes(q: [u8; 4]) -> Vec4 {
+    Vec4::new(q[0] as f32, q[1] as f32, q[2] as f32, q[3] as f32)
+}
+
 impl WideNode {
-    const EMPTY: Self = Self { lo: [Vec4::INFINITY; 3], hi: [Vec4::NEG_INFINITY; 3], child: [u32::MAX; 4] };
+    const EMPTY: Self =
+        Self { origin: [0.0; 3], step: [0.0; 3], lo: [[u8::MAX; 4]; 3], hi: [[0; 4]; 3], child: [u32::MAX; 4] };
+
+    /// The node of the given children (the used lanes first) and their boxes.
+    fn new(children: &[u32], boxes: &[(Vec3, Vec3)]) -> Self {
+        let mut node = Self::EMPTY;
+        let lo = boxes.iter().fold(Vec3::INFINITY, |m, b| m.min(b.0));
+        let hi = boxes.iter().fold(Vec3::NEG_INFINITY, |m, b| m.max(b.1));
+        for axis in 0..3 {
+            let origin = lo[axis];
+            // The least step whose 255th reaches the top.
+            let mut step = ((hi[axis] - origin) / 255.0).max(0.0);
+            while step.is_finite() && origin + 255.0 * step < hi[axis] {
+                step = step.next_up();
+            }
+            node.origin[axis] = origin;
+            node.step[axis] = step;
+            // The same arithmetic as `bound`, one lane at a time.
+            let at = |q: u32| origin + q as f32 * step;
+            let inverse = if step > 0.0 { 1.0 / step } else { 0.0 };
+            // A first guess (truncation is the floor of a non-negative number), then rounded
+            // outwards exactly: down for the minimum, up for the maximum.
+            let guess = |x: f32| (((x - origin) * inverse).max(0.0) as u32).min(255);
+            for (lane, &(l, h)) in boxes.iter().enumerate() {
+                let mut q = guess(l[axis]);
+                while q > 0 && at(q) > l[axis] {
+                    q -= 1;
+                }
+                node.lo[axis][lane] = q as u8;
+                let mut q = guess(h[axis]);
+                while q < 255 && at(q) < h[axis] {
+                    q += 1;
+                }
+                node.hi[axis][lane] = q as u8;
+            }
+        }
+        node.child[..children.len()].copy_from_slice(children);
+        node
+    }
+
+    /// The children's boxes, per axis: minima and maxima, one lane per child (unused lanes
+    /// hold an inverted box).
+    #[inline]
+    fn boxes(&self, axis: usize) -> (Vec4, Vec4) {
+        let (origin, step) = (Vec4::splat(self.origin[axis]), Vec4::splat(self.step[axis]));
+        (bound(origin, lanes(self.lo[axis]), step), bound(origin, lanes(self.hi[axis]), step))
+    }
+
+    /// The lanes in use, as a bit mask.
+    #[inline]
+    fn used(&self) -> u32 {
+        self.child.iter().enumerate().fold(0, |m, (lane, &c)| m | (((c != u32::MAX) as u32) << lane))
+    }
+
+    /// The box of child `lane`, as the queries see it.
+    pub fn child_box(&self, lane: usize) -> (Vec3, Vec3) {
+        let mut lo = Vec3::ZERO;
+        let mut hi = Vec3::ZERO;
+        for axis in 0..3 {
+            let (l, h) = self.boxes(axis);
+            lo[axis] = l[lane];
+            hi[axis] = h[lane];
+        }
+        (lo, hi)
+    }
 
     /// The four squared distances from `p` to the children's boxes (infinite in unused lanes).
     #[inline]
     fn distances_squared(&self, p: Vec3) -> Vec4 {
         let mut sum = Vec4::ZERO;
         for axis in 0..3 {
+            let (lo, hi) = self.boxes(axis);
             let at = Vec4::splat(p[axis]);
-            let outside = (self.lo[axis] - at).max(at - self.hi[axis]).max(Vec4::ZERO);
+            let outside = (lo - at).max(at - hi).max(Vec4::ZERO);
             sum += outside * outside;
         }
-        sum
+        let used = BVec4A::from_array(std::array::from_fn(|lane| self.child[lane] != u32::MAX));
+        Vec4::select(used, sum, Vec4::INFINITY)
     }
 
     /// The lanes (bit `i` for child `i`) whose box overlaps `[lo, hi]`; none for a query with a
     /// NaN.
     #[inline]
     fn overlapping(&self, lo: Vec3, hi: Vec3) -> u32 {
-        let mut lanes = 0b1111;
+        let mut lanes = self.used();
         for axis in 0..3 {
-            let meet = self.lo[axis].cmple(Vec4::splat(hi[axis])) & self.hi[axis].cmpge(Vec4::splat(lo[axis]));
+            let (box_lo, box_hi) = self.boxes(axis);
+            let meet = box_lo.cmple(Vec4::splat(hi[axis])) & box_hi.cmpge(Vec4::splat(lo[axis]));
             lanes &= meet.bitmask();
         }
         lanes
@@ -81,9 +171,7 @@ impl WideBvh {
             if tree.spheres.is_empty() {
                 return Self::default();
             }
-            let mut root = WideNode::EMPTY;
-            set_lane(&mut root, 0, LEAF_BIT, leaf_box(0));
-            return Self { nodes: vec![root] };
+            return Self { nodes: vec![WideNode::new(&[LEAF_BIT], &[leaf_box(0)])] };
         }
         let fold = Fold { tree, leaf_box: &leaf_box };
         if tree.nodes.len() < PARALLEL_FOLD_MIN_NODES {
@@ -227,15 +315,15 @@ impl<F: Fn(u32) -> (Vec3, Vec3) + Sync> Fold<'_, F> {
     /// references still binary.
     fn node(&self, binary: u32, node: &mut WideNode) {
         let (children, count) = wide_children(self.tree, binary);
-        for (lane, &child) in children[..count].iter().enumerate() {
-            let bounds = if child & LEAF_BIT != 0 {
-                (self.leaf_box)(child & !LEAF_BIT)
-            } else {
+        let boxes: [(Vec3, Vec3); 4] = std::array::from_fn(|lane| match children[lane] {
+            _ if lane >= count => (Vec3::ZERO, Vec3::ZERO),
+            child if child & LEAF_BIT != 0 => (self.leaf_box)(child & !LEAF_BIT),
+            child => {
                 let n = &self.tree.nodes[child as usize];
                 (Vec3::from(n.aabb_min), Vec3::from(n.aabb_max))
-            };
-            set_lane(node, lane, child, bounds);
-        }
+            }
+        });
+        *node = WideNode::new(&children[..count], &boxes[..count]);
     }
 
     /// Folds the subtree under binary node `binary` into `out` (exactly its size), depth first,
@@ -262,15 +350,6 @@ impl<F: Fn(u32) -> (Vec3, Vec3) + Sync> Fold<'_, F> {
         }
         debug_assert_eq!(next, out.len());
     }
-}
-
-/// Writes a child's reference and box into `lane`.
-fn set_lane(node: &mut WideNode, lane: usize, child: u32, (lo, hi): (Vec3, Vec3)) {
-    for axis in 0..3 {
-        node.lo[axis][lane] = lo[axis];
-        node.hi[axis][lane] = hi[axis];
-    }
-    node.child[lane] = child;
 }
 
 /// The wide node's children for binary node `binary`, in the order a depth-first walk of the

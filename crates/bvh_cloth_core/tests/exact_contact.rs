@@ -70,6 +70,7 @@ fn drop_with(mesh: MeshRef<'_>, size: f32, at: Vec3, seconds: f32, thickness: f3
         .with_margin(thickness)
         .with_friction(0.5);
     let surface = collider.surface().expect("exact contact").clone();
+    let tree = surface.binary_tree();
     let params = ClothParams { looper: 16, damping: 1.0, ..ClothParams::default() };
     let mut sim =
         ClothSim::new(params, common::grid_topology(size, 48, 48), Affine3A::from_translation(at), &[]).unwrap();
@@ -92,7 +93,7 @@ fn drop_with(mesh: MeshRef<'_>, size: f32, at: Vec3, seconds: f32, thickness: f3
                 .filter_map(|i| {
                     let (p, q) = (before[i], after[i]);
                     let mut hit = None;
-                    surface.lbvh.for_each_overlapping(p.min(q), p.max(q), 0.0, |k, _| {
+                    tree.for_each_overlapping(p.min(q), p.max(q), 0.0, |k, _| {
                         if crosses(p, q, surface.triangles[k as usize]) {
                             hit = Some(k);
                         }
@@ -250,6 +251,30 @@ fn a_box_edge_with_duplicated_degenerate_and_intersecting_triangles() {
     assert!(touching > 100 && least > 0.9 * THICKNESS);
 }
 
+/// The binary tree the GPU walks, built again from a surface's triangles, is the one its wide
+/// tree was folded from: folded again, it gives the same wide tree, node for node, on the torus
+/// and on the bundled models.
+#[test]
+fn the_binary_tree_built_again_is_the_one_the_wide_tree_came_from() {
+    use bvh_cloth_core::wide_bvh::WideBvh;
+    let mut surfaces = vec![("torus".to_string(), torus_surface())];
+    for name in ["bunny", "dragon"] {
+        let path =
+            format!("{}/../../assets/models/{name}.obj", std::env::var("CARGO_MANIFEST_DIR").expect("run by cargo"));
+        let model = bvh_cloth_core::obj::parse_obj(&std::fs::read_to_string(path).unwrap()).unwrap();
+        surfaces.push((name.to_string(), TriangleSurface::build(model.as_mesh_ref()).unwrap()));
+    }
+    for (name, surface) in surfaces {
+        let tree = surface.binary_tree();
+        assert_eq!(tree.spheres.len(), surface.triangles.len(), "{name}");
+        let wide = WideBvh::from_lbvh(&tree, |k| {
+            let [a, b, c] = surface.triangles[k as usize];
+            (a.min(b).min(c), a.max(b).max(c))
+        });
+        assert!(wide.nodes == surface.wide.nodes, "{name}: another tree");
+    }
+}
+
 /// The surface of a torus of 2,560 triangles (major radius 0.35 m, minor 0.08 m).
 fn torus_surface() -> TriangleSurface {
     let (positions, indices) = common::torus(0.35, 0.08, 64, 20);
@@ -287,13 +312,14 @@ fn closest_within_agrees_with_brute_force() {
     assert!(found > 500 && missed > 500, "{found} found and {missed} missed: the points do not test both cases");
 }
 
-/// The CPU's wide tree against the GPU's binary one on the torus: a box query meets exactly the
-/// triangles whose own box overlaps it, and those the binary tree also meets (it tests their
-/// bounding spheres) come in its order, so contacts are taken in the same order on both
-/// backends.
+/// The CPU's wide tree against the GPU's binary one on the torus: a box query meets every
+/// triangle whose own box overlaps it (and a few more, whose box rounded to the wide node's
+/// steps does), and those the binary tree also meets (it tests their bounding spheres) come in
+/// its order, so contacts are taken in the same order on both backends.
 #[test]
 fn the_wide_tree_meets_the_triangles_in_the_binary_trees_order() {
     let surface = torus_surface();
+    let tree = surface.binary_tree();
     let mut rng = common::Rng::new(17);
     let mut met = 0;
     for i in 0..3000 {
@@ -309,11 +335,12 @@ fn the_wide_tree_meets_the_triangles_in_the_binary_trees_order() {
             (p.min(q).min(r)).cmple(hi + margin).all() && (p.max(q).max(r)).cmpge(lo - margin).all()
         };
         let want: Vec<u32> = (0..surface.triangles.len() as u32).filter(|&k| overlaps(k)).collect();
+        let wide: Vec<u32> = wide.into_iter().filter(|&k| overlaps(k)).collect();
         let mut sorted = wide.clone();
         sorted.sort_unstable();
         assert_eq!(sorted, want, "box {lo}..{hi} grown by {margin}");
         let mut binary = Vec::new();
-        surface.lbvh.for_each_overlapping(lo, hi, margin, |k, _| {
+        tree.for_each_overlapping(lo, hi, margin, |k, _| {
             if overlaps(k) {
                 binary.push(k);
             }

@@ -1,5 +1,5 @@
 //! The four-wide tree against the binary tree it is folded from: the same leaves in the same
-//! order for box queries, and the nearest leaf of brute force for nearest-first queries.
+//! order for box queries (and a few more, from the wide tree's rounded boxes), and the nearest leaf of brute force for nearest-first queries.
 
 mod common;
 
@@ -37,10 +37,16 @@ fn levels(wide: &WideBvh) -> u32 {
     deepest
 }
 
-/// With the leaves' boxes the spheres' own, both trees test the same box for a leaf, so a box
-/// query meets exactly the same leaves in exactly the same order: points, boxes and segments'
-/// boxes, with and without a margin, and every leaf is met once at most.
+/// With the leaves' boxes the spheres' own, a box query of the wide tree meets every leaf the
+/// binary walk meets, in the same order; it may meet more, whose own box misses the query but
+/// whose box rounded to the node's 8-bit steps overlaps it (and reaches at most one step of the
+/// node past the leaf's own). Points, boxes and segments' boxes, with and without a margin, and
+/// every leaf is met once at most.
 fn check_order(bvh: &Lbvh, wide: &WideBvh, rng: &mut Rng, queries: usize) {
+    let own_box = |k: u32| {
+        let s = bvh.spheres[k as usize];
+        (s.centre() - s.radius, s.centre() + s.radius)
+    };
     for _ in 0..queries {
         let a = rng.vec3(-1.4, 1.4);
         let b = if rng.range(0.0, 1.0) < 0.5 { a } else { a + rng.vec3(-0.3, 0.3) };
@@ -50,7 +56,15 @@ fn check_order(bvh: &Lbvh, wide: &WideBvh, rng: &mut Rng, queries: usize) {
         bvh.for_each_overlapping(lo, hi, margin, |k, _| binary.push(k));
         let mut folded = Vec::new();
         wide.for_each_overlapping(lo, hi, margin, |k| folded.push(k));
-        assert_eq!(folded, binary, "box {lo}..{hi} grown by {margin}");
+        let overlapping: Vec<u32> = folded
+            .iter()
+            .copied()
+            .filter(|&k| {
+                let (l, h) = own_box(k);
+                l.cmple(hi + margin).all() && h.cmpge(lo - margin).all()
+            })
+            .collect();
+        assert_eq!(overlapping, binary, "box {lo}..{hi} grown by {margin}");
         let mut once = folded.clone();
         once.sort_unstable();
         once.dedup();
@@ -123,6 +137,38 @@ fn a_nan_query_meets_nothing() {
         let best = wide.nearest(Vec3::ZERO, f32::NAN, |k, _| panic!("leaf {k} tried within a NaN limit"));
         assert!(best.is_nan());
     }
+}
+
+/// Every child's box as the queries see it holds the box it was made from, and reaches past it
+/// by at most one of the node's 255 steps a side.
+#[test]
+fn rounded_boxes_hold_their_children_within_a_step() {
+    let mut rng = Rng::new(31);
+    let (bvh, wide) = trees(&random_spheres(&mut rng, 5000));
+    let mut checked = 0;
+    for node in &wide.nodes {
+        for (lane, &child) in node.child.iter().enumerate() {
+            if child == u32::MAX || child & LEAF_BIT == 0 {
+                continue;
+            }
+            let s = bvh.spheres[(child & !LEAF_BIT) as usize];
+            let (lo, hi) = (s.centre() - s.radius, s.centre() + s.radius);
+            let (got_lo, got_hi) = node.child_box(lane);
+            assert!(got_lo.cmple(lo).all() && got_hi.cmpge(hi).all(), "{got_lo}..{got_hi} does not hold {lo}..{hi}");
+            let (node_lo, node_hi) = (0..4).filter(|&l| node.child[l] != u32::MAX).fold(
+                (Vec3::INFINITY, Vec3::NEG_INFINITY),
+                |(lo, hi), l| {
+                    let (a, b) = node.child_box(l);
+                    (lo.min(a), hi.max(b))
+                },
+            );
+            let node_size = node_hi - node_lo;
+            let slack = (lo - got_lo).max(got_hi - hi);
+            assert!(slack.cmple(node_size / 255.0 * 1.01 + 1e-6).all(), "{slack} past {lo}..{hi}");
+            checked += 1;
+        }
+    }
+    assert_eq!(checked, 5000);
 }
 
 #[test]

@@ -1,7 +1,7 @@
 //! Every collider of a scene on the GPU: frames (a primitive's whole shape), and the mesh
 //! colliders' trees concatenated.
 
-use bvh_cloth_core::gpu_layout::{GpuCollider, gpu_sphere_region, gpu_sphere_words, gpu_tree};
+use bvh_cloth_core::gpu_layout::{GpuCollider, gpu_sphere_region, gpu_tree, gpu_tree_size};
 use bvh_cloth_core::{BvhNode, Collider};
 use wgpu::util::DeviceExt;
 use wgpu::{Buffer, BufferUsages, Device, Queue};
@@ -55,21 +55,21 @@ impl GpuColliders {
         let mut spheres: Vec<[f32; 4]> = Vec::new();
         let mut offsets = Vec::with_capacity(colliders.len());
         let mut left_out = Vec::new();
-        let sizes = colliders.iter().map(tree_size).collect();
+        let sizes = colliders.iter().map(gpu_tree_size).collect();
         for (k, collider) in colliders.iter().enumerate() {
             let Some(tree) = gpu_tree(collider) else {
                 // A primitive has no tree: its frame holds its whole shape.
                 offsets.push(Some((nodes.len() as u32, spheres.len() as u32)));
                 continue;
             };
-            if !fits(nodes.len() + tree.nodes.len(), spheres.len() + gpu_sphere_words(collider)) {
+            if !fits(nodes.len() + tree.nodes.len(), spheres.len() + gpu_tree_size(collider).1) {
                 offsets.push(None);
                 left_out.push(k);
                 continue;
             }
             offsets.push(Some((nodes.len() as u32, spheres.len() as u32)));
             nodes.extend_from_slice(&tree.nodes);
-            spheres.extend(gpu_sphere_region(collider));
+            spheres.extend(gpu_sphere_region(collider, &tree));
         }
         let node_count = nodes.len() as u32;
         let (frames, frame_indices) = Self::frames_of(colliders, &offsets, node_count);
@@ -94,7 +94,8 @@ impl GpuColliders {
     /// Returns `false`, writing nothing, when the layout differs: then a new [`Self::new`] is
     /// needed.
     pub fn rewrite_trees(&mut self, queue: &Queue, colliders: &[Collider], changed: &[usize]) -> bool {
-        if colliders.len() != self.sizes.len() || colliders.iter().zip(&self.sizes).any(|(c, &s)| tree_size(c) != s) {
+        if colliders.len() != self.sizes.len() || colliders.iter().zip(&self.sizes).any(|(c, &s)| gpu_tree_size(c) != s)
+        {
             return false;
         }
         for &k in changed {
@@ -106,7 +107,7 @@ impl GpuColliders {
             if !tree.nodes.is_empty() {
                 queue.write_buffer(&self.tree, node_bytes, bytemuck::cast_slice(&tree.nodes));
             }
-            let region = gpu_sphere_region(&colliders[k]);
+            let region = gpu_sphere_region(&colliders[k], &tree);
             if !region.is_empty() {
                 queue.write_buffer(&self.tree, sphere_bytes, bytemuck::cast_slice(&region));
             }
@@ -186,11 +187,6 @@ impl GpuColliders {
     pub fn left_out(&self) -> &[usize] {
         &self.left_out
     }
-}
-
-/// The node count of a collider's tree on the GPU, and the `vec4`s of its sphere region.
-fn tree_size(collider: &Collider) -> (usize, usize) {
-    gpu_tree(collider).map_or((0, 0), |tree| (tree.nodes.len(), gpu_sphere_words(collider)))
 }
 
 /// The frame buffer is sized for every input collider, so that a collider whose pose becomes
