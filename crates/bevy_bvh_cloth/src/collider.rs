@@ -6,7 +6,8 @@
 //! The collider follows the entity's [`GlobalTransform`] every frame without a rebuild; changing
 //! the resolution `n`, the [`Mesh3d`] or the mesh asset rebuilds it. On an entity with a
 //! [`SkinnedMesh`] the spheres follow the joints instead, refitted every frame in
-//! [`update_collider_poses`] (see `bvh_cloth_core::skinning`).
+//! [`update_collider_poses`](crate::collider_pose::update_collider_poses) (see
+//! `bvh_cloth_core::skinning`).
 
 use std::collections::HashSet;
 
@@ -16,14 +17,11 @@ use bevy::mesh::skinning::{SkinnedMesh, SkinnedMeshInverseBindposes};
 use bevy::prelude::*;
 use bevy::tasks::{AsyncComputeTaskPool, Task, block_on, poll_once};
 use bvh_cloth_core::skinning::largest_scale;
-use bvh_cloth_core::{Affine3A, Collider, ColliderPose, SkinScratch, Voxels};
+use bvh_cloth_core::{Affine3A, Collider, SkinScratch, Voxels};
 
-use crate::backend::ActiveClothBackend;
 use crate::collider_mesh::{ColliderFailure, TriangleList};
 use crate::events::ColliderReady;
 use crate::messages::ClothMessage;
-use crate::primitive_collider::PrimitiveCollider;
-use crate::settings::ClothSettings;
 
 /// Meshes with at least this many vertices are voxelised on the async compute pool.
 pub const ASYNC_BUILD_MIN_VERTICES: usize = 20_000;
@@ -160,20 +158,20 @@ impl ColliderStatus {
     }
 }
 
-/// The built collider of an [`AutoCollider`] or [`PrimitiveCollider`] entity, with its current
-/// pose.
+/// The built collider of an [`AutoCollider`] or [`PrimitiveCollider`](crate::PrimitiveCollider)
+/// entity, with its current pose.
 #[derive(Component, Clone, Debug)]
 pub struct ClothCollider {
-    collider: Collider,
-    warned_non_uniform: bool,
+    pub(crate) collider: Collider,
+    pub(crate) warned_non_uniform: bool,
     /// A skinned collider's refit memory, and whether it has been posed by its joints yet.
-    skin_scratch: SkinScratch,
-    skin_posed: bool,
+    pub(crate) skin_scratch: SkinScratch,
+    pub(crate) skin_posed: bool,
     /// A skinned collider's pose problem, said once until it clears.
-    skin_warning: Option<String>,
+    pub(crate) skin_warning: Option<String>,
     /// A skinned collider's last accepted joint matrices and the clearance they give, when the
     /// render world refits it on the GPU instead of this copy being refitted.
-    gpu_skin_pose: Option<(Vec<Affine3A>, f32)>,
+    pub(crate) gpu_skin_pose: Option<(Vec<Affine3A>, f32)>,
 }
 
 impl ClothCollider {
@@ -413,14 +411,14 @@ pub(crate) struct Skins<'w, 's> {
 impl<'w, 's> Skins<'w, 's> {
     /// The joints of `skinned` as this frame places them; `None` while its inverse bind poses
     /// are not loaded.
-    fn pose<'a>(&'a self, skinned: &'a SkinnedMesh) -> Option<SkinPose<'a, 'w, 's>> {
+    pub(crate) fn pose<'a>(&'a self, skinned: &'a SkinnedMesh) -> Option<SkinPose<'a, 'w, 's>> {
         let inverse = self.bindposes.get(&skinned.inverse_bindposes)?;
         Some(SkinPose { skinned, inverse, transforms: &self.transforms })
     }
 }
 
 /// A skinned mesh's joints as this frame places them.
-struct SkinPose<'a, 'w, 's> {
+pub(crate) struct SkinPose<'a, 'w, 's> {
     skinned: &'a SkinnedMesh,
     inverse: &'a SkinnedMeshInverseBindposes,
     transforms: &'a Query<'w, 's, &'static GlobalTransform>,
@@ -428,13 +426,13 @@ struct SkinPose<'a, 'w, 's> {
 
 impl SkinPose<'_, '_, '_> {
     /// Joint matrices the skin has: Bevy's renderer pairs joints and inverse bind poses.
-    fn joint_count(&self) -> usize {
+    pub(crate) fn joint_count(&self) -> usize {
         self.skinned.joints.len().min(self.inverse.len())
     }
 
     /// Each joint's world transform times its inverse bind pose, as the renderer forms them;
     /// or the first joint that has no transform (despawned), and its entity.
-    fn matrices(&self, out: &mut Vec<Affine3A>) -> Result<(), (usize, Entity)> {
+    pub(crate) fn matrices(&self, out: &mut Vec<Affine3A>) -> Result<(), (usize, Entity)> {
         out.clear();
         for (k, (&joint, inverse)) in self.skinned.joints.iter().zip(self.inverse.iter()).enumerate() {
             let transform = self.transforms.get(joint).map_err(|_| (k, joint))?;
@@ -444,129 +442,12 @@ impl SkinPose<'_, '_, '_> {
     }
 
     /// The largest scale the first joint gives the bind-pose mesh (1 without a placed joint).
-    fn scale(&self) -> f32 {
+    pub(crate) fn scale(&self) -> f32 {
         let first = self.skinned.joints.first().zip(self.inverse.first());
         first
             .and_then(|(&joint, inverse)| {
                 Some(self.transforms.get(joint).ok()?.affine() * Affine3A::from_mat4(*inverse))
             })
             .map_or(1.0, |transform| largest_scale(&transform))
-    }
-}
-
-/// Places every collider (mesh or primitive) where its entity is, moves skinned colliders with
-/// their joints, and applies margin and friction changes (no rebuild).
-#[allow(clippy::type_complexity)]
-pub(crate) fn update_collider_poses(
-    mut colliders: Query<(
-        Entity,
-        AnyOf<(&AutoCollider, &PrimitiveCollider)>,
-        &GlobalTransform,
-        Option<&SkinnedMesh>,
-        &mut ClothCollider,
-        &mut ColliderStatus,
-    )>,
-    skins: Skins,
-    mut matrices: Local<Vec<Affine3A>>,
-    backend: Res<ActiveClothBackend>,
-    settings: Res<ClothSettings>,
-) {
-    // On the GPU backend the render world refits skinned colliders; the copy here is refitted
-    // too only while the debug view draws it.
-    let refit_here = *backend != ActiveClothBackend::Gpu || settings.debug_view;
-    for (entity, source, transform, skinned, mut built, mut status) in &mut colliders {
-        let (margin, friction) = match source {
-            (Some(auto), _) => (auto.margin, auto.friction),
-            (None, Some(primitive)) => (primitive.margin, primitive.friction),
-            (None, None) => continue,
-        };
-        // A skinned collider follows its joints; until its first pose it is placed as a rigid one.
-        if built.collider.skin().is_some()
-            && let Some(pose) = skinned.and_then(|skinned| skins.pose(skinned))
-        {
-            let built = built.bypass_change_detection();
-            built.collider.margin = margin;
-            built.collider.friction = friction;
-            pose_skinned(entity, &pose, built, &mut matrices, refit_here);
-            if built.skin_posed {
-                continue;
-            }
-        }
-        let (scale, rotation, translation) = transform.to_scale_rotation_translation();
-        let uniform = scale.max_element();
-        if !(scale.is_finite() && scale.min_element() > 0.0) {
-            if !matches!(*status, ColliderStatus::Failed(_)) {
-                error!("Collider on {entity}: {}; it will not collide", ColliderFailure::BadScale(scale));
-                *status = ColliderStatus::Failed(ColliderFailure::BadScale(scale).to_string());
-            }
-        } else if uniform > scale.min_element() * 1.001 && !built.warned_non_uniform {
-            warn!("Collider on {entity}: non-uniform scale {scale} is not supported; the shape is scaled by {uniform}");
-            built.warned_non_uniform = true;
-        }
-        let pose = ColliderPose { translation, rotation, scale: uniform };
-        let collider = &mut built.bypass_change_detection().collider;
-        collider.pose = pose;
-        collider.margin = margin;
-        collider.friction = friction;
-        if matches!(*status, ColliderStatus::Failed(_)) && pose.is_valid() {
-            *status = ColliderStatus::ready(collider);
-        }
-    }
-}
-
-/// Moves a skinned collider to its joints' pose: refitted here when `refit_here`, otherwise
-/// accepted and kept for the render world's refit. A pose that cannot be read (a despawned
-/// joint, a non-finite matrix) keeps the last one and is said once.
-fn pose_skinned(
-    entity: Entity,
-    pose: &SkinPose<'_, '_, '_>,
-    built: &mut ClothCollider,
-    matrices: &mut Vec<Affine3A>,
-    refit_here: bool,
-) {
-    let outcome = match pose.matrices(matrices) {
-        Err((k, joint)) => Err(format!("joint {k} ({joint}) has no GlobalTransform (was it despawned?)")),
-        Ok(()) if refit_here => {
-            built.gpu_skin_pose = None;
-            built.collider.pose_skin(matrices, &mut built.skin_scratch).map_err(|error| error.to_string())
-        }
-        Ok(()) => match built.collider.accept_skin_pose(matrices) {
-            Ok(clearance) => {
-                let kept = built.gpu_skin_pose.get_or_insert_with(Default::default);
-                kept.0.clone_from(matrices);
-                kept.1 = clearance.unwrap_or_default();
-                Ok(())
-            }
-            Err(error) => Err(error.to_string()),
-        },
-    };
-    match outcome {
-        Ok(()) => {
-            built.skin_posed = true;
-            built.skin_warning = None;
-        }
-        Err(reason) => {
-            if built.skin_warning.as_ref() != Some(&reason) {
-                let held = if built.skin_posed { "its last pose" } else { "its bind pose at the entity" };
-                warn!("Skinned collider on {entity}: {reason}; it stays at {held}");
-                built.skin_warning = Some(reason);
-            }
-        }
-    }
-}
-
-/// Takes the built collider off an entity whose [`AutoCollider`] or [`PrimitiveCollider`] was
-/// removed, so that it stops colliding; an entity that still has an `AutoCollider` keeps its
-/// collider, and one left with a `PrimitiveCollider` gets that built next.
-pub(crate) fn drop_removed_colliders(
-    mut commands: Commands,
-    mut removed_auto: RemovedComponents<AutoCollider>,
-    mut removed_primitive: RemovedComponents<PrimitiveCollider>,
-    autos: Query<(), With<AutoCollider>>,
-) {
-    for entity in removed_auto.read().chain(removed_primitive.read()) {
-        if !autos.contains(entity) {
-            commands.entity(entity).try_remove::<(ClothCollider, ColliderBuild)>();
-        }
     }
 }

@@ -94,6 +94,7 @@ mod cloth_mesh;
 mod collider;
 mod collider_hierarchy;
 mod collider_mesh;
+mod collider_pose;
 mod cpu_backend;
 mod debug_view;
 mod events;
@@ -286,11 +287,11 @@ impl Plugin for BvhClothPlugin {
                 schedule,
                 (
                     (
-                        collider::drop_removed_colliders,
+                        collider_pose::drop_removed_colliders,
                         collider_hierarchy::spread_colliders,
                         collider::build_colliders,
                         primitive_collider::build_primitive_colliders,
-                        collider::update_collider_poses,
+                        collider_pose::update_collider_poses,
                     )
                         .chain()
                         .in_set(ClothSystems::BuildColliders),

@@ -101,11 +101,10 @@ use rayon::prelude::*;
 
 use crate::collision::ColliderFrame;
 use crate::forces::ForceModel;
+use crate::grid::SpringEnd;
+pub use crate::params::MAX_ITERATIONS;
 use crate::tethers::TetherSet;
-use crate::topology::{ClothTopology, SpringEnd};
-
-/// Most block-descent iterations per substep. More buys less than more substeps do.
-pub const MAX_ITERATIONS: u32 = 16;
+use crate::topology::ClothTopology;
 
 /// Particles one rayon task updates at least: below that, a pass is not split, since a fork
 /// and join costs more than the updates it would share (a 64x64 cloth's colours are not split).

@@ -4,50 +4,15 @@
 
 use std::sync::Arc;
 
-use glam::{Affine3A, Quat, UVec3, Vec3};
+use glam::{Affine3A, UVec3, Vec3};
 
 use crate::error::ColliderError;
 use crate::exact_contact::TriangleSurface;
 use crate::lbvh::Lbvh;
+pub use crate::pose::ColliderPose;
 use crate::primitives::Primitive;
 use crate::skinning::{SkinRef, SkinScratch, SkinnedSpheres};
 use crate::voxel_spheres::{MeshRef, Voxels, voxel_spheres_in};
-
-/// Where a collider is in the world: rotation, uniform scale, translation.
-///
-/// Only uniform scale is supported, because it maps spheres to spheres; a caller with a
-/// non-uniform scale should bake it into the mesh.
-#[derive(Clone, Copy, Debug, PartialEq)]
-pub struct ColliderPose {
-    /// World position of the collider's local origin.
-    pub translation: Vec3,
-    /// World orientation.
-    pub rotation: Quat,
-    /// Uniform scale, local to world. Must be positive.
-    pub scale: f32,
-}
-
-impl Default for ColliderPose {
-    fn default() -> Self {
-        Self { translation: Vec3::ZERO, rotation: Quat::IDENTITY, scale: 1.0 }
-    }
-}
-
-impl ColliderPose {
-    /// The local-to-world transform.
-    pub fn to_affine(&self) -> Affine3A {
-        Affine3A::from_scale_rotation_translation(Vec3::splat(self.scale), self.rotation, self.translation)
-    }
-
-    /// Whether the pose can be used: finite, with a positive scale and a non-degenerate rotation.
-    pub fn is_valid(&self) -> bool {
-        self.translation.is_finite()
-            && self.rotation.is_finite()
-            && self.rotation.length_squared() > 0.5
-            && self.scale.is_finite()
-            && self.scale > 0.0
-    }
-}
 
 /// What a collider is made of, in its local frame.
 #[derive(Clone, Debug)]
@@ -251,11 +216,6 @@ impl Collider {
     /// Number of leaf spheres (0 for a primitive).
     pub fn sphere_count(&self) -> usize {
         self.lbvh().map_or(0, |lbvh| lbvh.leaf_count())
-    }
-
-    /// Whether the world-space point `p` lies inside the shape grown by the margin.
-    pub fn contains(&self, p: Vec3) -> bool {
-        crate::collision::ColliderFrame::new(self).is_some_and(|frame| frame.contains(p))
     }
 }
 

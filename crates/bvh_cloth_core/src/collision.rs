@@ -49,13 +49,7 @@ use crate::lbvh::{Lbvh, Sphere};
 use crate::primitives::Primitive;
 use crate::traversal::sphere_contains;
 
-/// Relative distance above a sphere's surface within which a previous position counts as in
-/// contact (see the module docs): ten times [`SURFACE_TOLERANCE`](crate::traversal::SURFACE_TOLERANCE), so that a particle the last
-/// response put on a surface is always in contact with it on the next substep.
-pub const CONTACT_BAND: f32 = 1.0e-2;
-
-/// How many times a particle that starts a substep inside a sphere is pushed out.
-pub const MAX_PASSES: usize = 4;
+pub use crate::response::{CONTACT_BAND, MAX_PASSES, Response};
 
 /// What a [`ColliderFrame`] tests against.
 #[derive(Clone, Copy, Debug)]
@@ -163,6 +157,13 @@ impl<'a> ColliderFrame<'a> {
     }
 }
 
+impl Collider {
+    /// Whether the world-space point `p` lies inside the shape grown by the margin.
+    pub fn contains(&self, p: Vec3) -> bool {
+        ColliderFrame::new(self).is_some_and(|frame| frame.contains(p))
+    }
+}
+
 impl ColliderFrame<'_> {
     /// The velocity after a contact with outward normal `n`: the normal part removed, and the
     /// tangential part slowed by friction when the particle was moving into the surface.
@@ -217,17 +218,6 @@ fn segment_enters(sphere: &Sphere, prev: Vec3, p: Vec3, margin: f32) -> bool {
 /// The outward unit normal of a sphere around `c` at `p`, with fallbacks at the centre.
 fn outward_normal(p: Vec3, prev: Vec3, c: Vec3) -> Vec3 {
     (p - c).try_normalize().or_else(|| (prev - c).try_normalize()).unwrap_or(Vec3::Y)
-}
-
-/// What the response did to a particle, in the collider's local frame.
-#[derive(Clone, Copy, Debug, PartialEq)]
-pub enum Response {
-    /// Nothing touched: the particle keeps its integrated position.
-    Free,
-    /// The particle moves to this point.
-    Moved(Vec3),
-    /// The particle stays at its previous position (the guard of the module docs).
-    Stay,
 }
 
 /// The response of the module docs for a particle going from `prev` to `p` (the collider's

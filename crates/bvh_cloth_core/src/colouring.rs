@@ -19,7 +19,7 @@
 
 use crate::error::ClothError;
 use crate::grid::ClothGrid;
-use crate::topology::SpringEnd;
+use crate::grid::SpringEnd;
 
 /// Most colours a cloth may need. Each colour is one dispatch per solver iteration.
 pub const MAX_COLOURS: u32 = 32;

@@ -311,7 +311,7 @@ pub enum ColliderError {
         max: u64,
     },
     /// A primitive with a zero, negative or non-finite size, or a zero normal.
-    BadPrimitive(crate::primitives::Primitive),
+    BadPrimitive(crate::primitive_shape::Primitive),
     /// A skin whose joint or weight list does not have one entry per vertex.
     SkinLength {
         /// Vertices of the mesh.

@@ -70,10 +70,10 @@
 use glam::Vec3;
 use rayon::prelude::*;
 
-use crate::collider::ColliderPose;
-use crate::collision::{CONTACT_BAND, MAX_PASSES, Response};
 use crate::error::ColliderError;
 use crate::lbvh::{Lbvh, Sphere};
+use crate::pose::ColliderPose;
+use crate::response::{CONTACT_BAND, MAX_PASSES, Response};
 use crate::triangles::{EDGE_SLACK, closest_point, face_normal, has_area, segment_hit};
 use crate::voxel_spheres::MeshRef;
 use crate::wide_bvh::{WideBvh, WideNode};

@@ -1,5 +1,6 @@
 //! The particle grid: indexing, rest pose, the spring stencil and pin sets (paper section 2.1).
 
+use bytemuck::{Pod, Zeroable};
 use glam::{Affine3A, UVec2, Vec2, Vec3};
 
 use crate::error::ClothError;
@@ -167,6 +168,21 @@ impl ClothGrid {
         }
         out
     }
+}
+
+/// One spring as seen from one of its ends: the other end, its kind, rest length and weight.
+/// Uploaded unchanged to the GPU. 16 bytes.
+#[repr(C)]
+#[derive(Clone, Copy, Debug, Default, PartialEq, Pod, Zeroable)]
+pub struct SpringEnd {
+    /// The particle at the other end.
+    pub other: u32,
+    /// The [`SpringKind`] as a number (0 structural, 1 shear, 2 bending).
+    pub kind: u32,
+    /// Rest length in metres.
+    pub rest: f32,
+    /// Stiffness weight `A / L²` (see [`crate::topology`]).
+    pub weight: f32,
 }
 
 #[cfg(test)]

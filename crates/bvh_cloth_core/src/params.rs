@@ -5,11 +5,13 @@ use bevy_reflect::std_traits::ReflectDefault;
 use glam::Vec3;
 
 use crate::aerodynamics::Aerodynamics;
-pub use crate::block_descent::MAX_ITERATIONS;
 use crate::error::ClothError;
 use crate::self_contact::SelfContact;
 use crate::tethers::Tethers;
 use crate::topology::ClothTopology;
+
+/// Most block-descent iterations per substep. More buys less than more substeps do.
+pub const MAX_ITERATIONS: u32 = 16;
 
 /// Most substeps one tick may take when the stability guard raises `looper` (see
 /// [`ClothParams::max_stable_substep`]). Beyond it the springs are too stiff for the tick rate

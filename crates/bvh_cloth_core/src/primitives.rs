@@ -28,8 +28,9 @@
 
 use glam::Vec3;
 
-use crate::collision::{CONTACT_BAND, Response};
 use crate::error::ColliderError;
+pub use crate::primitive_shape::Primitive;
+use crate::response::{CONTACT_BAND, Response};
 use crate::traversal::SURFACE_TOLERANCE;
 
 /// Bisection steps of the sweep: the entry is found to `2^-24` of the path length.
@@ -37,35 +38,6 @@ pub const SWEEP_STEPS: u32 = 24;
 
 /// Golden-section steps that find where a path that ends outside comes closest to the shape.
 pub const CLOSEST_STEPS: u32 = 24;
-
-/// A convex shape in its collider's local frame.
-#[derive(Clone, Copy, Debug, PartialEq)]
-pub enum Primitive {
-    /// A ball around the origin.
-    Sphere {
-        /// Radius.
-        radius: f32,
-    },
-    /// The points within `radius` of the segment from `-half_length` to `+half_length` on the
-    /// local Y axis (Bevy's `Capsule3d`).
-    Capsule {
-        /// Radius of the rounded ends and the body.
-        radius: f32,
-        /// Half the length of the axis segment (0 makes a sphere).
-        half_length: f32,
-    },
-    /// An axis-aligned box around the origin (Bevy's `Cuboid`).
-    Cuboid {
-        /// Half the size along each local axis.
-        half_extents: Vec3,
-    },
-    /// Everything below the plane through the origin with the given outward normal: the ground
-    /// when the normal is `+Y`.
-    HalfSpace {
-        /// Outward unit normal of the surface (normalised by [`Primitive::validate`]'s users).
-        normal: Vec3,
-    },
-}
 
 impl Primitive {
     /// Its number in `GpuCollider::shape` (see [`crate::gpu_layout`]).

@@ -30,11 +30,11 @@
 
 use std::collections::HashMap;
 
-use bytemuck::{Pod, Zeroable};
 use glam::{DMat3, DVec3, Vec3};
 
 use crate::colouring::ParticleColouring;
 use crate::error::ClothError;
+pub use crate::grid::SpringEnd;
 use crate::grid::{ClothGrid, MAX_PARTICLES, STENCIL, SpringKind};
 use crate::voxel_spheres::MeshRef;
 
@@ -51,21 +51,6 @@ fn floored_shares(shares: &[f64]) -> Vec<f32> {
     let raised: Vec<f64> = shares.iter().map(|&s| if s > 0.0 { s.max(floor) } else { 0.0 }).collect();
     let total: f64 = raised.iter().sum();
     raised.iter().map(|&s| (s / total) as f32).collect()
-}
-
-/// One spring as seen from one of its ends: the other end, its kind, rest length and weight.
-/// Uploaded unchanged to the GPU. 16 bytes.
-#[repr(C)]
-#[derive(Clone, Copy, Debug, Default, PartialEq, Pod, Zeroable)]
-pub struct SpringEnd {
-    /// The particle at the other end.
-    pub other: u32,
-    /// The [`SpringKind`] as a number (0 structural, 1 shear, 2 bending).
-    pub kind: u32,
-    /// Rest length in metres.
-    pub rest: f32,
-    /// Stiffness weight `A / L²` (see the [module docs](self)).
-    pub weight: f32,
 }
 
 /// A cloth's particles, springs and surface. Build it once per shape and share it (it is

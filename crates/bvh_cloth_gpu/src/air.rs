@@ -18,8 +18,8 @@ use bvh_cloth_core::aerodynamics::AirSource;
 use bvh_cloth_core::gpu_layout::GpuAirCloth;
 use wgpu::{BindGroup, Buffer, ComputePass, ComputePipeline, Device, Queue};
 
-use crate::batch::{Kernel, UNIFORM_STRIDE, storage_buffer};
-use crate::kernels::{ClothKernels, KernelError, storage_binding_limit};
+use crate::buffer::{UNIFORM_STRIDE, storage_buffer};
+use crate::kernels::{ClothKernels, Kernel, KernelError, storage_binding_limit};
 
 /// What one frame of air needs written: each cloth slot's constants (zero for a cloth without
 /// aerodynamics), the wind sources, and per tick each cloth slot's ambient wind and lattice time.

@@ -19,59 +19,14 @@ use wgpu::util::DeviceExt;
 use wgpu::{BindGroup, Buffer, BufferUsages, CommandEncoder, Device, Queue};
 
 use crate::air::{AirFrame, AirPlan};
+use crate::buffer::{UNIFORM_STRIDE, storage_buffer};
 use crate::colliders::GpuColliders;
 use crate::contact::{ContactCloth, ContactPlan, SharedBuffers};
-use crate::kernels::{ClothKernels, KernelError, WORKGROUP_SIZE, storage_binding_limit};
-
-/// The kernel a dispatch runs, as [`ClothBatch::encode_ticks_timed`] reports it.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, PartialOrd, Ord)]
-pub enum Kernel {
-    /// `apply_anchors`: the pins moved at the start of a tick.
-    ApplyAnchors,
-    /// `node_update`: one of RK4's first three stages (semi-implicit Euler in the first).
-    NodeUpdate,
-    /// `node_update_final`: the last stage, with the collision response.
-    NodeUpdateFinal,
-    /// `vbd_predict`: block descent's inertial target, the first iterate.
-    VbdPredict,
-    /// `vbd_solve`: one block-descent sweep over one colour.
-    VbdSolve,
-    /// `vbd_finish`: block descent's velocity update, with the collision response.
-    VbdFinish,
-    /// `vbd_drift_blocks` or `vbd_drift`: the drift of the centre of mass of the block-descent
-    /// cloths that nothing holds.
-    VbdDrift,
-    /// `contact_begin`: self-contact's substep start kept, its sums and bucket counts cleared.
-    ContactBegin,
-    /// `contact_count`: each triangle counted in its grid buckets.
-    ContactCount,
-    /// `contact_scan_blocks`, `contact_scan_top` or `contact_scan_add`: the buckets' prefix sum.
-    ContactScan,
-    /// `contact_scatter`: each triangle entered in its grid buckets.
-    ContactScatter,
-    /// `contact_find`: each particle's contacts, their corrections summed.
-    ContactFind,
-    /// `contact_apply`: each particle's mean correction, then the collision response.
-    ContactApply,
-    /// `air_sample`: the wind at every particle of the cloths with aerodynamics, once a tick.
-    AirSample,
-    /// `air_forces`: each triangle's drag and lift.
-    AirForces,
-    /// `air_kick`: each particle's velocity changed by the drag and lift of its triangles (the
-    /// explicit integrators' cloths).
-    AirKick,
-    /// `vbd_predict_air`: block descent's prediction after the air kick of its cloths in the
-    /// wind, in a batch with aerodynamics.
-    VbdPredictAir,
-}
+use crate::kernels::{ClothKernels, Kernel, KernelError, WORKGROUP_SIZE, storage_binding_limit};
 
 /// A cloth in a [`ClothBatch`], valid until it is removed.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, PartialOrd, Ord)]
 pub struct ClothId(u32);
-
-/// Bytes between two dynamic-offset uniforms (the largest alignment wgpu allows a device to
-/// ask for).
-pub(crate) const UNIFORM_STRIDE: u64 = 256;
 
 /// Most substeps one tick may run ([`bvh_cloth_core::params::MAX_SUBSTEPS_PER_TICK`]).
 const MAX_SUBSTEPS: u32 = bvh_cloth_core::params::MAX_SUBSTEPS_PER_TICK;
@@ -149,16 +104,6 @@ struct Buffers {
     surface_words: Buffer,
     cloth_constants: Buffer,
     writebacks: Buffer,
-}
-
-/// A storage buffer of at least `bytes` (16 at least) that can be written, copied and read back.
-pub(crate) fn storage_buffer(device: &Device, label: &str, bytes: u64) -> Buffer {
-    device.create_buffer(&wgpu::BufferDescriptor {
-        label: Some(label),
-        size: bytes.max(16),
-        usage: BufferUsages::STORAGE | BufferUsages::COPY_DST | BufferUsages::COPY_SRC,
-        mapped_at_creation: false,
-    })
 }
 
 impl Buffers {

@@ -16,8 +16,8 @@ use bvh_cloth_core::ClothTopology;
 use bvh_cloth_core::gpu_layout::{CONTACT_TRIANGLE_WORDS, GpuContactFrame, gpu_contact_triangles};
 use wgpu::{BindGroup, Buffer, BufferUsages, ComputePass, Device, Queue};
 
-use crate::batch::{Kernel, storage_buffer};
-use crate::kernels::{ClothKernels, KernelError, WORKGROUP_SIZE, storage_binding_limit};
+use crate::buffer::storage_buffer;
+use crate::kernels::{ClothKernels, Kernel, KernelError, WORKGROUP_SIZE, storage_binding_limit};
 
 /// Buckets per prefix-sum block (`SCAN_BLOCK` in the WGSL).
 const SCAN_BLOCK: u32 = 256;

@@ -7,6 +7,48 @@ use wgpu::{
     BindGroupLayout, BindGroupLayoutEntry, BindingType, BufferBindingType, ComputePipeline, Device, ShaderStages,
 };
 
+/// The kernel a dispatch runs, as [`ClothBatch::encode_ticks_timed`](crate::ClothBatch::encode_ticks_timed) reports it.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, PartialOrd, Ord)]
+pub enum Kernel {
+    /// `apply_anchors`: the pins moved at the start of a tick.
+    ApplyAnchors,
+    /// `node_update`: one of RK4's first three stages (semi-implicit Euler in the first).
+    NodeUpdate,
+    /// `node_update_final`: the last stage, with the collision response.
+    NodeUpdateFinal,
+    /// `vbd_predict`: block descent's inertial target, the first iterate.
+    VbdPredict,
+    /// `vbd_solve`: one block-descent sweep over one colour.
+    VbdSolve,
+    /// `vbd_finish`: block descent's velocity update, with the collision response.
+    VbdFinish,
+    /// `vbd_drift_blocks` or `vbd_drift`: the drift of the centre of mass of the block-descent
+    /// cloths that nothing holds.
+    VbdDrift,
+    /// `contact_begin`: self-contact's substep start kept, its sums and bucket counts cleared.
+    ContactBegin,
+    /// `contact_count`: each triangle counted in its grid buckets.
+    ContactCount,
+    /// `contact_scan_blocks`, `contact_scan_top` or `contact_scan_add`: the buckets' prefix sum.
+    ContactScan,
+    /// `contact_scatter`: each triangle entered in its grid buckets.
+    ContactScatter,
+    /// `contact_find`: each particle's contacts, their corrections summed.
+    ContactFind,
+    /// `contact_apply`: each particle's mean correction, then the collision response.
+    ContactApply,
+    /// `air_sample`: the wind at every particle of the cloths with aerodynamics, once a tick.
+    AirSample,
+    /// `air_forces`: each triangle's drag and lift.
+    AirForces,
+    /// `air_kick`: each particle's velocity changed by the drag and lift of its triangles (the
+    /// explicit integrators' cloths).
+    AirKick,
+    /// `vbd_predict_air`: block descent's prediction after the air kick of its cloths in the
+    /// wind, in a batch with aerodynamics.
+    VbdPredictAir,
+}
+
 /// The kernels' WGSL files, in the order [`shader_source`] joins them: the shared types, the
 /// spring forces, the collision response, then one file per kernel. Each starts with naga_oil directives
 /// (`#define_import_path`, `#import`) for engines that compose shaders that way.

@@ -32,6 +32,7 @@
 
 mod air;
 mod batch;
+mod buffer;
 mod colliders;
 mod contact;
 pub mod headless;
@@ -39,10 +40,10 @@ mod kernels;
 mod readback;
 mod skin_refit;
 
-pub use batch::{ClothBatch, ClothId, Kernel};
+pub use batch::{ClothBatch, ClothId};
 pub use colliders::GpuColliders;
 pub use kernels::{
-    AIR_KERNELS, CONTACT_KERNELS, ClothKernels, KERNEL_COUNT, KernelDescriptor, KernelError, SHADER_FILES,
+    AIR_KERNELS, CONTACT_KERNELS, ClothKernels, KERNEL_COUNT, Kernel, KernelDescriptor, KernelError, SHADER_FILES,
     STORAGE_BUFFERS_NEEDED, WORKGROUP_SIZE, shader_source,
 };
 pub use readback::{FaultReadback, ParticleReadback};
