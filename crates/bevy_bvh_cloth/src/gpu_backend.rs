@@ -50,8 +50,8 @@ use bevy::shader::Shader;
 use bvh_cloth_core::gpu_layout::GpuMeshWriteback;
 use bvh_cloth_core::{Affine3A, ClothParams, ClothSim, Collider, Lbvh, SkinnedSpheres, Wind, WindSource};
 use bvh_cloth_gpu::{
-    ClothBatch, ClothId, ClothKernels, FaultReadback, GpuColliders, KERNEL_COUNT, ParticleReadback, SHADER_FILES,
-    SkinRefit, wgpu,
+    CONSTANTS_FILE, ClothBatch, ClothId, ClothKernels, FaultReadback, GpuColliders, KERNEL_COUNT, ParticleReadback,
+    SHADER_FILES, SkinRefit, shared_constants, wgpu,
 };
 
 use crate::clock::ClothClock;
@@ -61,20 +61,18 @@ use crate::readback::{ClothReadback, GpuClothState};
 use crate::simulation::{ClothSimulation, rigid_pose};
 use crate::wind::WindSources;
 
-/// The kernels' WGSL files as shader assets, one per [`SHADER_FILES`] entry, held for the
-/// app's lifetime: the pipeline cache compiles the kernels from them, resolving their imports.
+/// The kernels' WGSL files as shader assets, one per [`SHADER_FILES`] entry, then the module of
+/// the constants they share with the core, held for the app's lifetime: the pipeline cache
+/// compiles the kernels from them, resolving their imports.
 #[derive(Resource, Clone)]
 pub(crate) struct ClothShaders(Vec<Handle<Shader>>);
 
 impl ClothShaders {
     /// Adds the files to `shaders`.
     pub(crate) fn add(shaders: &mut Assets<Shader>) -> Self {
-        Self(
-            SHADER_FILES
-                .iter()
-                .map(|(name, text)| shaders.add(Shader::from_wgsl(*text, format!("bvh_cloth_gpu/{name}"))))
-                .collect(),
-        )
+        let constants = Shader::from_wgsl(shared_constants(), format!("bvh_cloth_gpu/{CONSTANTS_FILE}"));
+        let files = SHADER_FILES.iter().map(|(name, text)| Shader::from_wgsl(*text, format!("bvh_cloth_gpu/{name}")));
+        Self(files.chain([constants]).map(|shader| shaders.add(shader)).collect())
     }
 
     fn file(&self, name: &str) -> Option<Handle<Shader>> {

@@ -50,8 +50,10 @@ pub enum Kernel {
 }
 
 /// The kernels' WGSL files, in the order [`shader_source`] joins them: the shared types, the
-/// spring forces, the collision response, then one file per kernel. Each starts with naga_oil directives
-/// (`#define_import_path`, `#import`) for engines that compose shaders that way.
+/// spring forces, the collision response, then one file per kernel. Each starts with naga_oil
+/// directives (`#define_import_path`, `#import`) for engines that compose shaders that way;
+/// with them goes the module of the constants shared with the core,
+/// [`shared_constants`](crate::shared_constants), written from the Rust side.
 pub const SHADER_FILES: [(&str, &str); 12] = [
     ("types.wgsl", include_str!("shaders/types.wgsl")),
     ("springs.wgsl", include_str!("shaders/springs.wgsl")),
@@ -67,10 +69,12 @@ pub const SHADER_FILES: [(&str, &str); 12] = [
     ("air.wgsl", include_str!("shaders/air.wgsl")),
 ];
 
-/// The kernels as one WGSL module: [`SHADER_FILES`] joined, their import directives dropped.
+/// The kernels as one WGSL module: the shared constants ([`crate::shared_constants`]) and
+/// [`SHADER_FILES`] joined, their import directives dropped.
 pub fn shader_source() -> String {
     let mut source = String::new();
-    for (name, text) in SHADER_FILES {
+    let constants = crate::shared_constants();
+    for (name, text) in std::iter::once((crate::CONSTANTS_FILE, constants.as_str())).chain(SHADER_FILES) {
         source.push_str(&format!("// ---- {name}\n"));
         for line in text.lines().filter(|line| !line.starts_with("#define_import_path") && !line.starts_with("#import"))
         {

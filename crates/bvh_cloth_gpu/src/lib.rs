@@ -34,6 +34,7 @@ mod air;
 mod batch;
 mod buffer;
 mod colliders;
+mod constants;
 mod contact;
 pub mod headless;
 mod kernels;
@@ -42,6 +43,7 @@ mod skin_refit;
 
 pub use batch::{ClothBatch, ClothId};
 pub use colliders::GpuColliders;
+pub use constants::{CONSTANTS_FILE, shared_constants};
 pub use kernels::{
     AIR_KERNELS, CONTACT_KERNELS, ClothKernels, KERNEL_COUNT, Kernel, KernelDescriptor, KernelError, SHADER_FILES,
     STORAGE_BUFFERS_NEEDED, WORKGROUP_SIZE, shader_source,

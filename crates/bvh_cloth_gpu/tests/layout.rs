@@ -229,6 +229,43 @@ fn wgsl_structs_match_the_rust_layouts() {
     assert_eq!((offset_of!(Sphere, center), offset_of!(Sphere, radius)), (0, 12));
 }
 
+/// The constants the kernels share with the core are written from the Rust side: no shader file
+/// defines one of them by hand, each file that uses one imports it from `bvh_cloth::constants`,
+/// and every one of them is used.
+#[test]
+fn shared_constants_are_written_once_from_the_core() {
+    let generated = bvh_cloth_gpu::shared_constants();
+    assert!(generated.starts_with("#define_import_path bvh_cloth::constants"));
+    let names: Vec<&str> =
+        generated.lines().filter_map(|l| l.strip_prefix("const ")).map(|l| l.split(':').next().unwrap()).collect();
+    assert!(names.len() >= 20, "{names:?}");
+    let word = |text: &str, name: &str| {
+        text.match_indices(name).any(|(at, _)| {
+            let before = text[..at].chars().last().is_none_or(|c| !(c.is_alphanumeric() || c == '_'));
+            let after = text[at + name.len()..].chars().next().is_none_or(|c| !(c.is_alphanumeric() || c == '_'));
+            before && after
+        })
+    };
+    for name in &names {
+        let mut used = false;
+        for (file, text) in SHADER_FILES {
+            assert!(!text.contains(&format!("const {name}:")), "{file} defines {name} by hand");
+            let code: String = text
+                .lines()
+                .filter(|l| !l.starts_with("#import"))
+                .map(|l| l.split("//").next().unwrap())
+                .collect::<Vec<_>>()
+                .join("\n");
+            if word(&code, name) {
+                used = true;
+                let imports = text.lines().find(|l| l.starts_with("#import bvh_cloth::constants::{"));
+                assert!(imports.is_some_and(|l| word(l, name)), "{file} uses {name} without importing it");
+            }
+        }
+        assert!(used, "{name} is written but no kernel uses it");
+    }
+}
+
 #[test]
 fn shared_constants_match_the_core() {
     let source = shader_source();

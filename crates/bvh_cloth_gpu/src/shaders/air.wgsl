@@ -13,8 +13,9 @@
 // Bindings 41-44, 46 and 47 (see types.wgsl).
 
 #define_import_path bvh_cloth::air
-#import bvh_cloth::types::{GpuParticle, NO_CLOTH, INTEGRATOR_BLOCK_DESCENT, frame, step, thread_index}
+#import bvh_cloth::types::{GpuParticle, frame, step, thread_index}
 #import bvh_cloth::springs::{particle_info, cloths}
+#import bvh_cloth::constants::{NO_CLOTH, INTEGRATOR_BLOCK_DESCENT, NOISE_TIME_PERIOD, SOURCE_FAN}
 
 struct AirCloth {
     surface_start: u32,
@@ -36,9 +37,6 @@ struct WindSource {
     axis: vec4<f32>,    // the fan's unit axis; w: speed
     reach: vec4<f32>,   // range (or radius), cosine of the fan's spread
 }
-
-const NOISE_TIME_PERIOD: u32 = 4096u;  // bvh_cloth_core::aerodynamics::NOISE_TIME_PERIOD
-const SOURCE_FAN: f32 = 0.0;           // bvh_cloth_core::aerodynamics::SOURCE_FAN
 
 // Per cloth, this tick: the ambient wind (gusts included) and the turbulence's lattice time
 // (bound at the tick's dynamic offset).

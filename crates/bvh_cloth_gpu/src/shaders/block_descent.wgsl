@@ -16,10 +16,11 @@
 //   particle's acceleration estimate for the next substep.
 // Cloths of other integrators, and cloths past their own substeps or iterations, sit out.
 
-#import bvh_cloth::types::{GpuParticle, ColourPass, NO_CLOTH, UNTETHERED, INTEGRATOR_BLOCK_DESCENT, frame, step, thread_index, all_finite}
+#import bvh_cloth::types::{GpuParticle, ColourPass, frame, step, thread_index, all_finite}
 #import bvh_cloth::springs::{particle_info, ends, cloths}
 #import bvh_cloth::collision::collide
 #import bvh_cloth::air::{air_cloth, air_kick_of}
+#import bvh_cloth::constants::{NO_CLOTH, UNTETHERED, INTEGRATOR_BLOCK_DESCENT}
 
 @group(0) @binding(19) var<storage, read_write> iterate: array<GpuParticle>;       // the state, solved in place
 @group(0) @binding(20) var<storage, read_write> substep_start: array<GpuParticle>; // x0, v0

@@ -4,8 +4,9 @@
 // (bvh_cloth_core::exact_contact), through the same traversal of its tree.
 
 #define_import_path bvh_cloth::collision
-#import bvh_cloth::types::{GpuParticle, GpuCollider, LEAF_BIT, STACK_SIZE, SURFACE_TOLERANCE, CONTACT_BAND, MAX_PASSES, LOOKOUT_ROUNDING, SHAPE_SPHERES, SHAPE_TRIANGLES, frame}
+#import bvh_cloth::types::{GpuParticle, GpuCollider, frame}
 #import bvh_cloth::primitives::respond_primitive
+#import bvh_cloth::constants::{SHAPE_SPHERES, SHAPE_TRIANGLES, LEAF_BIT, STACK_SIZE, SURFACE_TOLERANCE, CONTACT_BAND, MAX_PASSES, LOOKOUT_ROUNDING, EDGE_SLACK, PLANE_ROUNDING}
 
 @group(0) @binding(11) var<storage, read> colliders: array<GpuCollider>;
 // Every collider's tree: the nodes (bvh_cloth_core::BvhNode, two vec4 each: the box's minimum
@@ -367,10 +368,6 @@ fn closest_on_triangle(p: vec3<f32>, a: vec3<f32>, b: vec3<f32>, c: vec3<f32>) -
     }
     return a + ab * (vb / sum) + ac * (vc / sum);
 }
-
-const EDGE_SLACK: f32 = 1.0e-5;            // bvh_cloth_core::triangles::EDGE_SLACK
-
-const PLANE_ROUNDING: f32 = 4.7683716e-7;  // bvh_cloth_core::triangles::PLANE_ROUNDING
 
 // One edge's signed volume against the line from `origin` along `dir`, from its corners in a
 // fixed order, so that the two triangles sharing the edge get the same number.

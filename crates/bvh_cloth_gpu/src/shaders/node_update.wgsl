@@ -4,8 +4,9 @@
 // the Euler step), fused with the collision response. A cloth with fewer substeps than the batch
 // sits out the rest.
 
-#import bvh_cloth::types::{GpuParticle, NO_CLOTH, INTEGRATOR_EULER, INTEGRATOR_BLOCK_DESCENT, frame, step, thread_index}
+#import bvh_cloth::types::{GpuParticle, frame, step, thread_index}
 #import bvh_cloth::springs::{source, particle_info, cloths, acceleration}
+#import bvh_cloth::constants::{NO_CLOTH, INTEGRATOR_EULER, INTEGRATOR_BLOCK_DESCENT}
 
 @group(0) @binding(2) var<storage, read> base: array<GpuParticle>;      // state at substep start
 @group(0) @binding(4) var<storage, read_write> slope_sum: array<GpuParticle>;

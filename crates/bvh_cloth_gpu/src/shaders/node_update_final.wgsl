@@ -4,9 +4,10 @@
 // against every collider, written over the substep's start state in place (each thread reads
 // and writes only its own particle there).
 
-#import bvh_cloth::types::{GpuParticle, NO_CLOTH, INTEGRATOR_EULER, INTEGRATOR_BLOCK_DESCENT, frame, step, thread_index, all_finite}
+#import bvh_cloth::types::{GpuParticle, frame, step, thread_index, all_finite}
 #import bvh_cloth::springs::{source, particle_info, cloths, acceleration}
 #import bvh_cloth::collision::collide
+#import bvh_cloth::constants::{NO_CLOTH, INTEGRATOR_EULER, INTEGRATOR_BLOCK_DESCENT}
 
 @group(0) @binding(9) var<storage, read_write> state: array<GpuParticle>;
 @group(0) @binding(10) var<storage, read> slopes: array<GpuParticle>;

@@ -2,15 +2,10 @@
 // in the collider's local frame, step for step as on the CPU.
 
 #define_import_path bvh_cloth::primitives
-#import bvh_cloth::types::{GpuCollider, SURFACE_TOLERANCE, CONTACT_BAND}
+#import bvh_cloth::types::{GpuCollider}
+#import bvh_cloth::constants::{SURFACE_TOLERANCE, CONTACT_BAND, SHAPE_SPHERE, SHAPE_CAPSULE, SHAPE_CUBOID, SHAPE_HALF_SPACE, SWEEP_STEPS, CLOSEST_STEPS}
 
 // GpuCollider::shape (bvh_cloth_core::primitives::Primitive::kind).
-const SHAPE_SPHERE: u32 = 1u;
-const SHAPE_CAPSULE: u32 = 2u;
-const SHAPE_CUBOID: u32 = 3u;
-const SHAPE_HALF_SPACE: u32 = 4u;
-const SWEEP_STEPS: u32 = 24u;     // bvh_cloth_core::primitives::SWEEP_STEPS
-const CLOSEST_STEPS: u32 = 24u;   // bvh_cloth_core::primitives::CLOSEST_STEPS
 const INV_PHI: f32 = 0.618034;
 
 // A signed distance (w) and the outward unit normal of the closest surface point (xyz).

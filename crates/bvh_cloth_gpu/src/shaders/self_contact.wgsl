@@ -24,9 +24,10 @@
 // is bounded and every write is checked against its buffer: the grid has room for
 // `entry_capacity` entries, and entries past it are dropped and counted as clamped.
 
-#import bvh_cloth::types::{GpuParticle, NO_CLOTH, thread_index, all_finite}
+#import bvh_cloth::types::{GpuParticle, thread_index, all_finite}
 #import bvh_cloth::springs::{particle_info, cloths}
 #import bvh_cloth::collision::{collide, closest_on_triangle}
+#import bvh_cloth::constants::{NO_CLOTH, MAX_CANDIDATES, MAX_SPAN, MAX_HELD_SCALE, CONTACT_TRIANGLE_WORDS}
 
 struct ContactFrame {
     triangle_count: u32,
@@ -52,10 +53,6 @@ struct ContactFrame {
 @group(0) @binding(39) var<storage, read_write> contact_sums: array<atomic<i32>>;
 @group(0) @binding(40) var<storage, read_write> contact_state: array<GpuParticle>;
 
-const MAX_CANDIDATES: u32 = 256u;       // bvh_cloth_core::self_contact::MAX_CANDIDATES
-const MAX_SPAN: i32 = 4;                // bvh_cloth_core::self_contact::MAX_SPAN
-const MAX_HELD_SCALE: f32 = 16.0;       // bvh_cloth_core::self_contact::MAX_HELD_SCALE
-const TRIANGLE_WORDS: u32 = 5u;         // bvh_cloth_core::gpu_layout::CONTACT_TRIANGLE_WORDS
 const SUM_WORDS: u32 = 8u;
 const POSITION_SCALE: f32 = 1048576.0;  // 2^20 per metre
 const VELOCITY_SCALE: f32 = 16384.0;    // 2^14 per m/s
@@ -137,7 +134,7 @@ struct CellRange {
 }
 
 fn triangle_cells(t: u32, record: bool) -> CellRange {
-    let corners = contact_triangles[TRIANGLE_WORDS * t];
+    let corners = contact_triangles[CONTACT_TRIANGLE_WORDS * t];
     let a = corner_position(corners.x);
     let b = corner_position(corners.y);
     let c = corner_position(corners.z);
@@ -149,8 +146,8 @@ fn triangle_cells(t: u32, record: bool) -> CellRange {
         // A box that is not finite is stored empty, so that no point is inside it.
         let box_lo = select(vec3(1.0), lo, range.valid);
         let box_hi = select(vec3(-1.0), hi, range.valid);
-        contact_triangles[TRIANGLE_WORDS * t + 3u] = vec4(bitcast<vec3<u32>>(box_lo), 0u);
-        contact_triangles[TRIANGLE_WORDS * t + 4u] = vec4(bitcast<vec3<u32>>(box_hi), 0u);
+        contact_triangles[CONTACT_TRIANGLE_WORDS * t + 3u] = vec4(bitcast<vec3<u32>>(box_lo), 0u);
+        contact_triangles[CONTACT_TRIANGLE_WORDS * t + 4u] = vec4(bitcast<vec3<u32>>(box_hi), 0u);
     }
     if (!range.valid) {
         return range;
@@ -360,21 +357,21 @@ fn add_correction(k: u32, dx: vec3<f32>, dv: vec3<f32>) {
 
 // bvh_cloth_core::self_contact::ContactSolver::contact, its corrections added to the sums.
 fn touch(p: u32, pc: u32, me: GpuParticle, t: u32) {
-    let corners = contact_triangles[TRIANGLE_WORDS * t];
+    let corners = contact_triangles[CONTACT_TRIANGLE_WORDS * t];
     if (corners.x == p || corners.y == p || corners.z == p) {
         return;
     }
     let xp = me.position.xyz;
-    let lo = bitcast<vec3<f32>>(contact_triangles[TRIANGLE_WORDS * t + 3u].xyz);
-    let hi = bitcast<vec3<f32>>(contact_triangles[TRIANGLE_WORDS * t + 4u].xyz);
+    let lo = bitcast<vec3<f32>>(contact_triangles[CONTACT_TRIANGLE_WORDS * t + 3u].xyz);
+    let hi = bitcast<vec3<f32>>(contact_triangles[CONTACT_TRIANGLE_WORDS * t + 4u].xyz);
     if (!(all(xp >= lo) && all(xp <= hi))) {
         return;
     }
     let tc = corners.w;
     let h = 0.5 * (cloths[pc].contact_thickness + cloths[tc].contact_thickness);
     if (pc == tc) {
-        let rest_lo = bitcast<vec3<f32>>(contact_triangles[TRIANGLE_WORDS * t + 1u].xyz);
-        let rest_hi = bitcast<vec3<f32>>(contact_triangles[TRIANGLE_WORDS * t + 2u].xyz);
+        let rest_lo = bitcast<vec3<f32>>(contact_triangles[CONTACT_TRIANGLE_WORDS * t + 1u].xyz);
+        let rest_hi = bitcast<vec3<f32>>(contact_triangles[CONTACT_TRIANGLE_WORDS * t + 2u].xyz);
         let rest = contact_points[2u * p + 1u].xyz;
         if (all(rest >= rest_lo - h) && all(rest <= rest_hi + h)) {
             return;

@@ -6,7 +6,8 @@
 //
 // Workgroups are 64x1x1; a thread's index is id.y * num_workgroups.x * 64 + id.x.
 
-#import bvh_cloth::types::{GpuCollider, LEAF_BIT, CONTACT_BAND}
+#import bvh_cloth::types::{GpuCollider}
+#import bvh_cloth::constants::{LEAF_BIT, CONTACT_BAND}
 
 struct RefitParams {
     vertex_count: u32,

@@ -109,19 +109,6 @@ struct WritebackGroup {
     pad: u32,
 }
 
-const NO_CLOTH: u32 = 0xffffffffu;         // bvh_cloth_core::gpu_layout::NO_CLOTH
-const UNTETHERED: u32 = 0xffffffffu;       // bvh_cloth_core::tethers::UNTETHERED
-const INTEGRATOR_EULER: u32 = 1u;          // bvh_cloth_core::gpu_layout::INTEGRATOR_EULER
-const INTEGRATOR_BLOCK_DESCENT: u32 = 2u;  // bvh_cloth_core::gpu_layout::INTEGRATOR_BLOCK_DESCENT
-const SHAPE_SPHERES: u32 = 0u;            // bvh_cloth_core::gpu_layout::SHAPE_SPHERES
-const SHAPE_TRIANGLES: u32 = 5u;          // bvh_cloth_core::gpu_layout::SHAPE_TRIANGLES
-const LEAF_BIT: u32 = 0x80000000u;
-const STACK_SIZE: u32 = 64u;               // bvh_cloth_core::traversal::STACK_SIZE
-const SURFACE_TOLERANCE: f32 = 1.0e-3;     // bvh_cloth_core::traversal::SURFACE_TOLERANCE
-const CONTACT_BAND: f32 = 1.0e-2;          // bvh_cloth_core::collision::CONTACT_BAND
-const MAX_PASSES: u32 = 4u;                // bvh_cloth_core::collision::MAX_PASSES
-const LOOKOUT_ROUNDING: f32 = 1.1920929e-6; // bvh_cloth_core::exact_contact::LOOKOUT_ROUNDING
-
 @group(0) @binding(0) var<uniform> frame: BatchFrame;
 @group(0) @binding(1) var<uniform> step: BatchStep;
 
