@@ -124,7 +124,8 @@ use bevy::transform::systems::{mark_dirty_trees, propagate_parent_transforms, sy
 pub use backend::{ActiveClothBackend, ClothBackend};
 pub use bvh_cloth_core;
 pub use bvh_cloth_core::{
-    Aerodynamics, ClothParams, ClothPins, ColorChannel, Integrator, SelfContact, SpringStiffness, Tethers, Wind,
+    Aerodynamics, ClothError, ClothParams, ClothPins, ColliderError, ColorChannel, Integrator, SelfContact,
+    SpringStiffness, Tethers, Wind,
 };
 pub use clock::ClothClock;
 pub use cloth::{Cloth, ClothAnchor, ClothShape};
@@ -146,11 +147,11 @@ pub mod prelude {
     pub use crate::panel::ClothPanelPlugin;
     pub use crate::{
         ActiveClothBackend, Aerodynamics, AmbientWind, AnchorLost, AutoCollider, BvhClothPlugin, BvhClothPlugins,
-        Cloth, ClothAnchor, ClothBackend, ClothClock, ClothDebugViewPlugin, ClothDiverged, ClothMessage, ClothParams,
-        ClothPins, ClothReadback, ClothRejected, ClothSettings, ClothShape, ClothSimulation, ClothStats, ClothSystems,
-        ColliderContact, ColliderFailed, ColliderHierarchy, ColliderReady, ColliderStatus, ColorChannel, Integrator,
-        LocalWind, PrimitiveCollider, PrimitiveShape, ResetCloth, SelfContact, SpringStiffness, Tethers, Wind,
-        WindBlast, WindFan, WindSourceRejected,
+        Cloth, ClothAnchor, ClothBackend, ClothClock, ClothDebugViewPlugin, ClothDiverged, ClothError, ClothMessage,
+        ClothParams, ClothPins, ClothReadback, ClothRejected, ClothSettings, ClothShape, ClothSimulation, ClothStats,
+        ClothSystems, ColliderContact, ColliderError, ColliderFailed, ColliderHierarchy, ColliderReady, ColliderStatus,
+        ColorChannel, Integrator, LocalWind, PrimitiveCollider, PrimitiveShape, ResetCloth, SelfContact,
+        SpringStiffness, Tethers, Wind, WindBlast, WindFan, WindSourceRejected,
     };
 }
 

@@ -245,4 +245,3 @@ fn cpu_name() -> String {
         })
         .unwrap_or_else(|| "unknown".into())
 }
-

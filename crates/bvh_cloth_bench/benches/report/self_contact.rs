@@ -129,7 +129,11 @@ pub(crate) fn self_contact_on_gpu(bunny: &ObjMesh, gpu: Option<&Gpu>) {
 
 /// Pairs of intersecting triangles: within `topology`'s cloth at `x` (pairs sharing no corner),
 /// or between it and `other`'s cloth.
-pub(crate) fn crossing_triangles(topology: &ClothTopology, x: &[Vec3], other: Option<(&ClothTopology, &[Vec3])>) -> usize {
+pub(crate) fn crossing_triangles(
+    topology: &ClothTopology,
+    x: &[Vec3],
+    other: Option<(&ClothTopology, &[Vec3])>,
+) -> usize {
     crossing_pairs(topology.triangles(), x, other.map(|(t, y)| (t.triangles(), y)))
 }
 
