@@ -5,12 +5,14 @@
 //! The wide tree is the binary tree with every other level folded into its parent: a wide node
 //! stands for a binary node, and its children are that node's grandchildren (or its children
 //! where those are leaves). Its boxes are the binary tree's, and a leaf's is the box the tree
-//! was fitted to (a triangle's own box for exact contact), so a query finds what a descent of
-//! the binary tree would have found, with half the dependent loads.
+//! was fitted to (a triangle's own box for exact contact), each rounded outwards to 8 bits a
+//! bound across its node ([`WideNode`]), so a node is one 64-byte cache line. A query finds what
+//! a descent of the binary tree would have found, with half the dependent loads, and may meet a
+//! few more leaves, whose rounded box reaches the query where their own does not.
 //!
-//! [`WideBvh::for_each_overlapping`] meets the leaves in the order [`Lbvh::for_each_overlapping`]
-//! does (the GPU's order too), so a response that depends on the order of its contacts is the
-//! same on both.
+//! [`WideBvh::for_each_overlapping`] meets the leaves the binary walk
+//! ([`Lbvh::for_each_overlapping`], the GPU's) meets in the same order, so a response that
+//! depends on the order of its contacts is the same on both.
 
 use glam::{BVec4A, Vec3, Vec4};
 use rayon::prelude::*;
