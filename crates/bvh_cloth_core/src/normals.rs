@@ -18,16 +18,16 @@ pub fn particle_normal(topology: &ClothTopology, i: usize, pos: impl Fn(usize) -
     n.try_normalize().unwrap_or(Vec3::Y)
 }
 
-/// Normals of every particle.
-pub fn particle_normals(topology: &ClothTopology, positions: &[Vec3]) -> Vec<Vec3> {
-    (0..topology.len()).map(|i| particle_normal(topology, i, |p| positions[p])).collect()
-}
-
 #[cfg(test)]
 mod tests {
     use glam::{Affine3A, Quat, UVec2, Vec2};
 
     use super::*;
+
+    /// Normals of every particle.
+    fn particle_normals(topology: &ClothTopology, positions: &[Vec3]) -> Vec<Vec3> {
+        (0..topology.len()).map(|i| particle_normal(topology, i, |p| positions[p])).collect()
+    }
     use crate::grid::ClothGrid;
 
     fn grid(cols: u32, rows: u32, size: f32) -> (ClothGrid, ClothTopology) {

@@ -251,12 +251,6 @@ impl ClothSim {
         self.wind_time
     }
 
-    /// The wind at each particle, as last sampled (at the start of the last tick), or `None`
-    /// when the cloth has no aerodynamics.
-    pub fn sampled_wind(&self) -> Option<&[Vec3A]> {
-        self.air_model.map(|_| &self.air.wind[..])
-    }
-
     /// Samples this tick's air at every particle, at the wind clock's time.
     fn sample_air(&mut self) {
         let aerodynamics = self.params.aerodynamics;
@@ -373,13 +367,6 @@ impl ClothSim {
     /// All velocities, by particle index.
     pub fn velocities(&self) -> Vec<Vec3> {
         (0..self.len()).map(|i| self.velocity(i)).collect()
-    }
-
-    /// Writes all positions into `out` (by particle index).
-    pub fn write_positions(&self, out: &mut [[f32; 3]]) {
-        for (i, o) in out.iter_mut().enumerate().take(self.len()) {
-            *o = self.position(i).to_array();
-        }
     }
 
     /// Whether every position and velocity is finite.

@@ -3,9 +3,9 @@
 
 use bvh_cloth_core::gpu_layout::{GpuCollider, gpu_sphere_region, gpu_tree, gpu_tree_size};
 use bvh_cloth_core::{BvhNode, Collider};
-use wgpu::util::DeviceExt;
-use wgpu::{Buffer, BufferUsages, Device, Queue};
+use wgpu::{Buffer, Device, Queue};
 
+use crate::buffer::storage_buffer_with;
 use crate::kernels::storage_binding_limit;
 
 /// The colliders' frames and trees. Trees are uploaded once; [`Self::update_frames`] moves the
@@ -32,17 +32,6 @@ pub struct GpuColliders {
     frame_indices: Vec<Option<u32>>,
     /// Input indices of the colliders whose trees did not fit.
     left_out: Vec<usize>,
-}
-
-fn storage_buffer<T: bytemuck::Pod + Default>(device: &Device, label: &str, items: &[T]) -> Buffer {
-    // wgpu rejects zero-sized bindings: an empty array is one zeroed element.
-    let fallback = [T::default()];
-    let contents: &[T] = if items.is_empty() { &fallback } else { items };
-    device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
-        label: Some(label),
-        contents: bytemuck::cast_slice(contents),
-        usage: BufferUsages::STORAGE | BufferUsages::COPY_DST | BufferUsages::COPY_SRC,
-    })
 }
 
 impl GpuColliders {
@@ -78,8 +67,8 @@ impl GpuColliders {
         tree.extend_from_slice(&spheres);
         Self {
             count: frames.len() as u32,
-            frames: storage_buffer(device, "bvh_cloth_collider_frames", &pad_frames(frames, colliders.len())),
-            tree: storage_buffer(device, "bvh_cloth_bvh_trees", &tree),
+            frames: storage_buffer_with(device, "bvh_cloth_collider_frames", &pad_frames(frames, colliders.len())),
+            tree: storage_buffer_with(device, "bvh_cloth_bvh_trees", &tree),
             nodes: node_count,
             offsets,
             sizes,
