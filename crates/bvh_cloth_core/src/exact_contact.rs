@@ -158,12 +158,9 @@ impl TriangleSurface {
         } else {
             order.iter().map(|&k| kept_triangle(kept[k as usize])).collect()
         };
-        let triangle_box = |k: u32| {
-            let [a, b, c] = triangles[k as usize];
-            (a.min(b).min(c), a.max(b).max(c))
-        };
-        lbvh.fit_boxes_by(triangle_box);
-        let wide = WideBvh::from_lbvh(&lbvh, triangle_box);
+        let leaf_box = |k: u32| triangle_box(&triangles[k as usize]);
+        lbvh.fit_boxes_by(leaf_box);
+        let wide = WideBvh::from_lbvh(&lbvh, leaf_box);
         let max_radius = lbvh.max_radius;
         let (lo, hi) = match (lbvh.nodes.first(), triangles.first()) {
             (Some(root), _) => (Vec3::from(root.aabb_min), Vec3::from(root.aabb_max)),
@@ -223,10 +220,7 @@ impl TriangleSurface {
         };
         let (mut tree, order) = Lbvh::build_unfitted(&spheres);
         debug_assert!(order.iter().enumerate().all(|(k, &o)| k as u32 == o), "the triangles are in leaf order");
-        tree.fit_boxes_by(|k| {
-            let [a, b, c] = self.triangles[k as usize];
-            (a.min(b).min(c), a.max(b).max(c))
-        });
+        tree.fit_boxes_by(|k| triangle_box(&self.triangles[k as usize]));
         tree
     }
 
@@ -337,6 +331,11 @@ impl TriangleSurface {
 fn facing(tri: [Vec3; 3], towards: Vec3) -> Vec3 {
     let n = face_normal(tri).unwrap_or(Vec3::Y);
     if n.dot(towards) < 0.0 { -n } else { n }
+}
+
+/// The triangle's box.
+fn triangle_box([a, b, c]: &[Vec3; 3]) -> (Vec3, Vec3) {
+    (a.min(*b).min(*c), a.max(*b).max(*c))
 }
 
 /// A sphere around the triangle: centred on its box, through its farthest corner.

@@ -13,7 +13,9 @@ mod common;
 
 use std::collections::HashMap;
 
+use bvh_cloth_core::exact_contact::TriangleSurface;
 use bvh_cloth_core::obj::parse_obj;
+use bvh_cloth_core::triangles::face_normal;
 use bvh_cloth_core::{Affine3A, ClothParams, ClothSim, Collider, MeshRef, Quat, Vec3};
 use glam::DVec3;
 use rayon::prelude::*;
@@ -198,10 +200,15 @@ fn drapes_at_a_zero_margin_cross_no_triangle_of_procedural_meshes() {
     }
 }
 
-/// A point of the triangle at the barycentric `(u, v)`, folded into it.
-fn point_in(tri: [Vec3; 3], u: f32, v: f32) -> Vec3 {
+/// A seeded point of a seeded triangle of `surface`, and one of the triangle's two unit normals
+/// at random: the side a path starts on. `None` for a triangle without a normal.
+fn point_and_side(surface: &TriangleSurface, rng: &mut common::Rng) -> Option<(Vec3, Vec3)> {
+    let tri = surface.triangles[(rng.next_u64() % surface.triangles.len() as u64) as usize];
+    let n = face_normal(tri)?;
+    let (u, v) = (rng.range(0.0, 1.0), rng.range(0.0, 1.0));
     let (u, v) = if u + v > 1.0 { (1.0 - u, 1.0 - v) } else { (u, v) };
-    tri[0] + u * (tri[1] - tri[0]) + v * (tri[2] - tri[0])
+    let on = tri[0] + u * (tri[1] - tri[0]) + v * (tri[2] - tri[0]);
+    Some((on, if rng.next_u64().is_multiple_of(2) { n } else { -n }))
 }
 
 /// Paths that end on a triangle's plane, or a nanometre either side of it, from 3 µm to 1 mm
@@ -209,8 +216,6 @@ fn point_in(tri: [Vec3; 3], u: f32, v: f32) -> Vec3 {
 /// ([`TriangleSurface::first_crossing`]) finds a crossing wherever this file's test does.
 #[test]
 fn the_sweep_finds_every_path_that_ends_on_or_just_past_a_plane() {
-    use bvh_cloth_core::exact_contact::TriangleSurface;
-    use bvh_cloth_core::triangles::face_normal;
     for name in ["dragon_low", "bunny", "dragon"] {
         let (positions, indices) = model(name);
         let surface = TriangleSurface::build(MeshRef { positions: &positions, indices: Some(&indices) }).unwrap();
@@ -218,10 +223,7 @@ fn the_sweep_finds_every_path_that_ends_on_or_just_past_a_plane() {
         let mut rng = common::Rng::new(9);
         let (mut missed, mut crossing) = (Vec::new(), 0);
         for _ in 0..300_000 {
-            let tri = surface.triangles[(rng.next_u64() % surface.triangles.len() as u64) as usize];
-            let Some(n) = face_normal(tri) else { continue };
-            let on = point_in(tri, rng.range(0.0, 1.0), rng.range(0.0, 1.0));
-            let side = if rng.next_u64().is_multiple_of(2) { n } else { -n };
+            let Some((on, side)) = point_and_side(&surface, &mut rng) else { continue };
             let dir = rng.vec3(-1.0, 1.0).normalize_or(side);
             let dir = (dir - dir.dot(side) * side).normalize_or(Vec3::X) + side * rng.range(0.05, 2.0);
             let prev = on + dir.normalize() * 10f32.powf(rng.range(-5.5, -3.0));
@@ -249,8 +251,6 @@ fn the_sweep_finds_every_path_that_ends_on_or_just_past_a_plane() {
 #[test]
 fn responses_at_a_zero_margin_keep_every_path_on_its_side() {
     use bvh_cloth_core::collision::Response;
-    use bvh_cloth_core::exact_contact::TriangleSurface;
-    use bvh_cloth_core::triangles::face_normal;
     for name in ["dragon_low", "bunny", "dragon"] {
         let (positions, indices) = model(name);
         let surface = TriangleSurface::build(MeshRef { positions: &positions, indices: Some(&indices) }).unwrap();
@@ -259,10 +259,7 @@ fn responses_at_a_zero_margin_keep_every_path_on_its_side() {
         let mut crossed = Vec::new();
         let least = surface.min_thickness;
         for _ in 0..200_000 {
-            let tri = surface.triangles[(rng.next_u64() % surface.triangles.len() as u64) as usize];
-            let Some(n) = face_normal(tri) else { continue };
-            let on = point_in(tri, rng.range(0.0, 1.0), rng.range(0.0, 1.0));
-            let side = if rng.next_u64().is_multiple_of(2) { n } else { -n };
+            let Some((on, side)) = point_and_side(&surface, &mut rng) else { continue };
             let prev = on + side * least * rng.range(1.0, 30.0) + rng.vec3(-1.0, 1.0) * least;
             let end = on + rng.vec3(-1.0, 1.0) * 3e-4 - side * (1e-9 * rng.range(-1.0, 1.0));
             let out = match surface.respond(prev, end, 0.0, |_| {}) {

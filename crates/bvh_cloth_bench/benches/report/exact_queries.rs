@@ -31,16 +31,22 @@ fn plain_mesh(surface: &TriangleSurface) -> TriMesh {
     TriMesh::with_flags(vertices, triangles, TriMeshFlags::empty()).expect("triangles with area")
 }
 
-/// `count` points within `reach` of the surface: a seeded point of a seeded triangle (each
-/// triangle alike), moved along its normal by up to `reach` either way.
-fn near_points(surface: &TriangleSurface, count: usize, reach: f32) -> Vec<Vec3> {
-    let mut state = 0x9E37_79B9_7F4A_7C15u64;
-    let mut unit = move || {
+/// A seeded xorshift generator of numbers uniform in `[0, 1)`, so that the tables' points
+/// are the same in every run.
+fn seeded_unit(seed: u64) -> impl FnMut() -> f32 {
+    let mut state = seed;
+    move || {
         state ^= state << 13;
         state ^= state >> 7;
         state ^= state << 17;
         (state >> 40) as f32 / (1u64 << 24) as f32
-    };
+    }
+}
+
+/// `count` points within `reach` of the surface: a seeded point of a seeded triangle (each
+/// triangle alike), moved along its normal by up to `reach` either way.
+fn near_points(surface: &TriangleSurface, count: usize, reach: f32) -> Vec<Vec3> {
+    let mut unit = seeded_unit(0x9E37_79B9_7F4A_7C15);
     let triangles = &surface.triangles;
     (0..count)
         .map(|_| {
@@ -185,15 +191,12 @@ type Mesh = (Vec<[f32; 3]>, Vec<u32>);
 /// A bumpy heightfield 1 m across of `side x side` vertices (`2 (side - 1)^2` triangles),
 /// seeded heights up to 5 cm.
 fn heightfield(side: u32) -> Mesh {
-    let mut state = 0x2545_F491_4F6C_DD1Du64;
+    let mut unit = seeded_unit(0x2545_F491_4F6C_DD1D);
     let step = 1.0 / (side - 1) as f32;
     let mut positions = Vec::with_capacity((side * side) as usize);
     for r in 0..side {
         for c in 0..side {
-            state ^= state << 13;
-            state ^= state >> 7;
-            state ^= state << 17;
-            let height = 0.05 * (state >> 40) as f32 / (1u64 << 24) as f32;
+            let height = 0.05 * unit();
             positions.push([c as f32 * step - 0.5, height, r as f32 * step - 0.5]);
         }
     }
