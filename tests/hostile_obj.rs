@@ -5,8 +5,9 @@
 //! its voxel's sphere.
 
 use bevy::mesh::{PrimitiveTopology, VertexAttributeValues};
-use bevy_bvh_cloth::bvh_cloth_core::exact_contact::TriangleSurface;
-use bevy_bvh_cloth::bvh_cloth_core::voxel_spheres::{MeshRef, voxel_spheres};
+use bevy_bvh_cloth::bvh_cloth_core::MeshRef;
+use bevy_bvh_cloth::bvh_cloth_core::backend::TriangleSurface;
+use bevy_bvh_cloth::bvh_cloth_core::backend::voxel_spheres;
 use bevy_bvh_cloth::{ColliderFailure, collider_from_mesh};
 use bevy_obj::ObjSettings;
 use bevy_obj::mesh::load_obj_as_mesh;

@@ -7,7 +7,7 @@ use bevy::math::Affine3A;
 use bevy::mesh::skinning::{SkinnedMesh, SkinnedMeshInverseBindposes};
 use bevy::mesh::{Indices, PrimitiveTopology};
 use bevy::prelude::*;
-use bevy_bvh_cloth::bvh_cloth_core::skinning::SkinnedVertices;
+use bevy_bvh_cloth::bvh_cloth_core::backend::SkinnedVertices;
 use bevy_bvh_cloth::prelude::*;
 
 /// The arm's length and radius, and the elbow's distance from the shoulder, in metres.

@@ -3,7 +3,7 @@
 use bevy::asset::RenderAssetUsages;
 use bevy::mesh::{Indices, PrimitiveTopology};
 use bevy::prelude::*;
-use bevy_bvh_cloth::bvh_cloth_core::{Collider, ColliderShape, MeshRef, obj::parse_obj};
+use bevy_bvh_cloth::bvh_cloth_core::{Collider, ColliderShape, MeshRef, parse_obj};
 use bevy_bvh_cloth::prelude::*;
 use bevy_bvh_cloth::{ClothCollider, ColliderFailure, ColliderPart};
 

@@ -2,7 +2,7 @@
 //! on the CPU backend, and a thickness above the particle spacing is refused with a message.
 
 use bevy::prelude::*;
-use bevy_bvh_cloth::bvh_cloth_core::triangles::crossing_pairs;
+use bevy_bvh_cloth::bvh_cloth_core::backend::crossing_pairs;
 use bevy_bvh_cloth::bvh_cloth_core::{ClothError, ClothGrid};
 use bevy_bvh_cloth::prelude::*;
 

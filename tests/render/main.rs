@@ -567,7 +567,7 @@ fn the_gpu_backend_keeps_cloths_with_self_contact_apart() {
     let (a, b) = (positions(lower), positions(upper));
     assert!(app.world().get::<ClothReadback>(upper).unwrap().ticks_run.is_some_and(|t| t > 100));
     let triangles = app.world().get::<ClothSimulation>(lower).unwrap().sim().topology().triangles().to_vec();
-    let crossing = bevy_bvh_cloth::bvh_cloth_core::triangles::crossing_pairs(&triangles, &a, Some((&triangles, &b)));
+    let crossing = bevy_bvh_cloth::bvh_cloth_core::backend::crossing_pairs(&triangles, &a, Some((&triangles, &b)));
     let mean_y = |x: &[Vec3]| x.iter().map(|p| p.y).sum::<f32>() / x.len() as f32;
     eprintln!(
         "GPU backend, self-contact: {crossing} crossing triangles, upper {} m above lower",

@@ -5,7 +5,7 @@ use bevy::asset::RenderAssetUsages;
 use bevy::camera::primitives::Aabb;
 use bevy::mesh::{Indices, PrimitiveTopology, VertexAttributeValues};
 use bevy::prelude::*;
-use bvh_cloth_core::normals::particle_normal;
+use bvh_cloth_core::backend::particle_normal;
 use bvh_cloth_core::{ClothError, ClothGrid, ClothSim, ClothTopology, MeshVertices};
 
 use crate::collider_mesh::TriangleList;

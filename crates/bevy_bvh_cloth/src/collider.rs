@@ -7,7 +7,7 @@
 //! the resolution `n`, the [`Mesh3d`] or the mesh asset rebuilds it. On an entity with a
 //! [`SkinnedMesh`] the spheres follow the joints instead, refitted every frame in
 //! [`update_collider_poses`](crate::collider_pose::update_collider_poses) (see
-//! `bvh_cloth_core::skinning`).
+//! `bvh_cloth_core::colliders::skinning`).
 
 use std::collections::HashSet;
 
@@ -16,7 +16,7 @@ use bevy::ecs::system::SystemParam;
 use bevy::mesh::skinning::{SkinnedMesh, SkinnedMeshInverseBindposes};
 use bevy::prelude::*;
 use bevy::tasks::{AsyncComputeTaskPool, Task, block_on, poll_once};
-use bvh_cloth_core::skinning::largest_scale;
+use bvh_cloth_core::backend::largest_scale;
 use bvh_cloth_core::{Affine3A, Collider, SkinScratch, Voxels};
 
 use crate::collider_mesh::{ColliderFailure, TriangleList};
@@ -32,20 +32,20 @@ pub const ASYNC_BUILD_MIN_VERTICES: usize = 20_000;
 ///
 /// By default the cloth collides with the mesh's own triangles ([`ColliderContact::Exact`]),
 /// held [`Self::margin`] off them, and no particle's path crosses a triangle (see
-/// `bvh_cloth_core::exact_contact`). The mesh is also cut into `resolution³` voxels over its
+/// `bvh_cloth_core::colliders::exact_contact`). The mesh is also cut into `resolution³` voxels over its
 /// bounding box; every voxel the surface passes through gets a sphere around the part of the
 /// surface in it, and the spheres are arranged in a Morton-code LBVH. With
 /// [`ColliderContact::Spheres`] (the paper's method) the cloth collides with those spheres:
 /// every sphere reaches a little past the surface part it holds, so they form a closed shell,
 /// and the response tests each particle's whole path, so a cloth that starts outside a still
-/// collider never crosses it, at any resolution (see `bvh_cloth_core::collision`). The
+/// collider never crosses it, at any resolution (see `bvh_cloth_core::colliders::collision`). The
 /// collider follows the entity's transform (rotation, translation and uniform scale; with a
 /// non-uniform scale the largest axis is used, and a warning says so).
 ///
 /// On an entity with a [`SkinnedMesh`] (an animated character's body, as glTF loads it) the
 /// collider follows the joints instead: every frame each sphere is fitted again around its part
 /// of the skinned surface, so the spheres cover the body in whatever pose the animation puts it
-/// (see `bvh_cloth_core::skinning`). The mesh needs joint indices and weights, every weighted
+/// (see `bvh_cloth_core::colliders::skinning`). The mesh needs joint indices and weights, every weighted
 /// joint must exist, and the collider waits for the skin's inverse bind poses to load. If a
 /// joint entity is despawned, the collider stays where the last complete pose put it and a
 /// warning names the joint.
@@ -54,7 +54,7 @@ pub const ASYNC_BUILD_MIN_VERTICES: usize = 20_000;
 #[require(Transform, ColliderStatus, ColliderBuild)]
 pub struct AutoCollider {
     /// Voxels per axis, `n` in the paper (which uses 1, 3 and 5). Higher is tighter and costs
-    /// more memory; between 1 and [`bvh_cloth_core::voxel_spheres::MAX_RESOLUTION`]. Unused
+    /// more memory; between 1 and [`bvh_cloth_core::backend::MAX_RESOLUTION`]. Unused
     /// when [`Self::voxel_size`] is set.
     pub resolution: u32,
     /// The voxels' side in world units (metres), instead of a count per axis: each axis of the

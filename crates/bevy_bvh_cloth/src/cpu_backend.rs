@@ -5,7 +5,7 @@ use std::time::Instant;
 
 use bevy::camera::primitives::Aabb;
 use bevy::prelude::*;
-use bvh_cloth_core::self_contact::ContactSolver;
+use bvh_cloth_core::backend::ContactSolver;
 use bvh_cloth_core::{ClothSim, Collider};
 
 use crate::clock::ClothClock;

@@ -47,8 +47,8 @@ use bevy::render::render_resource::{
 use bevy::render::renderer::{RenderContext, RenderDevice, RenderGraph, RenderQueue};
 use bevy::render::{Extract, ExtractSchedule, MainWorld, Render, RenderSystems};
 use bevy::shader::Shader;
-use bvh_cloth_core::gpu_layout::GpuMeshWriteback;
 use bvh_cloth_core::{Affine3A, ClothParams, ClothSim, Collider, Lbvh, SkinnedSpheres, Wind, WindSource};
+use bvh_cloth_gpu::layout::GpuMeshWriteback;
 use bvh_cloth_gpu::{
     CONSTANTS_FILE, ClothBatch, ClothId, ClothKernels, FaultReadback, GpuColliders, KERNEL_COUNT, ParticleReadback,
     SHADER_FILES, SkinRefit, shared_constants, wgpu,

@@ -7,8 +7,8 @@ use core::ops::DerefMut;
 
 use bevy::prelude::*;
 use bevy_egui::{EguiContexts, EguiPlugin, EguiPrimaryContextPass, egui};
-use bvh_cloth_core::params::MAX_ITERATIONS;
-use bvh_cloth_core::self_contact::particle_spacing;
+use bvh_cloth_core::backend::MAX_ITERATIONS;
+use bvh_cloth_core::backend::particle_spacing;
 
 use crate::{
     Aerodynamics, AmbientWind, AutoCollider, Cloth, ClothSettings, ClothShape, ClothSimulation, ClothStats,

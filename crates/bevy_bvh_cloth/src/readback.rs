@@ -1,7 +1,7 @@
 //! Reading where a GPU cloth is, for gameplay: opt in with [`ClothReadback`].
 
 use bevy::prelude::*;
-use bvh_cloth_core::gpu_layout::{GpuParticle, load_gpu_particles};
+use bvh_cloth_gpu::layout::{GpuParticle, load_gpu_particles};
 
 use crate::clock::ClothClock;
 use crate::simulation::ClothSimulation;

@@ -80,17 +80,20 @@ use bvh_cloth_bench::{
     MODELS, TICK, authored_grid, best_of, cloth_above, collider, drape, median, model, square_grid, time,
     topology_above,
 };
-use bvh_cloth_core::obj::ObjMesh;
+use bvh_cloth_core::ObjMesh;
 
-use bvh_cloth_core::collision::ColliderFrame;
-use bvh_cloth_core::gpu_layout::{GpuParticle, load_gpu_particles};
-use bvh_cloth_core::self_contact::{ContactSolver, SelfContact};
-use bvh_cloth_core::skinning::{SkinRef, SkinScratch, SkinnedVertices};
-use bvh_cloth_core::triangles::crossing_pairs;
+use bvh_cloth_core::SelfContact;
+use bvh_cloth_core::SkinRef;
+use bvh_cloth_core::SkinScratch;
+use bvh_cloth_core::backend::ColliderFrame;
+use bvh_cloth_core::backend::ContactSolver;
+use bvh_cloth_core::backend::SkinnedVertices;
+use bvh_cloth_core::backend::crossing_pairs;
 use bvh_cloth_core::{
     Aerodynamics, Affine3A, ClothGrid, ClothParams, ClothSim, ClothTopology, Collider, ColliderPose, Integrator,
     Primitive, Quat, UVec2, Vec2, Vec3, Wind,
 };
+use bvh_cloth_gpu::layout::{GpuParticle, load_gpu_particles};
 use bvh_cloth_gpu::{ClothBatch, ClothKernels, GpuColliders, Kernel, SkinRefit, headless, wgpu};
 use parry3d::math::Vector;
 use parry3d::query::{PointQuery, Ray, RayCast};

@@ -6,7 +6,9 @@
 use std::sync::Arc;
 use std::time::Instant;
 
-use bvh_cloth_core::obj::{ObjMesh, parse_obj};
+use bvh_cloth_core::ObjMesh;
+
+use bvh_cloth_core::parse_obj;
 use bvh_cloth_core::{
     Affine3A, ClothGrid, ClothParams, ClothSim, ClothTopology, Collider, Integrator, MeshRef, Primitive, UVec2, Vec2,
     Vec3,

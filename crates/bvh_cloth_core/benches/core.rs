@@ -7,8 +7,11 @@ use std::hint::black_box;
 
 use std::sync::Arc;
 
-use bvh_cloth_core::aerodynamics::{Air, AirModel};
-use bvh_cloth_core::obj::{ObjMesh, parse_obj};
+use bvh_cloth_core::backend::Air;
+
+use bvh_cloth_core::ObjMesh;
+use bvh_cloth_core::backend::AirModel;
+use bvh_cloth_core::parse_obj;
 use bvh_cloth_core::{
     Aerodynamics, Affine3A, ClothGrid, ClothParams, ClothSim, ClothTopology, Collider, Integrator, MeshRef, UVec2,
     Vec2, Vec3, Vec3A, Wind,

@@ -6,21 +6,22 @@
 //! Cloth Simulation Method Based on Parallel BVH"; the section each module implements is named in
 //! its documentation.
 //!
-//! | module | paper |
-//! |---|---|
-//! | [`params`], [`grid`], [`topology`], [`pins`], [`forces`] | 2.1, eq. 1–3, Table V |
-//! | [`sim`] (RK4, semi-implicit Euler) | 2.2, eq. 4 |
-//! | [`aerodynamics`] | (drag, lift and wind; not in the paper) |
-//! | [`block_descent`], [`colouring`] | (vertex block descent, Chen et al. 2024; not in the paper) |
-//! | [`voxel_spheres`] | 2.4.1 |
-//! | [`skinning`] | (skinned colliders: the spheres follow the joints; not in the paper) |
-//! | [`morton`], [`lbvh`] | 2.4.2 (Karras 2012) |
-//! | [`traversal`] | 2.4.3, Algorithm 2 |
-//! | [`collision`] | 2.4.4 |
-//! | [`exact_contact`], [`triangles`], [`wide_bvh`] | (contact with the mesh's own triangles; not in the paper) |
-//! | [`normals`] | Algorithm 3 |
-//! | [`gpu_layout`] | Table II: the buffer layouts of the GPU kernels |
-//! | [`obj`] | (a minimal OBJ reader for engine-free tools) |
+//! The crate is laid out by concern, in floors: each folder imports only from the floors
+//! below it (a test, `tests/house.rs`, holds it to that).
+//!
+//! | floor | module | what it owns | paper |
+//! |---|---|---|---|
+//! | 4 | [`sim`] | the [`ClothSim`] state, a tick, RK4 and semi-implicit Euler, several cloths together | 2.2, eq. 4 |
+//! | 3 | [`solver`] | [`ClothParams`], the spring forces, vertex block descent | Table V, eq. 1–3 |
+//! | 2 | [`air`] | drag, lift and wind | (not in the paper) |
+//! | 2 | [`self_contact`] | contact within a cloth and between cloths | (not in the paper) |
+//! | 1 | [`cloth`] | the grid or mesh, springs, pins, tethers, colouring, normals | 2.1, Algorithm 3 |
+//! | 1 | [`colliders`] | voxel spheres, exact triangles and primitives, skinning, the contact response | 2.4.1, 2.4.4 |
+//! | 0 | [`bvh`] | Morton codes, the LBVH and its traversal, the wide tree | 2.4.2, 2.4.3 |
+//! | 0 | [`mesh`] | [`MeshRef`] and its check, an OBJ reader, triangle queries | |
+//!
+//! A game names the types re-exported here at the root. [`backend`] holds what the GPU crate,
+//! the tests and the benchmarks read beyond that.
 //!
 //! This crate knows nothing of any engine: it is tested, benchmarked and fuzzed on its own.
 //!
@@ -49,49 +50,27 @@
 
 #![deny(missing_docs)]
 
-pub mod aerodynamics;
-pub mod block_descent;
-pub mod collider;
-pub mod collision;
-pub mod colouring;
-pub mod error;
-pub mod exact_contact;
-pub mod forces;
-pub mod gpu_layout;
-pub mod grid;
-pub mod lbvh;
-pub mod morton;
-pub mod normals;
-pub mod obj;
-pub mod params;
-pub mod pins;
-mod pose;
-mod primitive_shape;
-pub mod primitives;
-mod response;
+pub mod air;
+pub mod backend;
+pub mod bvh;
+pub mod cloth;
+pub mod colliders;
+pub mod mesh;
 pub mod self_contact;
 pub mod sim;
-pub mod skinning;
-pub mod tethers;
-pub mod topology;
-pub mod traversal;
-pub mod triangles;
-mod voxel_grid;
-pub mod voxel_spheres;
-pub mod wide_bvh;
+pub mod solver;
 
-pub use aerodynamics::{Aerodynamics, Wind, WindSource};
-pub use collider::{Collider, ColliderPose, ColliderShape};
-pub use error::{ClothError, ColliderError};
+pub use air::{Aerodynamics, Wind, WindSource};
+pub use bvh::{BvhNode, Lbvh, Sphere};
+pub use cloth::{
+    ClothError, ClothGrid, ClothPins, ClothTopology, ColorChannel, MAX_PARTICLES, MeshVertices, SpringEnd, Tethers,
+};
+pub use colliders::{
+    Collider, ColliderError, ColliderPose, ColliderShape, Primitive, SkinRef, SkinScratch, SkinnedSpheres, Voxels,
+};
 pub use glam::{Affine3A, Quat, UVec2, UVec3, Vec2, Vec3, Vec3A};
-pub use grid::{ClothGrid, MAX_PARTICLES};
-pub use lbvh::{BvhNode, Lbvh, Sphere};
-pub use params::{ClothParams, Integrator, SpringStiffness};
-pub use pins::{ClothPins, ColorChannel, MeshVertices};
-pub use primitives::Primitive;
+pub use mesh::MeshRef;
+pub use mesh::obj::{ObjError, ObjMesh, parse_obj};
 pub use self_contact::SelfContact;
 pub use sim::{ClothSim, Ticked};
-pub use skinning::{SkinRef, SkinScratch, SkinnedSpheres};
-pub use tethers::Tethers;
-pub use topology::{ClothTopology, SpringEnd};
-pub use voxel_spheres::{MeshRef, Voxels};
+pub use solver::{ClothParams, Integrator, SpringStiffness};

@@ -64,11 +64,11 @@
 use glam::{IVec3, Vec3, Vec3A};
 use rayon::prelude::*;
 
-use crate::collision::ColliderFrame;
-use crate::error::ClothError;
-use crate::grid::SpringKind;
-use crate::topology::ClothTopology;
-use crate::triangles::{closest_point, face_normal};
+use crate::cloth::error::ClothError;
+use crate::cloth::grid::SpringKind;
+use crate::cloth::topology::ClothTopology;
+use crate::colliders::collision::ColliderFrame;
+use crate::mesh::triangles::{closest_point, face_normal};
 
 /// Most triangles one particle examines for contact in a substep.
 pub const MAX_CANDIDATES: usize = 256;

@@ -77,7 +77,7 @@ fn draped_cloth_ends_outside_every_sphere() {
     assert!(centre.y > 0.45 && centre.y < 0.75, "centre at {centre}");
     assert!(sim.position(0).y < centre.y - 0.3);
     // Stated epsilon: a particle may sit up to 1e-5 of a radius below a sphere's surface.
-    let eps = bvh_cloth_core::traversal::SURFACE_TOLERANCE;
+    let eps = bvh_cloth_core::backend::SURFACE_TOLERANCE;
     let inside = sim.positions().iter().filter(|&&p| colliders[0].contains(p)).count();
     assert_eq!(inside, 0, "{inside} particles inside a sphere beyond {eps} of its radius");
 }

@@ -3,7 +3,11 @@
 //! tree is sound. Then the named extremes: a
 //! single point, and millions of coincident vertices.
 
-use bvh_cloth_core::voxel_spheres::{MeshRef, SURFACE_CLEARANCE, voxel_spheres};
+use bvh_cloth_core::MeshRef;
+
+use bvh_cloth_core::backend::SURFACE_CLEARANCE;
+
+use bvh_cloth_core::backend::voxel_spheres;
 use bvh_cloth_core::{Collider, ColliderError, Vec3};
 use proptest::prelude::*;
 

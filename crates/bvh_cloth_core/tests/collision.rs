@@ -2,7 +2,7 @@
 
 mod common;
 
-use bvh_cloth_core::collision::ColliderFrame;
+use bvh_cloth_core::backend::ColliderFrame;
 use bvh_cloth_core::{ColliderPose, Quat, Sphere, Vec3};
 use common::sphere_collider;
 

@@ -1,4 +1,4 @@
-//! Exact contact (`bvh_cloth_core::exact_contact`) on procedural shapes: a plate of zero
+//! Exact contact (`bvh_cloth_core::colliders::exact_contact`) on procedural shapes: a plate of zero
 //! thickness with open borders, a torus, a concave bowl open at the top, a box's edge, and the
 //! same shapes with inverted winding, duplicated, degenerate and intersecting triangles.
 //!
@@ -9,8 +9,8 @@
 
 mod common;
 
-use bvh_cloth_core::exact_contact::TriangleSurface;
-use bvh_cloth_core::triangles::closest_point;
+use bvh_cloth_core::backend::TriangleSurface;
+use bvh_cloth_core::backend::closest_point;
 use bvh_cloth_core::{Affine3A, ClothParams, ClothSim, Collider, MeshRef, Vec3};
 use rayon::prelude::*;
 
@@ -256,12 +256,12 @@ fn a_box_edge_with_duplicated_degenerate_and_intersecting_triangles() {
 /// and on the bundled models.
 #[test]
 fn the_binary_tree_built_again_is_the_one_the_wide_tree_came_from() {
-    use bvh_cloth_core::wide_bvh::WideBvh;
+    use bvh_cloth_core::backend::WideBvh;
     let mut surfaces = vec![("torus".to_string(), torus_surface())];
     for name in ["bunny", "dragon"] {
         let path =
             format!("{}/../../assets/models/{name}.obj", std::env::var("CARGO_MANIFEST_DIR").expect("run by cargo"));
-        let model = bvh_cloth_core::obj::parse_obj(&std::fs::read_to_string(path).unwrap()).unwrap();
+        let model = bvh_cloth_core::parse_obj(&std::fs::read_to_string(path).unwrap()).unwrap();
         surfaces.push((name.to_string(), TriangleSurface::build(model.as_mesh_ref()).unwrap()));
     }
     for (name, surface) in surfaces {
@@ -358,7 +358,7 @@ fn the_wide_tree_meets_the_triangles_in_the_binary_trees_order() {
 /// `segment_hit` does, at the least parameter of them.
 #[test]
 fn first_crossing_agrees_with_brute_force() {
-    use bvh_cloth_core::triangles::segment_hit;
+    use bvh_cloth_core::backend::segment_hit;
     let surface = torus_surface();
     let mut rng = common::Rng::new(7);
     let (mut crossed, mut clear) = (0, 0);
@@ -402,12 +402,12 @@ fn direct_responses_at_the_extremes() {
     let response = surface.respond(Vec3::new(0.1, 5.0, 0.2), Vec3::new(0.1, -12.0, 0.2), THICKNESS, |n| {
         normals.push(n);
     });
-    let bvh_cloth_core::collision::Response::Moved(p) = response else { panic!("{response:?}") };
+    let bvh_cloth_core::colliders::Response::Moved(p) = response else { panic!("{response:?}") };
     assert!((p - Vec3::new(0.1, THICKNESS, 0.2)).length() < 1e-5, "stopped at {p}");
     assert!(normals.iter().all(|n| n.distance(Vec3::Y) < 1e-5), "{normals:?}");
     // From below, onto the plate from its other side.
     let response = surface.respond(Vec3::new(0.3, -0.002, 0.0), Vec3::new(0.3, 0.5, 0.0), THICKNESS, |_| {});
-    let bvh_cloth_core::collision::Response::Moved(p) = response else { panic!("{response:?}") };
+    let bvh_cloth_core::colliders::Response::Moved(p) = response else { panic!("{response:?}") };
     assert!((p.y + THICKNESS).abs() < 1e-5, "held below at {p}");
     let none = [[0.0f32; 3]; 3];
     assert!(TriangleSurface::build(MeshRef { positions: &none, indices: None }).is_err());
@@ -423,8 +423,9 @@ fn direct_responses_at_the_extremes() {
 /// some start right at the edge of the lookout.
 #[test]
 fn a_short_path_is_free_exactly_when_no_step_would_touch_it() {
-    use bvh_cloth_core::collision::{CONTACT_BAND, Response};
-    use bvh_cloth_core::triangles::segment_hit;
+    use bvh_cloth_core::backend::CONTACT_BAND;
+    use bvh_cloth_core::backend::segment_hit;
+    use bvh_cloth_core::colliders::Response;
     let surface = torus_surface();
     let mut rng = common::Rng::new(23);
     let h = 0.01;
@@ -480,7 +481,7 @@ fn exact_contact_takes_the_mesh_the_spheres_were_built_from() {
     for name in ["bunny", "dragon"] {
         let path =
             format!("{}/../../assets/models/{name}.obj", std::env::var("CARGO_MANIFEST_DIR").expect("run by cargo"));
-        let model = bvh_cloth_core::obj::parse_obj(&std::fs::read_to_string(path).unwrap()).unwrap();
+        let model = bvh_cloth_core::parse_obj(&std::fs::read_to_string(path).unwrap()).unwrap();
         for n in [1, 5, 16] {
             let spheres = Collider::from_mesh(model.as_mesh_ref(), n).unwrap();
             assert!(spheres.with_exact_contact(model.as_mesh_ref()).is_ok(), "{name} at n = {n}");

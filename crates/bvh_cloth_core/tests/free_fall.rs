@@ -7,7 +7,7 @@ mod common;
 
 use std::sync::Arc;
 
-use bvh_cloth_core::obj::parse_obj;
+use bvh_cloth_core::parse_obj;
 use bvh_cloth_core::{Affine3A, ClothParams, ClothSim, ClothTopology, Collider, Integrator, MeshRef, Primitive, Vec3};
 use common::{grid_topology, sliver_sheet};
 

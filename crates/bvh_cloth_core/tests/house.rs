@@ -1,5 +1,6 @@
 //! The house's floors: within each crate of the workspace, no file imports a module that
-//! imports it back, directly or round a longer circle.
+//! imports it back, directly or round a longer circle; and each crate's top-level modules (its
+//! folders by concern) stand on floors, each importing only from the floors below it.
 //!
 //! Each file's `crate::` and `super::` paths (in `use` lines and in code, doc comments and the
 //! in-file `#[cfg(test)]` module aside) are read with a small parser of this file's own, and
@@ -271,4 +272,58 @@ fn no_crate_has_an_import_circle() {
         checked += 1;
     }
     assert!(checked >= 4, "only {checked} crates checked");
+}
+
+/// Each crate's top-level modules by floor, from the bottom: a module may import from a lower
+/// floor, never from its own or a higher one (the re-exporting root aside). Each folder's
+/// `mod.rs` says the same in words.
+const FLOORS: &[(&str, &[&[&str]])] = &[(
+    "bvh_cloth_core",
+    &[&["mesh", "bvh"], &["cloth", "colliders"], &["air", "self_contact"], &["solver"], &["sim"], &["backend"]],
+)];
+
+/// Imports across top-level modules that do not run down a floor, as `from -> to`.
+fn upward_imports(graph: &BTreeMap<String, BTreeSet<String>>, floors: &[&[&str]]) -> Vec<String> {
+    let top = |m: &str| m.split("::").next().unwrap_or_default().to_string();
+    let floor = |m: &str| floors.iter().position(|f| f.contains(&top(m).as_str()));
+    let mut found = Vec::new();
+    for (from, deps) in graph {
+        for to in deps {
+            if top(from) == top(to) {
+                continue;
+            }
+            match (floor(from), floor(to)) {
+                (Some(a), Some(b)) if a > b => {}
+                _ => found.push(format!("{from} -> {to}")),
+            }
+        }
+    }
+    found
+}
+
+/// The floor check on a made-up graph: down is fine, across and up are named.
+#[test]
+fn the_checker_finds_imports_up_and_across() {
+    let graph: BTreeMap<String, BTreeSet<String>> =
+        [("b::x", &["a::y", "a"][..]), ("a::y", &["b::x"]), ("a", &["c"]), ("c::z", &["b::x"])]
+            .into_iter()
+            .map(|(k, v)| (k.to_string(), v.iter().map(|s| s.to_string()).collect()))
+            .collect();
+    assert_eq!(upward_imports(&graph, &[&["a"], &["b"]]), ["a -> c", "a::y -> b::x", "c::z -> b::x"]);
+}
+
+/// Every top-level module of each crate listed in [`FLOORS`] has a floor, and imports only
+/// from below it.
+#[test]
+fn each_crate_imports_only_down_its_floors() {
+    let crates = Path::new(env!("CARGO_MANIFEST_DIR")).parent().expect("the crates folder");
+    for &(name, floors) in FLOORS {
+        let src = crates.join(name).join("src");
+        let graph = imports(&src);
+        let tops: BTreeSet<&str> = graph.keys().map(|m| m.split("::").next().unwrap_or_default()).collect();
+        let unplaced: Vec<&&str> = tops.iter().filter(|t| !floors.iter().any(|f| f.contains(t))).collect();
+        assert!(unplaced.is_empty(), "{name}: modules on no floor: {unplaced:?}");
+        let up = upward_imports(&graph, floors);
+        assert!(up.is_empty(), "{name}: imports that do not run down a floor: {up:?}");
+    }
 }

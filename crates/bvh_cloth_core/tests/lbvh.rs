@@ -4,8 +4,8 @@ mod common;
 
 use std::collections::BTreeSet;
 
-use bvh_cloth_core::lbvh::LEAF_BIT;
-use bvh_cloth_core::traversal::STACK_SIZE;
+use bvh_cloth_core::backend::LEAF_BIT;
+use bvh_cloth_core::backend::STACK_SIZE;
 use bvh_cloth_core::{Lbvh, Sphere, Vec3};
 use common::Rng;
 

@@ -9,8 +9,14 @@ mod common;
 
 use std::sync::Arc;
 
-use bvh_cloth_core::self_contact::{ContactBody, ContactSolver, MAX_CANDIDATES, particle_spacing};
-use bvh_cloth_core::triangles::crossing_pairs as crossing_triangles;
+use bvh_cloth_core::backend::ContactBody;
+
+use bvh_cloth_core::backend::ContactSolver;
+
+use bvh_cloth_core::backend::MAX_CANDIDATES;
+
+use bvh_cloth_core::backend::crossing_pairs as crossing_triangles;
+use bvh_cloth_core::backend::particle_spacing;
 use bvh_cloth_core::{
     Affine3A, ClothError, ClothParams, ClothSim, ClothTopology, Collider, ColliderPose, Integrator, Primitive, Quat,
     SelfContact, Vec3,

@@ -1,4 +1,4 @@
-//! The guarantee of `bvh_cloth_core::collision`: a particle that starts a substep outside every
+//! The guarantee of `bvh_cloth_core::colliders::collision`: a particle that starts a substep outside every
 //! sphere of a still collider ends it outside every sphere, and its path between the two
 //! positions passes through none, so a cloth never crosses the shell of spheres into the hollow
 //! inside, however thin the spheres are.
@@ -10,8 +10,8 @@
 
 mod common;
 
-use bvh_cloth_core::obj::parse_obj;
-use bvh_cloth_core::traversal::SURFACE_TOLERANCE;
+use bvh_cloth_core::backend::SURFACE_TOLERANCE;
+use bvh_cloth_core::parse_obj;
 use bvh_cloth_core::{Affine3A, ClothParams, ClothSim, Collider, MeshRef, Vec3};
 use rayon::prelude::*;
 
@@ -94,7 +94,7 @@ fn drop_on(collider: &Collider, seconds: f32, solid: Option<&(dyn Fn(Vec3) -> bo
     Drop { violations, substeps: steps, inside_solid }
 }
 
-fn model(name: &str) -> bvh_cloth_core::obj::ObjMesh {
+fn model(name: &str) -> bvh_cloth_core::ObjMesh {
     let path = format!("{}/../../assets/models/{name}.obj", std::env::var("CARGO_MANIFEST_DIR").expect("run by cargo"));
     parse_obj(&std::fs::read_to_string(&path).unwrap_or_else(|e| panic!("{path}: {e}"))).expect("a bundled model")
 }

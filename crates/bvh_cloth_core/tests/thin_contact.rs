@@ -13,9 +13,9 @@ mod common;
 
 use std::collections::HashMap;
 
-use bvh_cloth_core::exact_contact::TriangleSurface;
-use bvh_cloth_core::obj::parse_obj;
-use bvh_cloth_core::triangles::face_normal;
+use bvh_cloth_core::backend::TriangleSurface;
+use bvh_cloth_core::backend::face_normal;
+use bvh_cloth_core::parse_obj;
 use bvh_cloth_core::{Affine3A, ClothParams, ClothSim, Collider, MeshRef, Quat, Vec3};
 use glam::DVec3;
 use rayon::prelude::*;
@@ -250,7 +250,7 @@ fn the_sweep_finds_every_path_that_ends_on_or_just_past_a_plane() {
 /// across a triangle from where the particle started.
 #[test]
 fn responses_at_a_zero_margin_keep_every_path_on_its_side() {
-    use bvh_cloth_core::collision::Response;
+    use bvh_cloth_core::colliders::Response;
     for name in ["dragon_low", "bunny", "dragon"] {
         let (positions, indices) = model(name);
         let surface = TriangleSurface::build(MeshRef { positions: &positions, indices: Some(&indices) }).unwrap();

@@ -5,7 +5,9 @@
 use std::alloc::{GlobalAlloc, Layout, System};
 use std::sync::atomic::{AtomicUsize, Ordering::Relaxed};
 
-use bvh_cloth_core::voxel_spheres::{MeshRef, voxel_spheres};
+use bvh_cloth_core::MeshRef;
+
+use bvh_cloth_core::backend::voxel_spheres;
 use bvh_cloth_core::{ColliderError, Vec3};
 
 /// The system allocator, counting the bytes live and the most ever live, and refusing any

@@ -3,8 +3,8 @@
 
 mod common;
 
-use bvh_cloth_core::lbvh::LEAF_BIT;
-use bvh_cloth_core::wide_bvh::WideBvh;
+use bvh_cloth_core::backend::LEAF_BIT;
+use bvh_cloth_core::backend::WideBvh;
 use bvh_cloth_core::{Lbvh, Sphere, Vec3};
 use common::Rng;
 

@@ -14,8 +14,8 @@
 //! and lattice time, which the host computes from the wind clock as the CPU does) is written by
 //! [`AirPlan::write`]; the buffers are replaced only when they must grow.
 
-use bvh_cloth_core::aerodynamics::AirSource;
-use bvh_cloth_core::gpu_layout::GpuAirCloth;
+use crate::layout::GpuAirCloth;
+use bvh_cloth_core::backend::AirSource;
 use wgpu::{BindGroup, Buffer, ComputePass, ComputePipeline, Device, Queue};
 
 use crate::buffer::{UNIFORM_STRIDE, storage_buffer};
@@ -181,7 +181,7 @@ impl AirPlan {
             let resource = wgpu::BindingResource::Buffer(wgpu::BufferBinding { buffer, offset: 0, size: binding_size });
             wgpu::BindGroupEntry { binding, resource }
         }
-        let step = sized(1, shared.steps, size_of::<bvh_cloth_core::gpu_layout::GpuBatchStep>() as u64);
+        let step = sized(1, shared.steps, size_of::<crate::layout::GpuBatchStep>() as u64);
         let group = |k: usize, entries: &[wgpu::BindGroupEntry<'_>]| {
             device.create_bind_group(&wgpu::BindGroupDescriptor {
                 label: Some(crate::kernels::AIR_KERNELS[k]),

@@ -2,16 +2,19 @@
 
 use std::sync::Arc;
 
-use bvh_cloth_core::aerodynamics::{AirModel, AirSource};
-use bvh_cloth_core::colouring::{MAX_COLOURS, ParticleColouring};
-use bvh_cloth_core::gpu_layout::GpuAirCloth;
-use bvh_cloth_core::gpu_layout::{
+use bvh_cloth_core::backend::AirModel;
+
+use crate::layout::GpuAirCloth;
+use crate::layout::{
     GpuBatchCloth, GpuBatchFrame, GpuBatchStep, GpuBatchWriteback, GpuColourPass, GpuMeshWriteback, GpuParticle,
     GpuWritebackGroup, INTEGRATOR_BLOCK_DESCENT, NO_CLOTH, gpu_particle_info, gpu_particles, gpu_surface_words,
     gpu_tether_ends,
 };
-use bvh_cloth_core::params::MAX_ITERATIONS;
-use bvh_cloth_core::tethers::TetherSet;
+use bvh_cloth_core::backend::AirSource;
+use bvh_cloth_core::backend::MAX_COLOURS;
+use bvh_cloth_core::backend::MAX_ITERATIONS;
+use bvh_cloth_core::backend::ParticleColouring;
+use bvh_cloth_core::backend::TetherSet;
 use bvh_cloth_core::{
     Aerodynamics, ClothError, ClothParams, ClothSim, ClothTopology, Integrator, Vec3, Wind, WindSource,
 };
@@ -28,8 +31,8 @@ use crate::kernels::{ClothKernels, Kernel, KernelError, WORKGROUP_SIZE, storage_
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, PartialOrd, Ord)]
 pub struct ClothId(u32);
 
-/// Most substeps one tick may run ([`bvh_cloth_core::params::MAX_SUBSTEPS_PER_TICK`]).
-const MAX_SUBSTEPS: u32 = bvh_cloth_core::params::MAX_SUBSTEPS_PER_TICK;
+/// Most substeps one tick may run ([`bvh_cloth_core::backend::MAX_SUBSTEPS_PER_TICK`]).
+const MAX_SUBSTEPS: u32 = bvh_cloth_core::backend::MAX_SUBSTEPS_PER_TICK;
 
 /// One cloth of the batch.
 #[derive(Debug)]
@@ -561,7 +564,7 @@ impl ClothBatch {
         );
     }
 
-    /// Sets `id`'s ambient wind (see [`bvh_cloth_core::aerodynamics`]); only a cloth with drag
+    /// Sets `id`'s ambient wind (see [`bvh_cloth_core::air`]); only a cloth with drag
     /// or lift feels it. Refused, keeping the last one, when it is invalid.
     pub fn set_wind(&mut self, id: ClothId, wind: Wind) -> Result<(), ClothError> {
         wind.validate()?;
@@ -783,7 +786,7 @@ impl ClothBatch {
 
     /// The self-contact statistics buffer (`COPY_SRC`) when a cloth has self-contact: its first
     /// two `u32` words count the contacts (one per free particle taking part in one) and the
-    /// bounds met ([`bvh_cloth_core::self_contact::MAX_CANDIDATES`] and the grid's room) over
+    /// bounds met ([`bvh_cloth_core::backend::MAX_CANDIDATES`] and the grid's room) over
     /// the ticks encoded since the last [`Self::prepare`].
     pub fn contact_stats(&self) -> Option<&Buffer> {
         self.contact.as_ref().map(ContactPlan::stats)

@@ -1,7 +1,7 @@
 //! Every collider of a scene on the GPU: frames (a primitive's whole shape), and the mesh
 //! colliders' trees concatenated.
 
-use bvh_cloth_core::gpu_layout::{GpuCollider, gpu_sphere_region, gpu_tree, gpu_tree_size};
+use crate::layout::{GpuCollider, gpu_sphere_region, gpu_tree, gpu_tree_size};
 use bvh_cloth_core::{BvhNode, Collider};
 use wgpu::{Buffer, Device, Queue};
 

@@ -2,8 +2,9 @@
 //! side ([`shared_constants`]), so that no value is copied into a shader by hand.
 
 use bvh_cloth_core::Primitive;
-use bvh_cloth_core::{aerodynamics, collision, exact_contact, gpu_layout, lbvh, primitives, self_contact, tethers};
-use bvh_cloth_core::{traversal, triangles};
+use bvh_cloth_core::backend as core;
+
+use crate::layout;
 
 /// The name of the constants' module among the shader files: `#define_import_path
 /// bvh_cloth::constants`.
@@ -21,32 +22,32 @@ fn values() -> Vec<(&'static str, Value)> {
     use Value::{F32, I32, U32};
     let kind = |shape: Primitive| U32(shape.kind());
     vec![
-        ("NO_CLOTH", U32(gpu_layout::NO_CLOTH)),
-        ("UNTETHERED", U32(tethers::UNTETHERED)),
-        ("INTEGRATOR_EULER", U32(gpu_layout::INTEGRATOR_EULER)),
-        ("INTEGRATOR_BLOCK_DESCENT", U32(gpu_layout::INTEGRATOR_BLOCK_DESCENT)),
-        ("SHAPE_SPHERES", U32(gpu_layout::SHAPE_SPHERES)),
-        ("SHAPE_TRIANGLES", U32(gpu_layout::SHAPE_TRIANGLES)),
+        ("NO_CLOTH", U32(layout::NO_CLOTH)),
+        ("UNTETHERED", U32(core::UNTETHERED)),
+        ("INTEGRATOR_EULER", U32(layout::INTEGRATOR_EULER)),
+        ("INTEGRATOR_BLOCK_DESCENT", U32(layout::INTEGRATOR_BLOCK_DESCENT)),
+        ("SHAPE_SPHERES", U32(layout::SHAPE_SPHERES)),
+        ("SHAPE_TRIANGLES", U32(layout::SHAPE_TRIANGLES)),
         ("SHAPE_SPHERE", kind(Primitive::Sphere { radius: 1.0 })),
         ("SHAPE_CAPSULE", kind(Primitive::Capsule { radius: 1.0, half_length: 1.0 })),
         ("SHAPE_CUBOID", kind(Primitive::Cuboid { half_extents: bvh_cloth_core::Vec3::ONE })),
         ("SHAPE_HALF_SPACE", kind(Primitive::HalfSpace { normal: bvh_cloth_core::Vec3::Y })),
-        ("LEAF_BIT", U32(lbvh::LEAF_BIT)),
-        ("STACK_SIZE", U32(traversal::STACK_SIZE as u32)),
-        ("SURFACE_TOLERANCE", F32(traversal::SURFACE_TOLERANCE)),
-        ("CONTACT_BAND", F32(collision::CONTACT_BAND)),
-        ("MAX_PASSES", U32(collision::MAX_PASSES as u32)),
-        ("LOOKOUT_ROUNDING", F32(exact_contact::LOOKOUT_ROUNDING)),
-        ("EDGE_SLACK", F32(triangles::EDGE_SLACK)),
-        ("PLANE_ROUNDING", F32(triangles::PLANE_ROUNDING)),
-        ("SWEEP_STEPS", U32(primitives::SWEEP_STEPS)),
-        ("CLOSEST_STEPS", U32(primitives::CLOSEST_STEPS)),
-        ("NOISE_TIME_PERIOD", U32(aerodynamics::NOISE_TIME_PERIOD)),
-        ("SOURCE_FAN", F32(aerodynamics::SOURCE_FAN as f32)),
-        ("MAX_CANDIDATES", U32(self_contact::MAX_CANDIDATES as u32)),
-        ("MAX_SPAN", I32(self_contact::MAX_SPAN)),
-        ("MAX_HELD_SCALE", F32(self_contact::MAX_HELD_SCALE)),
-        ("CONTACT_TRIANGLE_WORDS", U32(gpu_layout::CONTACT_TRIANGLE_WORDS as u32)),
+        ("LEAF_BIT", U32(core::LEAF_BIT)),
+        ("STACK_SIZE", U32(core::STACK_SIZE as u32)),
+        ("SURFACE_TOLERANCE", F32(core::SURFACE_TOLERANCE)),
+        ("CONTACT_BAND", F32(core::CONTACT_BAND)),
+        ("MAX_PASSES", U32(core::MAX_PASSES as u32)),
+        ("LOOKOUT_ROUNDING", F32(core::LOOKOUT_ROUNDING)),
+        ("EDGE_SLACK", F32(core::EDGE_SLACK)),
+        ("PLANE_ROUNDING", F32(core::PLANE_ROUNDING)),
+        ("SWEEP_STEPS", U32(core::SWEEP_STEPS)),
+        ("CLOSEST_STEPS", U32(core::CLOSEST_STEPS)),
+        ("NOISE_TIME_PERIOD", U32(core::NOISE_TIME_PERIOD)),
+        ("SOURCE_FAN", F32(core::SOURCE_FAN as f32)),
+        ("MAX_CANDIDATES", U32(core::MAX_CANDIDATES as u32)),
+        ("MAX_SPAN", I32(core::MAX_SPAN)),
+        ("MAX_HELD_SCALE", F32(core::MAX_HELD_SCALE)),
+        ("CONTACT_TRIANGLE_WORDS", U32(layout::CONTACT_TRIANGLE_WORDS as u32)),
     ]
 }
 

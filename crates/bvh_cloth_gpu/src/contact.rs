@@ -12,8 +12,8 @@
 //! triangles (a table of about twice as many buckets, room for eight entries per triangle).
 //! Everything else is per frame: the thickness the boxes grow by and the cell width.
 
+use crate::layout::{CONTACT_TRIANGLE_WORDS, GpuContactFrame, gpu_contact_triangles};
 use bvh_cloth_core::ClothTopology;
-use bvh_cloth_core::gpu_layout::{CONTACT_TRIANGLE_WORDS, GpuContactFrame, gpu_contact_triangles};
 use wgpu::{BindGroup, Buffer, BufferUsages, ComputePass, Device, Queue};
 
 use crate::buffer::storage_buffer;

@@ -16,7 +16,7 @@
 //! It knows no engine, so that the kernels can be tested against the CPU reference of
 //! [`bvh_cloth_core`] and benchmarked without one; `bevy_bvh_cloth` drives the same kernels
 //! from Bevy's render world with the device Bevy renders with. Buffer layouts are the core's
-//! [`bvh_cloth_core::gpu_layout`] structs.
+//! [`layout`] structs.
 //!
 //! | type | what it holds |
 //! |---|---|
@@ -38,6 +38,7 @@ mod constants;
 mod contact;
 pub mod headless;
 mod kernels;
+pub mod layout;
 mod readback;
 mod skin_refit;
 

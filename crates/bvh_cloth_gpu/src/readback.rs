@@ -13,7 +13,7 @@
 use std::sync::Arc;
 use std::sync::atomic::{AtomicU8, Ordering};
 
-use bvh_cloth_core::gpu_layout::GpuParticle;
+use crate::layout::GpuParticle;
 use wgpu::{Buffer, BufferUsages, CommandEncoder, Device, MapMode};
 
 use crate::{ClothBatch, ClothId};

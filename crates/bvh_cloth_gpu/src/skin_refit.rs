@@ -2,7 +2,7 @@
 //! [`SkinnedSpheres::refit`] (skin the vertices, fit every sphere around its points, refit the
 //! boxes children first), so the host uploads only the joint matrices each frame.
 
-use bvh_cloth_core::gpu_layout::{GpuRefitParams, gpu_joint_matrix, gpu_skin_vertices};
+use crate::layout::{GpuRefitParams, gpu_joint_matrix, gpu_skin_vertices};
 use bvh_cloth_core::{Affine3A, Lbvh, SkinnedSpheres};
 use wgpu::util::DeviceExt;
 use wgpu::{BindGroup, Buffer, BufferUsages, ComputePass, Device, Queue};

@@ -4,7 +4,7 @@
 //!
 //! Also: thousands of cloths added to a batch, stepped and removed leave no GPU resource behind.
 
-use bvh_cloth_core::gpu_layout::GpuParticle;
+use bvh_cloth_gpu::layout::GpuParticle;
 use std::sync::Arc;
 
 use bvh_cloth_core::{Affine3A, ClothGrid, ClothParams, ClothSim, ClothTopology, Collider, MeshRef, UVec2, Vec2, Vec3};
@@ -138,7 +138,7 @@ fn air_beyond_one_storage_binding_is_refused_and_the_cloth_runs_without_it() {
     let mut sim = ClothSim::new(params, Arc::new(topology), Affine3A::from_translation(Vec3::Y), &[]).unwrap();
     sim.set_wind(Wind::steady(Vec3::new(0.0, 5.0, 0.0)), &[]).unwrap();
     // The surface words are the cloth's largest buffer: a binding of exactly their size.
-    let surface = 4 * bvh_cloth_core::gpu_layout::gpu_surface_words(sim.topology()).len() as u64;
+    let surface = 4 * bvh_cloth_gpu::layout::gpu_surface_words(sim.topology()).len() as u64;
     let air_bytes = |particle_slots: u64| 16 * (particle_slots + 100);
     let run = |gpu: &HeadlessGpu| {
         let kernels = ClothKernels::new(&gpu.device).unwrap();

@@ -4,13 +4,13 @@
 
 use core::mem::{offset_of, size_of};
 
-use bvh_cloth_core::aerodynamics::AirSource;
-use bvh_cloth_core::gpu_layout::{
+use bvh_cloth_core::backend::AirSource;
+use bvh_cloth_core::backend::SkinPoint;
+use bvh_cloth_core::{BvhNode, Sphere, Vec3};
+use bvh_cloth_gpu::layout::{
     GpuAirCloth, GpuBatchCloth, GpuBatchFrame, GpuBatchStep, GpuBatchWriteback, GpuCollider, GpuColourPass,
     GpuContactFrame, GpuMeshWriteback, GpuParticle, GpuRefitParams, GpuSkinVertex, GpuWritebackGroup,
 };
-use bvh_cloth_core::skinning::SkinPoint;
-use bvh_cloth_core::{BvhNode, Sphere, Vec3};
 use bvh_cloth_gpu::{SHADER_FILES, shader_source};
 use naga::valid::{Capabilities, ValidationFlags, Validator};
 
@@ -273,18 +273,18 @@ fn shared_constants_match_the_core() {
         let line = source.lines().find(|l| l.starts_with(&format!("const {name}:"))).unwrap();
         line.split('=').nth(1).unwrap().split(';').next().unwrap().trim().to_string()
     };
-    assert_eq!(constant("STACK_SIZE"), format!("{}u", bvh_cloth_core::traversal::STACK_SIZE));
-    assert_eq!(constant("MAX_PASSES"), format!("{}u", bvh_cloth_core::collision::MAX_PASSES));
-    assert_eq!(constant("LEAF_BIT"), format!("{:#x}u", bvh_cloth_core::lbvh::LEAF_BIT));
-    assert_eq!(constant("SURFACE_TOLERANCE").parse::<f32>().unwrap(), bvh_cloth_core::traversal::SURFACE_TOLERANCE);
-    assert_eq!(constant("CONTACT_BAND").parse::<f32>().unwrap(), bvh_cloth_core::collision::CONTACT_BAND);
-    assert_eq!(constant("LOOKOUT_ROUNDING").parse::<f32>().unwrap(), bvh_cloth_core::exact_contact::LOOKOUT_ROUNDING);
-    assert_eq!(constant("NO_CLOTH"), format!("{:#x}u", bvh_cloth_core::gpu_layout::NO_CLOTH));
-    assert_eq!(constant("UNTETHERED"), format!("{:#x}u", bvh_cloth_core::tethers::UNTETHERED));
-    assert_eq!(constant("SHAPE_SPHERES"), format!("{}u", bvh_cloth_core::gpu_layout::SHAPE_SPHERES));
-    assert_eq!(constant("SHAPE_TRIANGLES"), format!("{}u", bvh_cloth_core::gpu_layout::SHAPE_TRIANGLES));
-    assert_eq!(constant("EDGE_SLACK").parse::<f32>().unwrap(), bvh_cloth_core::triangles::EDGE_SLACK);
-    assert_eq!(constant("PLANE_ROUNDING").parse::<f32>().unwrap(), bvh_cloth_core::triangles::PLANE_ROUNDING);
+    assert_eq!(constant("STACK_SIZE"), format!("{}u", bvh_cloth_core::backend::STACK_SIZE));
+    assert_eq!(constant("MAX_PASSES"), format!("{}u", bvh_cloth_core::backend::MAX_PASSES));
+    assert_eq!(constant("LEAF_BIT"), format!("{:#x}u", bvh_cloth_core::backend::LEAF_BIT));
+    assert_eq!(constant("SURFACE_TOLERANCE").parse::<f32>().unwrap(), bvh_cloth_core::backend::SURFACE_TOLERANCE);
+    assert_eq!(constant("CONTACT_BAND").parse::<f32>().unwrap(), bvh_cloth_core::backend::CONTACT_BAND);
+    assert_eq!(constant("LOOKOUT_ROUNDING").parse::<f32>().unwrap(), bvh_cloth_core::backend::LOOKOUT_ROUNDING);
+    assert_eq!(constant("NO_CLOTH"), format!("{:#x}u", bvh_cloth_gpu::layout::NO_CLOTH));
+    assert_eq!(constant("UNTETHERED"), format!("{:#x}u", bvh_cloth_core::backend::UNTETHERED));
+    assert_eq!(constant("SHAPE_SPHERES"), format!("{}u", bvh_cloth_gpu::layout::SHAPE_SPHERES));
+    assert_eq!(constant("SHAPE_TRIANGLES"), format!("{}u", bvh_cloth_gpu::layout::SHAPE_TRIANGLES));
+    assert_eq!(constant("EDGE_SLACK").parse::<f32>().unwrap(), bvh_cloth_core::backend::EDGE_SLACK);
+    assert_eq!(constant("PLANE_ROUNDING").parse::<f32>().unwrap(), bvh_cloth_core::backend::PLANE_ROUNDING);
     use bvh_cloth_core::Primitive;
     let shapes = [
         ("SHAPE_SPHERE", Primitive::Sphere { radius: 1.0 }),
@@ -295,15 +295,12 @@ fn shared_constants_match_the_core() {
     for (name, shape) in shapes {
         assert_eq!(constant(name), format!("{}u", shape.kind()), "{name}");
     }
-    assert_eq!(constant("SWEEP_STEPS"), format!("{}u", bvh_cloth_core::primitives::SWEEP_STEPS));
-    assert_eq!(constant("CLOSEST_STEPS"), format!("{}u", bvh_cloth_core::primitives::CLOSEST_STEPS));
-    assert_eq!(constant("NOISE_TIME_PERIOD"), format!("{}u", bvh_cloth_core::aerodynamics::NOISE_TIME_PERIOD));
-    assert_eq!(constant("SOURCE_FAN").parse::<f32>().unwrap(), bvh_cloth_core::aerodynamics::SOURCE_FAN as f32);
-    assert_eq!(constant("INTEGRATOR_EULER"), format!("{}u", bvh_cloth_core::gpu_layout::INTEGRATOR_EULER));
-    assert_eq!(
-        constant("INTEGRATOR_BLOCK_DESCENT"),
-        format!("{}u", bvh_cloth_core::gpu_layout::INTEGRATOR_BLOCK_DESCENT)
-    );
+    assert_eq!(constant("SWEEP_STEPS"), format!("{}u", bvh_cloth_core::backend::SWEEP_STEPS));
+    assert_eq!(constant("CLOSEST_STEPS"), format!("{}u", bvh_cloth_core::backend::CLOSEST_STEPS));
+    assert_eq!(constant("NOISE_TIME_PERIOD"), format!("{}u", bvh_cloth_core::backend::NOISE_TIME_PERIOD));
+    assert_eq!(constant("SOURCE_FAN").parse::<f32>().unwrap(), bvh_cloth_core::backend::SOURCE_FAN as f32);
+    assert_eq!(constant("INTEGRATOR_EULER"), format!("{}u", bvh_cloth_gpu::layout::INTEGRATOR_EULER));
+    assert_eq!(constant("INTEGRATOR_BLOCK_DESCENT"), format!("{}u", bvh_cloth_gpu::layout::INTEGRATOR_BLOCK_DESCENT));
 }
 
 /// Each kernel file names its import path or imports as naga_oil reads them, so that an engine

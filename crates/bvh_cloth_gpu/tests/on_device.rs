@@ -5,10 +5,11 @@
 //! Without an adapter these tests pass with a note, unless `BVH_CLOTH_REQUIRE_GPU` is set (as
 //! `.ci/run` sets it), where a missing adapter fails them.
 
-use bvh_cloth_core::gpu_layout::{GpuCollider, GpuMeshWriteback, GpuParticle, load_gpu_particles};
-use bvh_cloth_core::obj::{ObjMesh, parse_obj};
-use bvh_cloth_core::self_contact::ContactSolver;
-use bvh_cloth_core::triangles::crossing_pairs;
+use bvh_cloth_core::ObjMesh;
+use bvh_cloth_core::backend::ContactSolver;
+use bvh_cloth_core::backend::crossing_pairs;
+use bvh_cloth_core::parse_obj;
+use bvh_cloth_gpu::layout::{GpuCollider, GpuMeshWriteback, GpuParticle, load_gpu_particles};
 use std::sync::Arc;
 
 use bvh_cloth_core::{
@@ -752,7 +753,7 @@ fn a_skinned_collider_refitted_on_the_gpu_matches_the_cpu_refit() {
             assert_eq!((lo[3].to_bits(), hi[3].to_bits()), (node.left, node.right), "node {j}'s children are kept");
         }
         let frames: Vec<GpuCollider> = headless::read(&rig.device, &rig.queue, frames_buffer);
-        let reach = bvh_cloth_core::collision::ColliderFrame::new(&cpu).unwrap().contact_reach;
+        let reach = bvh_cloth_core::backend::ColliderFrame::new(&cpu).unwrap().contact_reach;
         worst_reach = worst_reach.max((frames[1].contact_reach - reach).abs());
         // The static tree (its nodes first in the buffer, its spheres first after the nodes).
         assert_eq!(&words[..static_words], &before[..static_words], "the static bunny's nodes are untouched");

@@ -7,10 +7,10 @@
 //! heightfield of 2 million triangles.
 
 use bvh_cloth_bench::{MODELS, best_of, collider, drape, time};
-use bvh_cloth_core::collision::CONTACT_BAND;
-use bvh_cloth_core::exact_contact::TriangleSurface;
-use bvh_cloth_core::obj::ObjMesh;
-use bvh_cloth_core::triangles::face_normal;
+use bvh_cloth_core::ObjMesh;
+use bvh_cloth_core::backend::CONTACT_BAND;
+use bvh_cloth_core::backend::TriangleSurface;
+use bvh_cloth_core::backend::face_normal;
 use bvh_cloth_core::{Collider, MeshRef, Vec3};
 use parry3d::math::Vector;
 use parry3d::query::PointQuery;

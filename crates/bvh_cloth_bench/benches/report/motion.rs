@@ -1,5 +1,5 @@
 //! The section `motion`: what a user sees of each solver setting over time, against the analytic
-//! answer and RK4 at the same resolution (see `bvh_cloth_core::block_descent`).
+//! answer and RK4 at the same resolution (see `bvh_cloth_core::solver::block_descent`).
 
 use std::sync::Arc;
 

@@ -1,4 +1,4 @@
-// Aerodynamics (bvh_cloth_core::aerodynamics) for every cloth of the batch with drag or lift:
+// Aerodynamics (bvh_cloth_core::air) for every cloth of the batch with drag or lift:
 // - air_sample, once per tick, one thread per particle slot: the wind at the particle (the
 //   cloth's ambient wind for the tick, its turbulence, every wind source);
 // - air_forces, once per substep before the integrators: the drag and lift of every triangle,
@@ -61,7 +61,7 @@ fn air_cloth(i: u32) -> u32 {
     return c;
 }
 
-// bvh_cloth_core::aerodynamics::hash (lowbias32).
+// bvh_cloth_core::air::hash (lowbias32).
 fn noise_hash(v: u32) -> u32 {
     var x = v;
     x ^= x >> 16u;
@@ -95,7 +95,7 @@ fn noise_lerp(a: vec3<f32>, b: vec3<f32>, s: f32) -> vec3<f32> {
     return a + (b - a) * s;
 }
 
-// bvh_cloth_core::aerodynamics::value_noise_4d, with the same arithmetic in the same order.
+// bvh_cloth_core::air::value_noise_4d, with the same arithmetic in the same order.
 fn value_noise_4d(q: vec3<f32>, t: f32, seed: u32) -> vec3<f32> {
     let cell = floor(q);
     let tc = floor(t);
@@ -126,7 +126,7 @@ fn value_noise_4d(q: vec3<f32>, t: f32, seed: u32) -> vec3<f32> {
     return noise_lerp(by_z[0], by_z[1], sz);
 }
 
-// bvh_cloth_core::aerodynamics::AirSource::velocity_at.
+// bvh_cloth_core::air::AirSource::velocity_at.
 fn source_wind(s: WindSource, p: vec3<f32>) -> vec3<f32> {
     let d = p - s.origin.xyz;
     let dist = sqrt(dot(d, d));
@@ -168,7 +168,7 @@ fn air_sample(@builtin(global_invocation_id) id: vec3<u32>) {
     air_state[i] = vec4(w, 0.0);
 }
 
-// bvh_cloth_core::aerodynamics::AirModel::triangle_force: corner k of triangle t of cloth c.
+// bvh_cloth_core::air::AirModel::triangle_force: corner k of triangle t of cloth c.
 fn triangle_air(air: AirCloth, start: u32, corners: u32, t: u32) -> vec3<f32> {
     let a = start + air_surface[corners + 3u * t];
     let b = start + air_surface[corners + 3u * t + 1u];
@@ -190,7 +190,7 @@ fn triangle_air(air: AirCloth, start: u32, corners: u32, t: u32) -> vec3<f32> {
     return drag + lift;
 }
 
-// bvh_cloth_core::aerodynamics::capped_kick.
+// bvh_cloth_core::air::capped_kick.
 fn capped_kick(dv: vec3<f32>, relative: vec3<f32>) -> vec3<f32> {
     let dv2 = dot(dv, dv);
     let rel2 = dot(relative, relative);
@@ -201,7 +201,7 @@ fn capped_kick(dv: vec3<f32>, relative: vec3<f32>) -> vec3<f32> {
 }
 
 // Where a cloth's lists lie in the surface buffer: its triangle offsets, its triangle list and
-// its triangles' corners (bvh_cloth_core::gpu_layout::gpu_surface_words).
+// its triangles' corners (bvh_cloth_gpu::layout::gpu_surface_words).
 struct AirSurface {
     offsets: u32,
     lists: u32,

@@ -1,4 +1,4 @@
-// Vertex block descent (bvh_cloth_core::block_descent), per substep for every block-descent
+// Vertex block descent (bvh_cloth_core::solver::block_descent), per substep for every block-descent
 // cloth of the batch:
 // - vbd_predict, one thread per particle slot: keeps the substep's start state, the inertial
 //   target y = x + h v + h^2 g, and the first iterate x + (h v + h^2 a) / (1 + c h), with a the
@@ -42,7 +42,7 @@ fn descent_cloth(i: u32) -> u32 {
 }
 
 // The direction of cloth c's uniform acceleration (zero when it has none) and its size:
-// bvh_cloth_core::block_descent::AccelAxis.
+// bvh_cloth_core::solver::block_descent::AccelAxis.
 fn accel_axis(c: u32) -> vec4<f32> {
     let uniform = cloths[c].uniform_accel.xyz;
     let size = sqrt(dot(uniform, uniform));
@@ -65,7 +65,7 @@ fn predict(i: u32, c: u32, me: GpuParticle) {
     substep_start[i] = me;
     let free = me.position.w;
     let h = cloths[c].h;
-    // bvh_cloth_core::block_descent::first_iterate: a falling particle starts where gravity
+    // bvh_cloth_core::solver::block_descent::first_iterate: a falling particle starts where gravity
     // takes it, one at rest where it was.
     var x = me.position.xyz;
     var y = x;
@@ -107,7 +107,7 @@ fn vbd_predict_air(@builtin(global_invocation_id) id: vec3<u32>) {
     predict(i, c, me);
 }
 
-// bvh_cloth_core::block_descent::descend: the new position of particle i (of cloth c) at x,
+// bvh_cloth_core::solver::block_descent::descend: the new position of particle i (of cloth c) at x,
 // with the same arithmetic in the same order.
 fn descend(i: u32, c: u32, x: vec3<f32>, start: vec3<f32>, goal: vec3<f32>) -> vec3<f32> {
     let info = particle_info[i];
@@ -195,7 +195,7 @@ fn sum_lanes(lane: u32) -> vec4<f32> {
 }
 
 // Particle i's term of cloth c's centre-of-mass drift, m (x - x*) and m, with m its mass share
-// and x* = x0 + (h v0 + h^2 g) / (1 + c h) (bvh_cloth_core::block_descent::centre_of_mass_drift);
+// and x* = x0 + (h v0 + h^2 g) / (1 + c h) (bvh_cloth_core::solver::block_descent::centre_of_mass_drift);
 // zero for a held particle.
 fn drift_term(i: u32, c: u32) -> vec4<f32> {
     let me = iterate[i];
@@ -297,7 +297,7 @@ fn vbd_finish(@builtin(global_invocation_id) id: vec3<u32>) {
     let h = cloths[c].h;
     let inv_h = 1.0 / h;
     out.velocity = vec4((out.position.xyz - b.position.xyz) * inv_h, 0.0);
-    // bvh_cloth_core::tethers: beyond its tether's reach of its pin (held, so at the substep's
+    // bvh_cloth_core::cloth::tethers: beyond its tether's reach of its pin (held, so at the substep's
     // start), a particle loses its velocity away from the pin.
     let scale = cloths[c].tether_scale;
     if (scale > 0.0) {
@@ -322,7 +322,7 @@ fn vbd_finish(@builtin(global_invocation_id) id: vec3<u32>) {
     }
     let done = collide(b.position.xyz, out);
     iterate[i] = done;
-    // bvh_cloth_core::block_descent::AccelAxis::estimate.
+    // bvh_cloth_core::solver::block_descent::AccelAxis::estimate.
     let axis = accel_axis(c);
     let along = dot(done.velocity.xyz / inverse_damping(c) - b.velocity.xyz, axis.xyz) / h;
     inertial[i].velocity = vec4(clamp(along, 0.0, axis.w), 0.0, 0.0, 0.0);

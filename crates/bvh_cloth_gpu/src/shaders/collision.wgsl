@@ -1,7 +1,7 @@
 // CollisionDetectionWithBVH: stack traversal (Algorithm 2) and the response of section 2.4.4,
 // as a function the final integrator stage calls for each free particle; primitives answer in
 // primitives.wgsl. A collider with exact contact (SHAPE_TRIANGLES) answers from its triangles
-// (bvh_cloth_core::exact_contact), through the same traversal of its tree.
+// (bvh_cloth_core::colliders::exact_contact), through the same traversal of its tree.
 
 #define_import_path bvh_cloth::collision
 #import bvh_cloth::types::{GpuParticle, GpuCollider, frame}
@@ -36,7 +36,7 @@ fn sphere_contains(sphere: vec4<f32>, p: vec3<f32>, margin: f32) -> bool {
     return dot(d, d) < shrunk * shrunk;
 }
 
-// The exact test a query makes on each sphere whose box it reaches (bvh_cloth_core::collision):
+// The exact test a query makes on each sphere whose box it reaches (bvh_cloth_core::colliders::collision):
 // QUERY_CONTACTS gathers the contacts at the previous position, QUERY_SWEEP finds the first
 // sphere the path enters, QUERY_INSIDE whether a point is inside any sphere, QUERY_DEEPEST the
 // sphere a point is deepest in.
@@ -203,7 +203,7 @@ fn point_query(kind: u32, col: GpuCollider, prev: vec3<f32>, p: vec3<f32>) -> Qu
     return q;
 }
 
-// The result of the response against one collider (bvh_cloth_core::collision::Response):
+// The result of the response against one collider (bvh_cloth_core::colliders::collision::Response):
 // kind 0 free, 1 moved to `position` (local), 2 stay at the previous position.
 struct Response {
     kind: u32,
@@ -318,8 +318,8 @@ fn collide(prev_world: vec3<f32>, moved: GpuParticle) -> GpuParticle {
     return GpuParticle(vec4(position, moved.position.w), vec4(velocity, select(0.0, 1.0, touched)));
 }
 
-// ---- Exact contact (bvh_cloth_core::exact_contact and triangles), in the same order of
-// operations: the CPU walks a four-wide copy of this tree (bvh_cloth_core::wide_bvh), which
+// ---- Exact contact (bvh_cloth_core::colliders::exact_contact and triangles), in the same order of
+// operations: the CPU walks a four-wide copy of this tree (bvh_cloth_core::bvh::wide), which
 // meets the triangles in this walk's order. A collider's triangles follow its spheres in
 // `tree`, three vec4s each.
 
@@ -327,7 +327,7 @@ fn triangle_corner(col: GpuCollider, k: u32, corner: u32) -> vec3<f32> {
     return tree[col.sphere_offset + col.sphere_count + 3u * k + corner].xyz;
 }
 
-// bvh_cloth_core::triangles::closest_point: the Voronoi regions in turn.
+// bvh_cloth_core::mesh::triangles::closest_point: the Voronoi regions in turn.
 fn closest_on_triangle(p: vec3<f32>, a: vec3<f32>, b: vec3<f32>, c: vec3<f32>) -> vec3<f32> {
     let ab = b - a;
     let ac = c - a;
@@ -382,7 +382,7 @@ fn edge_volume(s: vec3<f32>, e: vec3<f32>, origin: vec3<f32>, dir: vec3<f32>) ->
     return dot(cross(dir, s - origin), e - origin);
 }
 
-// bvh_cloth_core::triangles::segment_hit: the parameter along p..q, or -1 for a miss.
+// bvh_cloth_core::mesh::triangles::segment_hit: the parameter along p..q, or -1 for a miss.
 fn segment_hit(p: vec3<f32>, q: vec3<f32>, a: vec3<f32>, b: vec3<f32>, c: vec3<f32>) -> f32 {
     let n = cross(b - a, c - a);
     let sp = dot(p - a, n);
@@ -584,7 +584,7 @@ fn triangle_query(kind: u32, prev: vec3<f32>, end_point: vec3<f32>, thickness: f
     return TriQuery(kind, prev, end_point, end_point, thickness, reach, reach, 0u, 0.0, vec3<f32>(0.0), 0u, false, v);
 }
 
-// bvh_cloth_core::exact_contact::TriangleSurface::respond.
+// bvh_cloth_core::colliders::exact_contact::TriangleSurface::respond.
 fn respond_triangles(col: GpuCollider, prev: vec3<f32>, p: vec3<f32>, velocity: vec3<f32>) -> Response {
     let h = max(col.margin_local, col.size.x);
     let band = h * (1.0 + CONTACT_BAND);

@@ -8,7 +8,7 @@
 
 @group(0) @binding(15) var<storage, read> writebacks: array<BatchWriteback>;
 @group(0) @binding(16) var<storage, read> particles: array<GpuParticle>;
-// Every cloth's surface (bvh_cloth_core::gpu_layout::gpu_surface_words) from its
+// Every cloth's surface (bvh_cloth_gpu::layout::gpu_surface_words) from its
 // surface_start: the particle of each of the V vertices, N + 1 triangle offsets, the
 // per-particle triangle lists, then three corners per triangle; particles relative to the
 // cloth's first.
@@ -35,7 +35,7 @@ fn normal_shader(@builtin(global_invocation_id) id: vec3<u32>) {
     let lists = offsets + writeback.particle_count + 1u;
     let triangles = lists + surface[offsets + writeback.particle_count];
     let i = surface[start + v];
-    // The CPU's order: the particle's triangles as listed (bvh_cloth_core::normals).
+    // The CPU's order: the particle's triangles as listed (bvh_cloth_core::cloth::normals).
     var n = vec3<f32>(0.0);
     for (var k = surface[offsets + i]; k < surface[offsets + i + 1u]; k++) {
         let t = surface[lists + k];

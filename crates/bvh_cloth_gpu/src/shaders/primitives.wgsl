@@ -1,11 +1,11 @@
-// The exact primitives (bvh_cloth_core::primitives): signed distances and the convex response,
+// The exact primitives (bvh_cloth_core::colliders::primitives): signed distances and the convex response,
 // in the collider's local frame, step for step as on the CPU.
 
 #define_import_path bvh_cloth::primitives
 #import bvh_cloth::types::{GpuCollider}
 #import bvh_cloth::constants::{SURFACE_TOLERANCE, CONTACT_BAND, SHAPE_SPHERE, SHAPE_CAPSULE, SHAPE_CUBOID, SHAPE_HALF_SPACE, SWEEP_STEPS, CLOSEST_STEPS}
 
-// GpuCollider::shape (bvh_cloth_core::primitives::Primitive::kind).
+// GpuCollider::shape (bvh_cloth_core::colliders::primitives::Primitive::kind).
 const INV_PHI: f32 = 0.618034;
 
 // A signed distance (w) and the outward unit normal of the closest surface point (xyz).

@@ -43,7 +43,7 @@ struct ContactFrame {
 @group(0) @binding(35) var<uniform> contact: ContactFrame;
 // Per particle slot, two vec4s: the position at the start of the substep, the rest position.
 @group(0) @binding(36) var<storage, read_write> contact_points: array<vec4<f32>>;
-// Per triangle, five vec4s (bvh_cloth_core::gpu_layout::gpu_contact_triangles): corners and
+// Per triangle, five vec4s (bvh_cloth_gpu::layout::gpu_contact_triangles): corners and
 // cloth; rest box; current grown box (f32 bits).
 @group(0) @binding(37) var<storage, read_write> contact_triangles: array<vec4<u32>>;
 // The grid: 4 statistics words, then the bucket counts, the bucket cursors, the bucket starts
@@ -306,7 +306,7 @@ fn contact_scatter(@builtin(global_invocation_id) id: vec3<u32>) {
     }
 }
 
-// bvh_cloth_core::triangles::face_normal: the unit normal, or a zero vector for a triangle
+// bvh_cloth_core::mesh::triangles::face_normal: the unit normal, or a zero vector for a triangle
 // without one.
 fn face_normal(a: vec3<f32>, b: vec3<f32>, c: vec3<f32>) -> vec3<f32> {
     let n = cross(b - a, c - a);

@@ -1,4 +1,4 @@
-// The refit of a skinned collider (bvh_cloth_core::skinning::SkinnedSpheres::refit, in the same
+// The refit of a skinned collider (bvh_cloth_core::colliders::skinning::SkinnedSpheres::refit, in the same
 // order of operations): the vertices are skinned, every sphere is fitted again around its
 // points (each a blend of three skinned vertices), the tree's boxes are refitted level by level
 // from the deepest, and the collider's contact reach follows its largest sphere. One collider
@@ -157,7 +157,7 @@ fn refit_nodes(@builtin(global_invocation_id) id: vec3<u32>, @builtin(num_workgr
 var<workgroup> refit_largest: array<f32, 64>;
 
 // One workgroup: the largest radius, and from it the collider's contact reach
-// (bvh_cloth_core::collision::contact_reach).
+// (bvh_cloth_core::colliders::collision::contact_reach).
 @compute @workgroup_size(64, 1, 1)
 fn refit_reach(@builtin(local_invocation_index) t: u32) {
     var r = 0.0;

@@ -7,7 +7,7 @@
 
 @group(0) @binding(3) var<storage, read> source: array<GpuParticle>;    // state the slope is taken at
 // Per particle: first and past-the-last spring end (relative to its cloth's), inverse mass
-// share (f32 bits), its cloth (bvh_cloth_core::gpu_layout::gpu_particle_info).
+// share (f32 bits), its cloth (bvh_cloth_gpu::layout::gpu_particle_info).
 @group(0) @binding(6) var<storage, read> particle_info: array<vec4<u32>>;
 // Spring ends (bvh_cloth_core::SpringEnd): other particle (relative to the cloth), kind, rest
 // length bits, weight bits.
@@ -15,7 +15,7 @@
 @group(0) @binding(8) var<storage, read_write> cloths: array<BatchCloth>;
 
 // Acceleration of particle i (of cloth c, in state `me`), with its springs' other ends read at
-// `source`, gathered as bvh_cloth_core::forces::ForceModel::band_acceleration_general; zero for
+// `source`, gathered as bvh_cloth_core::solver::forces::ForceModel::band_acceleration_general; zero for
 // a held particle.
 fn acceleration(i: u32, c: u32, me: GpuParticle) -> vec3<f32> {
     let info = particle_info[i];

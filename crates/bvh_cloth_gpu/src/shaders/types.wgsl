@@ -1,5 +1,5 @@
 // The types, constants and helpers every kernel of bvh_cloth_gpu shares. Each struct mirrors a
-// #[repr(C)] struct of bvh_cloth_core::gpu_layout field for field (the crate's layout test
+// #[repr(C)] struct of bvh_cloth_gpu::layout field for field (the crate's layout test
 // compares them), and every formula follows the CPU reference (bvh_cloth_core's forces, sim,
 // collision, traversal and normals modules) in the same order of operations.
 //

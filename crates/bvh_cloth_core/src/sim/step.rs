@@ -1,0 +1,217 @@
+//! A tick: its substeps by the cloth's integrator, collision after each, and several cloths
+//! stepped together so that they collide with each other.
+
+use std::sync::Arc;
+
+use glam::{Vec3, Vec3A};
+
+use super::*;
+use crate::colliders::collider::Collider;
+use crate::colliders::collision::ColliderFrame;
+use crate::self_contact::{ContactBody, ContactSolver, ContactStats, SelfContact};
+use crate::solver::forces::{ForceModel, LANES};
+use crate::solver::params::Integrator;
+
+impl ClothSim {
+    /// Advances one tick of `dt` seconds: `looper` substeps of equal length (more when the
+    /// stability guard asks for them, see [`ClothParams::substeps`]), each followed by collision
+    /// against every collider. Returns the substeps run and how many particles went
+    /// non-finite. An explicit integrator that would need more substeps than the guard takes
+    /// goes non-finite: check the parameters against the tick with [`ClothParams::check_tick`]
+    /// first (the plugin does).
+    pub fn tick(&mut self, dt: f32, colliders: &[Collider]) -> Ticked {
+        if !(dt.is_finite() && dt > 0.0) {
+            return Ticked { substeps: 0, non_finite: self.non_finite_particles() };
+        }
+        let substeps = self.substeps(dt);
+        let h = dt / substeps as f32;
+        self.sample_air();
+        if let Integrator::BlockDescent { iterations } = self.params.integrator {
+            self.descend(h, substeps, iterations, colliders);
+        } else {
+            for _ in 0..substeps {
+                self.explicit_substep(h, colliders);
+            }
+        }
+        self.wind_time += f64::from(dt);
+        Ticked { substeps, non_finite: self.non_finite_particles() }
+    }
+
+    /// Runs `substeps` block-descent substeps of `h` seconds on positions kept by particle.
+    fn descend(&mut self, h: f32, substeps: u32, iterations: u32, colliders: &[Collider]) {
+        let frames: Vec<ColliderFrame<'_>> = colliders.iter().filter_map(ColliderFrame::new).collect();
+        let model = ForceModel::new(&self.params);
+        let n = self.len();
+        let mut descent = core::mem::take(&mut self.descent);
+        descent.resize(n);
+        let free_body = self.is_free_body();
+        let tether_set = Arc::clone(&self.tethers);
+        let tethers = self.params.tethers.filter(|_| !tether_set.is_empty()).map(|t| (&*tether_set, 1.0 + t.slack));
+        let w = self.width;
+        for (r, row) in self.state.chunks_exact(LANES * w).enumerate() {
+            for c in 0..w.min(n.saturating_sub(r * w)) {
+                descent.x[r * w + c] = Vec3A::new(row[c], row[w + c], row[2 * w + c]);
+                descent.v[r * w + c] = Vec3A::new(row[3 * w + c], row[4 * w + c], row[5 * w + c]);
+            }
+        }
+        for _ in 0..substeps {
+            if self.params.self_contact.is_some() {
+                self.contact_prev.clear();
+                self.contact_prev.extend(descent.x.iter().map(|&p| Vec3::from(p)));
+            }
+            if let Some(model) = self.air_model {
+                self.air.kick(&model, &self.topology, &self.free[..n], h, &descent.x, &mut descent.v);
+            }
+            descent.substep(
+                &self.topology,
+                &model,
+                &self.free[..n],
+                &mut self.held[..n],
+                h,
+                iterations,
+                free_body,
+                tethers,
+                &frames,
+            );
+            if let Some(contact) = self.params.self_contact {
+                self.contact_x.clear();
+                self.contact_x.extend(descent.x.iter().map(|&p| Vec3::from(p)));
+                self.contact_v.clear();
+                self.contact_v.extend(descent.v.iter().map(|&p| Vec3::from(p)));
+                self.resolve_own_contact(contact, &frames);
+                for (k, (p, v)) in self.contact_x.iter().zip(&self.contact_v).enumerate() {
+                    (descent.x[k], descent.v[k]) = (Vec3A::from(*p), Vec3A::from(*v));
+                }
+            }
+        }
+        for (r, row) in self.state.chunks_exact_mut(LANES * w).enumerate() {
+            for c in 0..w.min(n.saturating_sub(r * w)) {
+                let (p, v) = (descent.x[r * w + c], descent.v[r * w + c]);
+                for (lane, value) in [p.x, p.y, p.z, v.x, v.y, v.z].into_iter().enumerate() {
+                    row[lane * w + c] = value;
+                }
+            }
+        }
+        self.descent = descent;
+    }
+
+    /// Advances one substep of `h` seconds (the aerodynamic kick, with the wind sampled at the
+    /// wind clock's time, then integration, collision and self-contact). The wind clock does
+    /// not move.
+    pub fn substep(&mut self, h: f32, colliders: &[Collider]) {
+        self.sample_air();
+        if let Integrator::BlockDescent { iterations } = self.params.integrator {
+            self.descend(h, 1, iterations, colliders);
+            return;
+        }
+        self.explicit_substep(h, colliders);
+    }
+
+    /// One substep of an explicit integrator, with this tick's air already sampled.
+    fn explicit_substep(&mut self, h: f32, colliders: &[Collider]) {
+        let Some(contact) = self.params.self_contact else {
+            self.integrate(h, colliders);
+            return;
+        };
+        let (mut prev, mut x, mut v) = (
+            core::mem::take(&mut self.contact_prev),
+            core::mem::take(&mut self.contact_x),
+            core::mem::take(&mut self.contact_v),
+        );
+        self.read_positions(&mut prev);
+        self.integrate(h, colliders);
+        self.read_state(&mut x, &mut v);
+        (self.contact_prev, self.contact_x, self.contact_v) = (prev, x, v);
+        let frames: Vec<ColliderFrame<'_>> = colliders.iter().filter_map(ColliderFrame::new).collect();
+        self.resolve_own_contact(contact, &frames);
+        let (x, v) = (core::mem::take(&mut self.contact_x), core::mem::take(&mut self.contact_v));
+        self.write_state(&x, &v);
+        (self.contact_x, self.contact_v) = (x, v);
+    }
+
+    /// This cloth's self-contact on the particles in `contact_prev`, `contact_x` and
+    /// `contact_v` (the substep's start, and its end), in place.
+    fn resolve_own_contact(&mut self, contact: SelfContact, frames: &[ColliderFrame<'_>]) {
+        let n = self.topology.len();
+        let mut body = [ContactBody {
+            topology: &self.topology,
+            contact,
+            free: &self.free[..n],
+            held: &self.held[..n],
+            prev: &self.contact_prev,
+            x: &mut self.contact_x,
+            v: &mut self.contact_v,
+        }];
+        self.contact.resolve(&mut body, frames);
+    }
+
+    /// Steps several cloths together for a tick of `dt` seconds, so that the ones with
+    /// self-contact also keep off each other ([`crate::self_contact`]): every cloth takes the
+    /// largest substep count among them, and after each substep the contacts of all of them
+    /// are resolved at once by `solver`. Returns the substeps run and the last substep's
+    /// contact figures.
+    pub fn tick_together(
+        sims: &mut [&mut ClothSim],
+        dt: f32,
+        colliders: &[Collider],
+        solver: &mut ContactSolver,
+    ) -> (u32, ContactStats) {
+        if !(dt.is_finite() && dt > 0.0) || sims.is_empty() {
+            return (0, ContactStats::default());
+        }
+        let substeps = sims.iter().map(|s| s.substeps(dt)).max().unwrap_or(1);
+        let h = dt / substeps as f32;
+        let frames: Vec<ColliderFrame<'_>> = colliders.iter().filter_map(ColliderFrame::new).collect();
+        let mut stats = ContactStats::default();
+        let mut states: Vec<(Vec<Vec3>, Vec<Vec3>, Vec<Vec3>)> =
+            sims.iter().map(|_| (Vec::new(), Vec::new(), Vec::new())).collect();
+        for sim in sims.iter_mut() {
+            sim.sample_air();
+        }
+        for _ in 0..substeps {
+            for (sim, (prev, _, _)) in sims.iter_mut().zip(states.iter_mut()) {
+                if sim.params.self_contact.is_some() {
+                    sim.read_positions(prev);
+                }
+                match sim.params.integrator {
+                    Integrator::BlockDescent { iterations } => {
+                        // One substep, its contact left to the joint pass below.
+                        let contact = sim.params.self_contact.take();
+                        sim.descend(h, 1, iterations, colliders);
+                        sim.params.self_contact = contact;
+                    }
+                    _ => sim.integrate(h, colliders),
+                }
+            }
+            let mut bodies = Vec::with_capacity(sims.len());
+            for (sim, (prev, x, v)) in sims.iter().zip(states.iter_mut()) {
+                let Some(contact) = sim.params.self_contact else { continue };
+                sim.read_state(x, v);
+                let free = &sim.free[..sim.len()];
+                bodies.push(ContactBody {
+                    topology: &sim.topology,
+                    contact,
+                    free,
+                    held: &sim.held[..sim.len()],
+                    prev,
+                    x,
+                    v,
+                });
+            }
+            if bodies.is_empty() {
+                continue;
+            }
+            stats = solver.resolve(&mut bodies, &frames);
+            drop(bodies);
+            for (sim, (_, x, v)) in sims.iter_mut().zip(&states) {
+                if sim.params.self_contact.is_some() {
+                    sim.write_state(x, v);
+                }
+            }
+        }
+        for sim in sims.iter_mut() {
+            sim.wind_time += f64::from(dt);
+        }
+        (substeps, stats)
+    }
+}
