@@ -4,19 +4,50 @@
 use std::time::Instant;
 
 use bevy::camera::primitives::Aabb;
+use bevy::ecs::schedule::{InternedScheduleLabel, ScheduleLabel};
 use bevy::prelude::*;
 use bvh_cloth_core::backend::ContactSolver;
 use bvh_cloth_core::{ClothSim, Collider};
 
+use crate::backend::cpu_backend_active;
 use crate::clock::ClothClock;
-use crate::cloth_mesh::write_cloth_mesh;
-use crate::collider::ClothCollider;
+use crate::cloth::mesh::write_cloth_mesh;
+use crate::cloth::simulation::{ClothSimulation, plan_anchors, rigid_pose};
+use crate::cloth::stats::{ClothStats, update_stats};
+use crate::colliders::auto::ClothCollider;
 use crate::messages::ClothMessage;
-use crate::simulation::{ClothSimulation, rigid_pose};
-use crate::stats::ClothStats;
+use crate::schedule::ClothSystems;
+
+/// The CPU backend, while it is the active one ([`ActiveClothBackend::Cpu`](crate::ActiveClothBackend)):
+/// the cloths stepped in [`ClothSystems::Step`] and written into their meshes in
+/// [`ClothSystems::Writeback`].
+#[derive(Debug, Clone)]
+pub struct CpuBackendPlugin {
+    schedule: InternedScheduleLabel,
+}
+
+impl CpuBackendPlugin {
+    /// The CPU backend's systems in `schedule`.
+    pub fn new(schedule: impl ScheduleLabel) -> Self {
+        Self { schedule: schedule.intern() }
+    }
+}
+
+impl Plugin for CpuBackendPlugin {
+    fn build(&self, app: &mut App) {
+        app.add_systems(
+            self.schedule,
+            (
+                step_cloths.after(plan_anchors).before(update_stats).in_set(ClothSystems::Step),
+                write_back_cloths.in_set(ClothSystems::Writeback),
+            )
+                .run_if(cpu_backend_active),
+        );
+    }
+}
 
 /// Runs this frame's ticks for every cloth, each tick after moving the pins where
-/// [`plan_anchors`](crate::simulation::plan_anchors) put them for it. The cloths with
+/// [`plan_anchors`](crate::cloth::simulation::plan_anchors) put them for it. The cloths with
 /// self-contact are stepped together ([`ClothSim::tick_together`]), so that they also keep off
 /// each other.
 pub(crate) fn step_cloths(

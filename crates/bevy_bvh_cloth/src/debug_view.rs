@@ -8,7 +8,7 @@ use bevy::prelude::*;
 
 use bvh_cloth_core::{Collider, Primitive};
 
-use crate::collider::ClothCollider;
+use crate::colliders::auto::ClothCollider;
 use crate::settings::ClothSettings;
 
 /// Above this many leaves only the spheres are drawn: thousands of nested boxes are noise.

@@ -14,8 +14,8 @@
 use bevy::prelude::*;
 use bvh_cloth_core::ClothError;
 
-use crate::collider_mesh::ColliderFailure;
 use crate::messages::ClothMessage;
+use crate::messages::ColliderFailure;
 
 /// A collider was built (or rebuilt) and takes part from the next tick on.
 #[derive(EntityEvent, Clone, Debug, PartialEq)]

@@ -90,36 +90,21 @@
 mod backend;
 mod clock;
 mod cloth;
-mod cloth_mesh;
-mod collider;
-mod collider_hierarchy;
-mod collider_mesh;
-mod collider_pose;
+mod colliders;
 mod cpu_backend;
 mod debug_view;
 mod events;
-mod gpu_backend;
 mod messages;
 #[cfg(feature = "egui")]
 pub mod panel;
-mod primitive_collider;
-mod readback;
+mod render;
+mod schedule;
 mod settings;
-mod simulation;
-mod stats;
 mod wind;
 
 use bevy::app::PluginGroupBuilder;
-use bevy::camera::visibility::{NoFrustumCulling, VisibilitySystems};
 use bevy::ecs::schedule::{InternedScheduleLabel, ScheduleLabel};
 use bevy::prelude::*;
-use bevy::render::RenderApp;
-use bevy::render::mesh::allocator::MeshAllocatorSettings;
-use bevy::render::render_resource::{BufferUsages, DownlevelFlags};
-use bevy::render::renderer::{RenderAdapter, RenderDevice};
-use bevy::shader::Shader;
-use bevy::transform::TransformSystems;
-use bevy::transform::systems::{mark_dirty_trees, propagate_parent_transforms, sync_simple_transforms};
 
 pub use backend::{ActiveClothBackend, ClothBackend};
 pub use bvh_cloth_core;
@@ -128,18 +113,23 @@ pub use bvh_cloth_core::{
     SpringStiffness, Tethers, Wind,
 };
 pub use clock::ClothClock;
-pub use cloth::{Cloth, ClothAnchor, ClothShape};
-pub use collider::{ASYNC_BUILD_MIN_VERTICES, AutoCollider, ClothCollider, ColliderContact, ColliderStatus};
-pub use collider_hierarchy::{ColliderHierarchy, ColliderPart};
-pub use collider_mesh::{ColliderFailure, collider_from_mesh};
+pub use cloth::ClothPlugin;
+pub use cloth::component::{Cloth, ClothAnchor, ClothShape};
+pub use cloth::simulation::ClothSimulation;
+pub use cloth::stats::ClothStats;
+pub use colliders::ColliderPlugin;
+pub use colliders::auto::{ASYNC_BUILD_MIN_VERTICES, AutoCollider, ClothCollider, ColliderContact, ColliderStatus};
+pub use colliders::hierarchy::{ColliderHierarchy, ColliderPart};
+pub use colliders::mesh::collider_from_mesh;
+pub use colliders::primitive::{PrimitiveCollider, PrimitiveShape};
+pub use cpu_backend::CpuBackendPlugin;
 pub use events::{AnchorLost, ClothDiverged, ClothRejected, ColliderFailed, ColliderReady, WindSourceRejected};
-pub use messages::{ClothMessage, ResetCloth};
-pub use primitive_collider::{PrimitiveCollider, PrimitiveShape};
-pub use readback::ClothReadback;
+pub use messages::{ClothMessage, ColliderFailure, ResetCloth};
+pub use render::GpuBackendPlugin;
+pub use render::readback::ClothReadback;
+pub use schedule::{ClothSchedulePlugin, ClothSystems};
 pub use settings::ClothSettings;
-pub use simulation::ClothSimulation;
-pub use stats::ClothStats;
-pub use wind::{AmbientWind, LocalWind, WindBlast, WindFan};
+pub use wind::{AmbientWind, LocalWind, WindBlast, WindFan, WindPlugin};
 
 /// Everything a game needs, in one `use`.
 pub mod prelude {
@@ -182,26 +172,8 @@ impl Default for BvhClothPlugins {
 
 impl PluginGroup for BvhClothPlugins {
     fn build(self) -> PluginGroupBuilder {
-        PluginGroupBuilder::start::<Self>().add(BvhClothPlugin { schedule: self.schedule }).add(ClothDebugViewPlugin)
+        PluginGroupBuilder::start::<Self>().add_group(BvhClothPlugin::new(self.schedule)).add(ClothDebugViewPlugin)
     }
-}
-
-/// The system sets of the plugin, chained in this order in the schedule the plugin runs in
-/// ([`PostUpdate`] by default, after [`TransformSystems::Propagate`]). Order your own systems
-/// against them.
-#[derive(SystemSet, Clone, Copy, Debug, PartialEq, Eq, Hash)]
-pub enum ClothSystems {
-    /// [`AutoCollider`]s are built (or their async builds polled) and placed at their
-    /// entity's [`GlobalTransform`].
-    BuildColliders,
-    /// The clock advances; [`Cloth`] changes, [`ResetCloth`] requests and the GPU's divergence
-    /// reports are applied.
-    Prepare,
-    /// Each cloth's pins are planned tick by tick, and the cloths are stepped (on the GPU
-    /// backend, in the render world).
-    Step,
-    /// The results are written into the cloth meshes.
-    Writeback,
 }
 
 /// The simulation: [`Cloth`] and [`AutoCollider`] components, stepped on the GPU where the
@@ -213,6 +185,11 @@ pub enum ClothSystems {
 ///
 /// `BvhClothPlugin::default()` runs the cloth systems in [`PostUpdate`], after transform
 /// propagation, once per frame. [`BvhClothPlugin::new`] puts them in another schedule.
+///
+/// It is a group of one plugin per concern, each adding its own systems to the schedule:
+/// [`ClothSchedulePlugin`] (the system sets, the clock, settings and messages),
+/// [`ColliderPlugin`], [`ClothPlugin`], [`WindPlugin`], [`CpuBackendPlugin`] and
+/// [`GpuBackendPlugin`] (the render world). They work together; a game adds the group.
 #[derive(Debug, Clone)]
 pub struct BvhClothPlugin {
     schedule: InternedScheduleLabel,
@@ -246,153 +223,16 @@ impl Default for BvhClothPlugin {
     }
 }
 
-impl Plugin for BvhClothPlugin {
-    fn build(&self, app: &mut App) {
+impl PluginGroup for BvhClothPlugin {
+    fn build(self) -> PluginGroupBuilder {
         let schedule = self.schedule;
-        app.register_type::<Cloth>()
-            .register_type::<AutoCollider>()
-            .register_type::<ColliderContact>()
-            .register_type::<PrimitiveCollider>()
-            .register_type::<ColliderHierarchy>()
-            .register_type::<ColliderPart>()
-            .register_type::<ColliderStatus>()
-            .register_type::<ClothSettings>()
-            .register_type::<ClothClock>()
-            .register_type::<ClothStats>()
-            .register_type::<ClothReadback>()
-            .register_type::<ClothBackend>()
-            .register_type::<ActiveClothBackend>()
-            .register_type::<AmbientWind>()
-            .register_type::<LocalWind>()
-            .register_type::<WindFan>()
-            .register_type::<WindBlast>()
-            .init_resource::<ClothSettings>()
-            .init_resource::<ClothClock>()
-            .init_resource::<ClothStats>()
-            .init_resource::<AmbientWind>()
-            .init_resource::<wind::WindSources>()
-            .init_resource::<ClothBackend>()
-            .init_resource::<ActiveClothBackend>()
-            .init_resource::<gpu_backend::RenderTicks>()
-            .add_message::<ClothMessage>()
-            .add_message::<ResetCloth>()
-            .add_message::<gpu_backend::GpuClothDiverged>()
-            .add_message::<readback::GpuClothState>()
-            .configure_sets(
-                schedule,
-                (ClothSystems::BuildColliders, ClothSystems::Prepare, ClothSystems::Step, ClothSystems::Writeback)
-                    .chain(),
-            )
-            .add_systems(First, gpu_backend::start_render_frame.run_if(not(backend::cpu_backend_active)))
-            .add_systems(
-                schedule,
-                (
-                    (
-                        collider_pose::drop_removed_colliders,
-                        collider_hierarchy::spread_colliders,
-                        collider::build_colliders,
-                        primitive_collider::build_primitive_colliders,
-                        collider_pose::update_collider_poses,
-                    )
-                        .chain()
-                        .in_set(ClothSystems::BuildColliders),
-                    (
-                        clock::advance_clock,
-                        simulation::sync_cloths,
-                        (gpu_backend::reset_diverged_cloths, readback::apply_gpu_readbacks)
-                            .run_if(not(backend::cpu_backend_active)),
-                        simulation::warn_stiff_cloths,
-                    )
-                        .chain()
-                        .in_set(ClothSystems::Prepare),
-                    (
-                        (wind::gather_wind_sources, wind::gather_wind).chain(),
-                        simulation::plan_anchors,
-                        cpu_backend::step_cloths.run_if(backend::cpu_backend_active),
-                        gpu_backend::queue_render_ticks.run_if(not(backend::cpu_backend_active)),
-                        stats::update_stats,
-                    )
-                        .chain()
-                        .in_set(ClothSystems::Step),
-                    (
-                        cpu_backend::write_back_cloths.run_if(backend::cpu_backend_active),
-                        gpu_cloths_skip_culling.run_if(not(backend::cpu_backend_active)),
-                    )
-                        .in_set(ClothSystems::Writeback),
-                    events::trigger_message_events.after(ClothSystems::Writeback),
-                ),
-            );
-        if schedule == PostUpdate.intern() {
-            app.configure_sets(
-                PostUpdate,
-                (ClothSystems::BuildColliders, ClothSystems::Writeback)
-                    .after(TransformSystems::Propagate)
-                    .before(VisibilitySystems::CheckVisibility),
-            );
-        } else {
-            // Elsewhere the transforms are propagated first, as `TransformPlugin` does in
-            // `PostUpdate`: a cloth or collider spawned or moved since is where its `Transform`
-            // says, not where the last propagation left it.
-            app.add_systems(
-                schedule,
-                (mark_dirty_trees, propagate_parent_transforms, sync_simple_transforms)
-                    .chain()
-                    .in_set(TransformSystems::Propagate)
-                    .before(ClothSystems::BuildColliders),
-            );
-        }
-    }
-
-    fn finish(&self, app: &mut App) {
-        let requested = *app.world().resource::<ClothBackend>();
-        let active = backend::choose_backend(requested, gpu_capability(app));
-        app.insert_resource(active);
-        if active != ActiveClothBackend::Gpu {
-            return;
-        }
-        // The kernels' WGSL, as shader assets the render world's pipeline cache compiles.
-        let Some(shaders) = app
-            .world_mut()
-            .get_resource_mut::<Assets<Shader>>()
-            .map(|mut shaders| gpu_backend::ClothShaders::add(&mut shaders))
-        else {
-            return;
-        };
-        app.insert_resource(shaders.clone());
-        if let Some(render_app) = app.get_sub_app_mut(RenderApp) {
-            // normal_shader writes into the mesh slabs: they must be storage buffers too.
-            render_app.world_mut().resource_mut::<MeshAllocatorSettings>().extra_buffer_usages |= BufferUsages::STORAGE;
-            gpu_backend::add_render_systems(render_app, shaders);
-        }
-    }
-}
-
-/// What the render device offers the GPU backend; `None` when the app does not render.
-fn gpu_capability(app: &App) -> Option<backend::GpuCapability> {
-    let render_world = app.get_sub_app(RenderApp)?.world();
-    let adapter = render_world.get_resource::<RenderAdapter>()?;
-    let device = render_world.get_resource::<RenderDevice>()?;
-    if !adapter.get_downlevel_capabilities().flags.contains(DownlevelFlags::COMPUTE_SHADERS) {
-        return Some(Err("the render device does not run compute shaders".into()));
-    }
-    let storage = device.limits().max_storage_buffers_per_shader_stage;
-    let needed = bvh_cloth_gpu::STORAGE_BUFFERS_NEEDED;
-    if storage < needed {
-        return Some(Err(format!(
-            "the render device allows {storage} storage buffers per shader stage, the kernels need {needed}"
-        )));
-    }
-    Some(Ok(()))
-}
-
-/// A cloth the GPU moves keeps the bounds of its first pose on the CPU side; it opts out of
-/// frustum culling instead, so that it never vanishes while in view.
-fn gpu_cloths_skip_culling(
-    mut commands: Commands,
-    cloths: Query<Entity, (With<ClothSimulation>, Without<NoFrustumCulling>)>,
-) {
-    for entity in &cloths {
-        commands.entity(entity).try_insert(NoFrustumCulling);
+        PluginGroupBuilder::start::<Self>()
+            .add(ClothSchedulePlugin::new(schedule))
+            .add(ColliderPlugin::new(schedule))
+            .add(ClothPlugin::new(schedule))
+            .add(WindPlugin::new(schedule))
+            .add(CpuBackendPlugin::new(schedule))
+            .add(GpuBackendPlugin::new(schedule))
     }
 }
 

@@ -3,12 +3,43 @@
 //! [`ClothParams::aerodynamics`](crate::ClothParams) has drag or lift feels any of them.
 
 use bevy::ecs::entity::EntityHashSet;
+use bevy::ecs::schedule::{InternedScheduleLabel, ScheduleLabel};
 use bevy::prelude::*;
 use bvh_cloth_core::{ClothError, Wind, WindSource};
 
 use crate::clock::ClothClock;
+use crate::cloth::simulation::{ClothSimulation, plan_anchors};
 use crate::messages::ClothMessage;
-use crate::simulation::ClothSimulation;
+use crate::schedule::ClothSystems;
+
+/// The wind: every cloth's wind and the sources gathered each frame in [`ClothSystems::Step`],
+/// before the cloths are stepped.
+#[derive(Debug, Clone)]
+pub struct WindPlugin {
+    schedule: InternedScheduleLabel,
+}
+
+impl WindPlugin {
+    /// The wind systems in `schedule`.
+    pub fn new(schedule: impl ScheduleLabel) -> Self {
+        Self { schedule: schedule.intern() }
+    }
+}
+
+impl Plugin for WindPlugin {
+    fn build(&self, app: &mut App) {
+        app.register_type::<AmbientWind>()
+            .register_type::<LocalWind>()
+            .register_type::<WindFan>()
+            .register_type::<WindBlast>()
+            .init_resource::<AmbientWind>()
+            .init_resource::<WindSources>()
+            .add_systems(
+                self.schedule,
+                (gather_wind_sources, gather_wind).chain().before(plan_anchors).in_set(ClothSystems::Step),
+            );
+    }
+}
 
 /// The wind every cloth is in, unless it has a [`LocalWind`]: a mean velocity in m/s, gusts and
 /// turbulence (see [`Wind`]). Still air by default.

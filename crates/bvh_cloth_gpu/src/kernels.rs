@@ -85,23 +85,145 @@ pub fn shader_source() -> String {
     source
 }
 
-/// Self-contact's kernels, in the order they run in a substep (`contact_begin` before the
-/// integrator, the others after it).
-pub const CONTACT_KERNELS: [&str; 8] = [
-    "contact_begin",
-    "contact_count",
-    "contact_scan_blocks",
-    "contact_scan_top",
-    "contact_scan_add",
-    "contact_scatter",
-    "contact_find",
-    "contact_apply",
-];
+/// Every entry point of the kernels, in the order [`ClothKernels::descriptors`] lists them.
+/// Self-contact's eight run in a substep in their order here ([`Self::CONTACT`]), as do
+/// aerodynamics' three ([`Self::AIR`]) and a skinned collider's refit ([`Self::REFIT`]).
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, PartialOrd, Ord)]
+pub enum EntryPoint {
+    /// `node_update`: one of RK4's first three stages (semi-implicit Euler in the first).
+    NodeUpdate,
+    /// `node_update_final`: the last stage, with the collision response.
+    NodeUpdateFinal,
+    /// `vbd_predict`: block descent's inertial target, the first iterate.
+    VbdPredict,
+    /// `vbd_predict_air`: the prediction after the air kick, in a batch with aerodynamics.
+    VbdPredictAir,
+    /// `vbd_solve`: one block-descent sweep over one colour.
+    VbdSolve,
+    /// `vbd_drift_blocks`: the first level of the drift sums of the cloths nothing holds.
+    VbdDriftBlocks,
+    /// `vbd_drift`: the second level of the drift sums, and the drift itself.
+    VbdDrift,
+    /// `vbd_finish`: block descent's velocity update, with the collision response.
+    VbdFinish,
+    /// `apply_anchors`: the pins moved at the start of a tick.
+    ApplyAnchors,
+    /// `normal_shader`: normals, written with the positions into the vertex buffer.
+    NormalShader,
+    /// `skin_vertices`: a skinned collider's vertices skinned by its joints.
+    SkinVertices,
+    /// `fit_leaves`: its spheres fitted to their skinned vertices.
+    FitLeaves,
+    /// `refit_nodes`: its tree's boxes refitted bottom-up.
+    RefitNodes,
+    /// `refit_reach`: its contact reach.
+    RefitReach,
+    /// `contact_begin`: self-contact's substep start kept, its sums and bucket counts cleared.
+    ContactBegin,
+    /// `contact_count`: each triangle counted in its grid buckets.
+    ContactCount,
+    /// `contact_scan_blocks`: the buckets' prefix sum within blocks.
+    ContactScanBlocks,
+    /// `contact_scan_top`: the prefix sum of the blocks' totals.
+    ContactScanTop,
+    /// `contact_scan_add`: the blocks' offsets added back.
+    ContactScanAdd,
+    /// `contact_scatter`: each triangle entered in its grid buckets.
+    ContactScatter,
+    /// `contact_find`: each particle's contacts, their corrections summed.
+    ContactFind,
+    /// `contact_apply`: each particle's mean correction, then the collision response.
+    ContactApply,
+    /// `air_sample`: the wind at every particle of the cloths with aerodynamics, once a tick.
+    AirSample,
+    /// `air_forces`: each triangle's drag and lift, every substep.
+    AirForces,
+    /// `air_kick`: each particle's velocity changed by its triangles' drag and lift.
+    AirKick,
+}
 
-/// Aerodynamics' kernels: `air_sample` once per tick, then `air_forces` at the start of every
-/// substep, and `air_kick` for the explicit integrators' cloths. Block descent's cloths take
-/// their kick in `vbd_predict_air`, its prediction in a batch with aerodynamics.
-pub const AIR_KERNELS: [&str; 3] = ["air_sample", "air_forces", "air_kick"];
+impl EntryPoint {
+    /// Every entry point, in order.
+    pub const ALL: [Self; 25] = [
+        Self::NodeUpdate,
+        Self::NodeUpdateFinal,
+        Self::VbdPredict,
+        Self::VbdPredictAir,
+        Self::VbdSolve,
+        Self::VbdDriftBlocks,
+        Self::VbdDrift,
+        Self::VbdFinish,
+        Self::ApplyAnchors,
+        Self::NormalShader,
+        Self::SkinVertices,
+        Self::FitLeaves,
+        Self::RefitNodes,
+        Self::RefitReach,
+        Self::ContactBegin,
+        Self::ContactCount,
+        Self::ContactScanBlocks,
+        Self::ContactScanTop,
+        Self::ContactScanAdd,
+        Self::ContactScatter,
+        Self::ContactFind,
+        Self::ContactApply,
+        Self::AirSample,
+        Self::AirForces,
+        Self::AirKick,
+    ];
+
+    /// A skinned collider's refit, in the order it runs.
+    pub const REFIT: [Self; 4] = [Self::SkinVertices, Self::FitLeaves, Self::RefitNodes, Self::RefitReach];
+
+    /// Self-contact's kernels, in the order they run in a substep (`contact_begin` before the
+    /// integrator, the others after it).
+    pub const CONTACT: [Self; 8] = [
+        Self::ContactBegin,
+        Self::ContactCount,
+        Self::ContactScanBlocks,
+        Self::ContactScanTop,
+        Self::ContactScanAdd,
+        Self::ContactScatter,
+        Self::ContactFind,
+        Self::ContactApply,
+    ];
+
+    /// Aerodynamics' kernels: `air_sample` once per tick, then `air_forces` at the start of
+    /// every substep, and `air_kick` for the explicit integrators' cloths. Block descent's
+    /// cloths take their kick in `vbd_predict_air`.
+    pub const AIR: [Self; 3] = [Self::AirSample, Self::AirForces, Self::AirKick];
+
+    /// The entry point's name in the WGSL.
+    pub const fn name(self) -> &'static str {
+        match self {
+            Self::NodeUpdate => "node_update",
+            Self::NodeUpdateFinal => "node_update_final",
+            Self::VbdPredict => "vbd_predict",
+            Self::VbdPredictAir => "vbd_predict_air",
+            Self::VbdSolve => "vbd_solve",
+            Self::VbdDriftBlocks => "vbd_drift_blocks",
+            Self::VbdDrift => "vbd_drift",
+            Self::VbdFinish => "vbd_finish",
+            Self::ApplyAnchors => "apply_anchors",
+            Self::NormalShader => "normal_shader",
+            Self::SkinVertices => "skin_vertices",
+            Self::FitLeaves => "fit_leaves",
+            Self::RefitNodes => "refit_nodes",
+            Self::RefitReach => "refit_reach",
+            Self::ContactBegin => "contact_begin",
+            Self::ContactCount => "contact_count",
+            Self::ContactScanBlocks => "contact_scan_blocks",
+            Self::ContactScanTop => "contact_scan_top",
+            Self::ContactScanAdd => "contact_scan_add",
+            Self::ContactScatter => "contact_scatter",
+            Self::ContactFind => "contact_find",
+            Self::ContactApply => "contact_apply",
+            Self::AirSample => "air_sample",
+            Self::AirForces => "air_forces",
+            Self::AirKick => "air_kick",
+        }
+    }
+}
 
 /// Threads per workgroup along each grid axis (workgroups are 8 x 8 x 1, paper Table I).
 pub const WORKGROUP_SIZE: u32 = 8;
@@ -171,54 +293,20 @@ impl std::error::Error for KernelError {}
 #[derive(Clone, Debug)]
 pub struct KernelDescriptor {
     /// The entry point.
-    pub entry_point: &'static str,
+    pub entry: EntryPoint,
     /// The [`SHADER_FILES`] entry that holds it.
     pub file: &'static str,
     /// The entries of its bind group layout.
     pub layout: Vec<BindGroupLayoutEntry>,
 }
 
-/// Number of kernels (entry points): the length of [`ClothKernels::descriptors`].
-pub const KERNEL_COUNT: usize = 25;
-
-/// The compiled kernels: `node_update` (RK4's first three stages, the stage named by the step
-/// uniform), `node_update_final` (the last stage with the collision response), block descent's
-/// `vbd_predict` (or `vbd_predict_air`), `vbd_solve`, `vbd_drift_blocks` and `vbd_drift` (the
-/// drift of a free cloth's centre of mass) and `vbd_finish`, `apply_anchors`, `normal_shader`, a skinned
-/// collider's refit (`skin_vertices`, `fit_leaves`, `refit_nodes`, `refit_reach`), and
-/// self-contact's eight kernels (`contact_begin` to `contact_apply`) and aerodynamics' three
-/// ([`AIR_KERNELS`]), with their bind group layouts.
+/// The compiled kernels: one pipeline and one bind group layout per [`EntryPoint`].
 #[derive(Debug)]
 pub struct ClothKernels {
-    pub(crate) node_update: ComputePipeline,
-    pub(crate) node_update_final: ComputePipeline,
-    pub(crate) vbd_predict: ComputePipeline,
-    /// `vbd_predict` after the air kick, in a batch with aerodynamics.
-    pub(crate) vbd_predict_air: ComputePipeline,
-    pub(crate) vbd_solve: ComputePipeline,
-    pub(crate) vbd_finish: ComputePipeline,
-    /// The two levels of the drift sums of the cloths that nothing holds.
-    pub(crate) vbd_drift: [ComputePipeline; 2],
-    pub(crate) anchors: ComputePipeline,
-    pub(crate) normal: ComputePipeline,
-    /// The refit's four kernels, in order, and their layouts (the same entries).
-    pub(crate) refit: [ComputePipeline; 4],
-    pub(crate) refit_layouts: [BindGroupLayout; 4],
-    /// Self-contact's kernels in [`CONTACT_KERNELS`] order, and their layouts.
-    pub(crate) contact: [ComputePipeline; 8],
-    pub(crate) contact_layouts: [BindGroupLayout; 8],
-    /// Aerodynamics' kernels in [`AIR_KERNELS`] order, and their layouts.
-    pub(crate) air: [ComputePipeline; 3],
-    pub(crate) air_layouts: [BindGroupLayout; 3],
-    pub(crate) node_update_layout: BindGroupLayout,
-    pub(crate) final_layout: BindGroupLayout,
-    pub(crate) vbd_predict_layout: BindGroupLayout,
-    pub(crate) vbd_predict_air_layout: BindGroupLayout,
-    pub(crate) vbd_solve_layout: BindGroupLayout,
-    pub(crate) vbd_finish_layout: BindGroupLayout,
-    pub(crate) vbd_drift_layouts: [BindGroupLayout; 2],
-    pub(crate) anchors_layout: BindGroupLayout,
-    pub(crate) normal_layout: BindGroupLayout,
+    /// The pipelines, one per [`EntryPoint`] in its order.
+    pipelines: Vec<ComputePipeline>,
+    /// Their bind group layouts (group 0), in the same order.
+    layouts: Vec<BindGroupLayout>,
 }
 
 fn entry(binding: u32, ty: BufferBindingType, dynamic: bool) -> BindGroupLayoutEntry {
@@ -235,11 +323,8 @@ fn storage(binding: u32, read_only: bool) -> BindGroupLayoutEntry {
 }
 
 impl ClothKernels {
-    /// The kernels, in the order [`Self::from_parts`] takes them: `node_update`,
-    /// `node_update_final`, `vbd_predict`, `vbd_predict_air`, `vbd_solve`, `vbd_drift_blocks`,
-    /// `vbd_drift`, `vbd_finish`, `apply_anchors`, `normal_shader`, `skin_vertices`, `fit_leaves`, `refit_nodes`,
-    /// `refit_reach`, then [`CONTACT_KERNELS`], then [`AIR_KERNELS`].
-    pub fn descriptors() -> [KernelDescriptor; KERNEL_COUNT] {
+    /// Every kernel, in [`EntryPoint::ALL`]'s order.
+    pub fn descriptors() -> [KernelDescriptor; EntryPoint::ALL.len()] {
         let frame = entry(0, BufferBindingType::Uniform, false);
         let step = entry(1, BufferBindingType::Uniform, true);
         let predict = vec![
@@ -254,12 +339,12 @@ impl ClothKernels {
         // Both levels of the drift sums: the prediction's bindings but the inertial target, and
         // the per-block sums.
         let drift = [&predict[..6], &[storage(48, false)]].concat();
-        let contact = |entry_point, mut layout: Vec<BindGroupLayoutEntry>| {
+        let contact = |point: EntryPoint, mut layout: Vec<BindGroupLayoutEntry>| {
             layout.insert(0, entry(35, BufferBindingType::Uniform, false));
-            KernelDescriptor { entry_point, file: "self_contact.wgsl", layout }
+            KernelDescriptor { entry: point, file: "self_contact.wgsl", layout }
         };
-        let refit = |entry_point| KernelDescriptor {
-            entry_point,
+        let refit = |point: EntryPoint| KernelDescriptor {
+            entry: point,
             file: "skin_refit.wgsl",
             layout: vec![
                 entry(26, BufferBindingType::Uniform, true),
@@ -275,7 +360,7 @@ impl ClothKernels {
         };
         [
             KernelDescriptor {
-                entry_point: "node_update",
+                entry: EntryPoint::NodeUpdate,
                 file: "node_update.wgsl",
                 layout: vec![
                     frame,
@@ -290,7 +375,7 @@ impl ClothKernels {
                 ],
             },
             KernelDescriptor {
-                entry_point: "node_update_final",
+                entry: EntryPoint::NodeUpdateFinal,
                 file: "node_update_final.wgsl",
                 layout: vec![
                     frame,
@@ -305,15 +390,15 @@ impl ClothKernels {
                     storage(12, true),
                 ],
             },
-            KernelDescriptor { entry_point: "vbd_predict", file: "block_descent.wgsl", layout: predict.clone() },
+            KernelDescriptor { entry: EntryPoint::VbdPredict, file: "block_descent.wgsl", layout: predict.clone() },
             // The prediction, and the air's cloth constants, state and surface lists.
             KernelDescriptor {
-                entry_point: "vbd_predict_air",
+                entry: EntryPoint::VbdPredictAir,
                 file: "block_descent.wgsl",
                 layout: [predict, vec![storage(42, true), storage(44, false), storage(47, true)]].concat(),
             },
             KernelDescriptor {
-                entry_point: "vbd_solve",
+                entry: EntryPoint::VbdSolve,
                 file: "block_descent.wgsl",
                 layout: vec![
                     frame,
@@ -328,10 +413,10 @@ impl ClothKernels {
                     entry(25, BufferBindingType::Uniform, true),
                 ],
             },
-            KernelDescriptor { entry_point: "vbd_drift_blocks", file: "block_descent.wgsl", layout: drift.clone() },
-            KernelDescriptor { entry_point: "vbd_drift", file: "block_descent.wgsl", layout: drift },
+            KernelDescriptor { entry: EntryPoint::VbdDriftBlocks, file: "block_descent.wgsl", layout: drift.clone() },
+            KernelDescriptor { entry: EntryPoint::VbdDrift, file: "block_descent.wgsl", layout: drift },
             KernelDescriptor {
-                entry_point: "vbd_finish",
+                entry: EntryPoint::VbdFinish,
                 file: "block_descent.wgsl",
                 layout: vec![
                     frame,
@@ -347,7 +432,7 @@ impl ClothKernels {
                 ],
             },
             KernelDescriptor {
-                entry_point: "apply_anchors",
+                entry: EntryPoint::ApplyAnchors,
                 file: "apply_anchors.wgsl",
                 layout: vec![
                     frame,
@@ -356,7 +441,7 @@ impl ClothKernels {
                 ],
             },
             KernelDescriptor {
-                entry_point: "normal_shader",
+                entry: EntryPoint::NormalShader,
                 file: "normal_shader.wgsl",
                 layout: vec![
                     storage(15, true),
@@ -367,12 +452,12 @@ impl ClothKernels {
                     entry(24, BufferBindingType::Uniform, true),
                 ],
             },
-            refit("skin_vertices"),
-            refit("fit_leaves"),
-            refit("refit_nodes"),
-            refit("refit_reach"),
+            refit(EntryPoint::SkinVertices),
+            refit(EntryPoint::FitLeaves),
+            refit(EntryPoint::RefitNodes),
+            refit(EntryPoint::RefitReach),
             contact(
-                CONTACT_KERNELS[0],
+                EntryPoint::ContactBegin,
                 vec![
                     storage(6, true),
                     storage(8, false),
@@ -382,13 +467,13 @@ impl ClothKernels {
                     storage(40, false),
                 ],
             ),
-            contact(CONTACT_KERNELS[1], vec![storage(37, false), storage(38, false), storage(40, false)]),
-            contact(CONTACT_KERNELS[2], vec![storage(38, false)]),
-            contact(CONTACT_KERNELS[3], vec![storage(38, false)]),
-            contact(CONTACT_KERNELS[4], vec![storage(38, false)]),
-            contact(CONTACT_KERNELS[5], vec![storage(37, false), storage(38, false), storage(40, false)]),
+            contact(EntryPoint::ContactCount, vec![storage(37, false), storage(38, false), storage(40, false)]),
+            contact(EntryPoint::ContactScanBlocks, vec![storage(38, false)]),
+            contact(EntryPoint::ContactScanTop, vec![storage(38, false)]),
+            contact(EntryPoint::ContactScanAdd, vec![storage(38, false)]),
+            contact(EntryPoint::ContactScatter, vec![storage(37, false), storage(38, false), storage(40, false)]),
             contact(
-                CONTACT_KERNELS[6],
+                EntryPoint::ContactFind,
                 vec![
                     storage(6, true),
                     storage(8, false),
@@ -400,7 +485,7 @@ impl ClothKernels {
                 ],
             ),
             contact(
-                CONTACT_KERNELS[7],
+                EntryPoint::ContactApply,
                 vec![
                     frame,
                     storage(6, true),
@@ -413,7 +498,7 @@ impl ClothKernels {
                 ],
             ),
             KernelDescriptor {
-                entry_point: AIR_KERNELS[0],
+                entry: EntryPoint::AirSample,
                 file: "air.wgsl",
                 layout: vec![
                     frame,
@@ -426,7 +511,7 @@ impl ClothKernels {
                 ],
             },
             KernelDescriptor {
-                entry_point: AIR_KERNELS[1],
+                entry: EntryPoint::AirForces,
                 file: "air.wgsl",
                 layout: vec![
                     frame,
@@ -440,7 +525,7 @@ impl ClothKernels {
                 ],
             },
             KernelDescriptor {
-                entry_point: AIR_KERNELS[2],
+                entry: EntryPoint::AirKick,
                 file: "air.wgsl",
                 layout: vec![
                     frame,
@@ -464,7 +549,7 @@ impl ClothKernels {
             source: wgpu::ShaderSource::Wgsl(shader_source().into()),
         });
         let built = Self::descriptors().map(|kernel| {
-            let label = format!("bvh_cloth_{}", kernel.entry_point);
+            let label = format!("bvh_cloth_{}", kernel.entry.name());
             let layout = device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
                 label: Some(&label),
                 entries: &kernel.layout,
@@ -478,14 +563,14 @@ impl ClothKernels {
                 label: Some(&label),
                 layout: Some(&pipeline_layout),
                 module: &module,
-                entry_point: Some(kernel.entry_point),
+                entry_point: Some(kernel.entry.name()),
                 compilation_options: Default::default(),
                 cache: None,
             });
             (pipeline, layout)
         });
-        let layouts = built.each_ref().map(|(_, layout)| layout.clone());
-        Ok(Self::from_parts(built.map(|(pipeline, _)| pipeline), layouts))
+        let (pipelines, layouts) = built.into_iter().unzip();
+        Ok(Self { pipelines, layouts })
     }
 
     /// Why `device` cannot run the kernels, if it cannot.
@@ -498,88 +583,22 @@ impl ClothKernels {
     }
 
     /// Kernels compiled elsewhere (by an engine's pipeline cache, from [`Self::descriptors`]):
-    /// the pipelines and their bind group layouts, in the order of [`Self::descriptors`].
-    pub fn from_parts(pipelines: [ComputePipeline; KERNEL_COUNT], layouts: [BindGroupLayout; KERNEL_COUNT]) -> Self {
-        let [
-            node_update,
-            node_update_final,
-            vbd_predict,
-            vbd_predict_air,
-            vbd_solve,
-            vbd_drift_blocks,
-            vbd_drift,
-            vbd_finish,
-            anchors,
-            normal,
-            r0,
-            r1,
-            r2,
-            r3,
-            c0,
-            c1,
-            c2,
-            c3,
-            c4,
-            c5,
-            c6,
-            c7,
-            a0,
-            a1,
-            a2,
-        ] = pipelines;
-        let [
-            node_update_layout,
-            final_layout,
-            vbd_predict_layout,
-            vbd_predict_air_layout,
-            vbd_solve_layout,
-            vbd_drift_blocks_layout,
-            vbd_drift_layout,
-            vbd_finish_layout,
-            anchors_layout,
-            normal_layout,
-            l0,
-            l1,
-            l2,
-            l3,
-            k0,
-            k1,
-            k2,
-            k3,
-            k4,
-            k5,
-            k6,
-            k7,
-            m0,
-            m1,
-            m2,
-        ] = layouts;
-        Self {
-            node_update,
-            node_update_final,
-            vbd_predict,
-            vbd_predict_air,
-            vbd_solve,
-            vbd_finish,
-            vbd_drift: [vbd_drift_blocks, vbd_drift],
-            anchors,
-            normal,
-            refit: [r0, r1, r2, r3],
-            refit_layouts: [l0, l1, l2, l3],
-            contact: [c0, c1, c2, c3, c4, c5, c6, c7],
-            contact_layouts: [k0, k1, k2, k3, k4, k5, k6, k7],
-            air: [a0, a1, a2],
-            air_layouts: [m0, m1, m2],
-            node_update_layout,
-            final_layout,
-            vbd_predict_layout,
-            vbd_predict_air_layout,
-            vbd_solve_layout,
-            vbd_finish_layout,
-            vbd_drift_layouts: [vbd_drift_blocks_layout, vbd_drift_layout],
-            anchors_layout,
-            normal_layout,
-        }
+    /// `part` gives each entry point's pipeline and bind group layout, or `None` while one is
+    /// not ready, and then so is the whole.
+    pub fn from_parts(mut part: impl FnMut(EntryPoint) -> Option<(ComputePipeline, BindGroupLayout)>) -> Option<Self> {
+        let (pipelines, layouts) =
+            EntryPoint::ALL.into_iter().map(&mut part).collect::<Option<Vec<_>>>()?.into_iter().unzip();
+        Some(Self { pipelines, layouts })
+    }
+
+    /// The pipeline of `entry`.
+    pub(crate) fn pipeline(&self, entry: EntryPoint) -> &ComputePipeline {
+        &self.pipelines[entry as usize]
+    }
+
+    /// The bind group layout of `entry`.
+    pub(crate) fn layout(&self, entry: EntryPoint) -> &BindGroupLayout {
+        &self.layouts[entry as usize]
     }
 
     /// Workgroups (8 x 8 threads each) that give `count` threads, one per particle or vertex,

@@ -6,10 +6,10 @@
 //! `collision_detection_with_bvh`: stack traversal of every collider's LBVH and the collision
 //! response), `apply_anchors` (pins moved at the start of each tick) and `normal_shader`
 //! (normals, written with the positions into an interleaved vertex buffer such as a mesh's
-//! vertex slab), block descent's three kernels, self-contact's eight ([`CONTACT_KERNELS`]:
+//! vertex slab), block descent's three kernels, self-contact's eight ([`EntryPoint::CONTACT`]:
 //! a hashed grid of the cloths' triangles rebuilt by counting sort each substep, then
 //! point–triangle contacts within and between cloths), and aerodynamics' three
-//! ([`AIR_KERNELS`]: the wind sampled at every particle each tick, then drag and lift gathered
+//! ([`EntryPoint::AIR`]: the wind sampled at every particle each tick, then drag and lift gathered
 //! from each particle's triangles each substep). The WGSL is one file per kernel beside a shared types file
 //! ([`SHADER_FILES`]).
 //!
@@ -28,27 +28,34 @@
 //! | [`ParticleReadback`] | reads a cloth's positions and velocities without stalling |
 //! | [`headless`] | a device without a window, and blocking readback, for tests and benchmarks |
 
+//! ## Layout
+//! The crate's modules stand on floors, each importing only from those below it (the core's
+//! `tests/house.rs` checks it): [`layout`] (the buffers' structs), `buffer` and [`headless`];
+//! `constants` (the WGSL constants written from the core); `kernels` (the entry points,
+//! their bind group layouts and pipelines); `colliders` (the colliders' trees and a skinned
+//! collider's refit), `readback` and `stages` (the air and self-contact, each with its
+//! buffers and dispatches); and `batch` on top (`allocation` of the shared buffers,
+//! `bind_groups`, the tick's `schedule` and each cloth's `writeback`).
+
 #![deny(missing_docs)]
 
-mod air;
 mod batch;
 mod buffer;
 mod colliders;
 mod constants;
-mod contact;
 pub mod headless;
 mod kernels;
 pub mod layout;
 mod readback;
-mod skin_refit;
+mod stages;
 
 pub use batch::{ClothBatch, ClothId};
 pub use colliders::GpuColliders;
+pub use colliders::skin_refit::SkinRefit;
 pub use constants::{CONSTANTS_FILE, shared_constants};
 pub use kernels::{
-    AIR_KERNELS, CONTACT_KERNELS, ClothKernels, KERNEL_COUNT, Kernel, KernelDescriptor, KernelError, SHADER_FILES,
-    STORAGE_BUFFERS_NEEDED, WORKGROUP_SIZE, shader_source,
+    ClothKernels, EntryPoint, Kernel, KernelDescriptor, KernelError, SHADER_FILES, STORAGE_BUFFERS_NEEDED,
+    WORKGROUP_SIZE, shader_source,
 };
 pub use readback::{FaultReadback, ParticleReadback};
-pub use skin_refit::SkinRefit;
 pub use wgpu;

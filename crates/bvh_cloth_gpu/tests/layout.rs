@@ -90,7 +90,9 @@ fn wgsl_is_valid() {
         };
         assert_eq!(entry.workgroup_size, size, "{} runs {size:?} workgroups", entry.name);
     }
-    let descriptors: Vec<&str> = bvh_cloth_gpu::ClothKernels::descriptors().iter().map(|k| k.entry_point).collect();
+    let descriptors: Vec<&str> = bvh_cloth_gpu::ClothKernels::descriptors().iter().map(|k| k.entry.name()).collect();
+    let all: Vec<&str> = bvh_cloth_gpu::EntryPoint::ALL.iter().map(|e| e.name()).collect();
+    assert_eq!(descriptors, all, "the descriptors list every entry point in EntryPoint::ALL's order");
     assert_eq!(descriptors, entry_points, "one descriptor per entry point, in order");
 }
 

@@ -1,66 +1,11 @@
 //! Reading a Bevy [`Mesh`] as the triangle list the collider builder takes.
 
-use core::fmt;
-
 use bevy::asset::RenderAssetUsages;
 use bevy::mesh::{Indices, PrimitiveTopology, VertexAttributeValues};
 use bevy::prelude::*;
-use bvh_cloth_core::{Collider, ColliderError, MeshRef, SkinRef, Voxels};
+use bvh_cloth_core::{Collider, MeshRef, SkinRef, Voxels};
 
-/// Why an [`AutoCollider`](crate::AutoCollider) or a [`PrimitiveCollider`](crate::PrimitiveCollider)
-/// could not be built.
-#[derive(Clone, Debug, PartialEq)]
-pub enum ColliderFailure {
-    /// The entity has no [`Mesh3d`], and none of its descendants has one.
-    NoMesh3d,
-    /// The mesh asset failed to load.
-    LoadFailed(String),
-    /// The mesh's data lives only in the render world (`RenderAssetUsages::RENDER_WORLD`), so
-    /// the main world cannot read its vertices.
-    NotInMainWorld,
-    /// The mesh is not a triangle list.
-    NotTriangles(PrimitiveTopology),
-    /// The mesh has no `Mesh::ATTRIBUTE_POSITION`.
-    NoPositions,
-    /// The positions are not `Float32x3`.
-    PositionsNotFloat3,
-    /// The transform's scale is zero, negative or not finite.
-    BadScale(Vec3),
-    /// The entity has a `SkinnedMesh`, but its mesh has no `Mesh::ATTRIBUTE_JOINT_INDEX`
-    /// (`Uint16x4`) or no `Mesh::ATTRIBUTE_JOINT_WEIGHT` (`Float32x4`).
-    NoSkin,
-    /// The mesh data or the primitive's sizes were rejected by the collider builder.
-    Rejected(ColliderError),
-}
-
-impl fmt::Display for ColliderFailure {
-    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
-        match self {
-            Self::NoMesh3d => {
-                write!(f, "neither the entity nor any of its descendants has a Mesh3d to build a collider from")
-            }
-            Self::LoadFailed(reason) => write!(f, "the mesh failed to load: {reason}"),
-            Self::NotInMainWorld => write!(
-                f,
-                "the mesh data was moved to the render world (RenderAssetUsages::RENDER_WORLD only); \
-                 keep MAIN_WORLD so a collider can be built from it"
-            ),
-            Self::NotTriangles(topology) => {
-                write!(f, "the mesh is a {topology:?}, but a collider needs a TriangleList")
-            }
-            Self::NoPositions => write!(f, "the mesh has no vertex positions"),
-            Self::PositionsNotFloat3 => write!(f, "the mesh positions are not Float32x3"),
-            Self::BadScale(scale) => write!(f, "the collider's scale {scale} is not positive and finite"),
-            Self::NoSkin => write!(
-                f,
-                "the entity has a SkinnedMesh, but its mesh lacks Uint16x4 joint indices or Float32x4 joint weights"
-            ),
-            Self::Rejected(error) => error.fmt(f),
-        }
-    }
-}
-
-impl std::error::Error for ColliderFailure {}
+use crate::messages::ColliderFailure;
 
 /// A copy of a mesh's triangle list (and skin, for a skinned collider), ready to hand to a
 /// build task.

@@ -7,9 +7,9 @@ use bevy::prelude::*;
 use bvh_cloth_core::{Affine3A, ColliderPose};
 
 use crate::backend::ActiveClothBackend;
-use crate::collider::{AutoCollider, ClothCollider, ColliderBuild, ColliderStatus, SkinPose, Skins};
-use crate::collider_mesh::ColliderFailure;
-use crate::primitive_collider::PrimitiveCollider;
+use crate::colliders::auto::{AutoCollider, ClothCollider, ColliderBuild, ColliderStatus, SkinPose, Skins};
+use crate::colliders::primitive::PrimitiveCollider;
+use crate::messages::ColliderFailure;
 use crate::settings::ClothSettings;
 
 /// Places every collider (mesh or primitive) where its entity is, moves skinned colliders with

@@ -17,7 +17,7 @@ use bvh_cloth_core::ClothTopology;
 use wgpu::{BindGroup, Buffer, BufferUsages, ComputePass, Device, Queue};
 
 use crate::buffer::storage_buffer;
-use crate::kernels::{ClothKernels, Kernel, KernelError, WORKGROUP_SIZE, storage_binding_limit};
+use crate::kernels::{ClothKernels, EntryPoint, Kernel, KernelError, WORKGROUP_SIZE, storage_binding_limit};
 
 /// Buckets per prefix-sum block (`SCAN_BLOCK` in the WGSL).
 const SCAN_BLOCK: u32 = 256;
@@ -177,7 +177,7 @@ impl ContactPlan {
         &self.grid
     }
 
-    /// The bind groups of the eight kernels, in [`crate::kernels::CONTACT_KERNELS`] order.
+    /// The bind groups of the eight kernels, in [`EntryPoint::CONTACT`] order.
     pub fn bind_groups(&self, device: &Device, kernels: &ClothKernels, shared: &SharedBuffers<'_>) -> [BindGroup; 8] {
         let resource = |binding: u32| -> &Buffer {
             match binding {
@@ -205,7 +205,7 @@ impl ContactPlan {
                 .collect();
             device.create_bind_group(&wgpu::BindGroupDescriptor {
                 label: Some("bvh_cloth_self_contact"),
-                layout: &kernels.contact_layouts[k],
+                layout: kernels.layout(EntryPoint::CONTACT[k]),
                 entries: &entries,
             })
         })
@@ -224,7 +224,7 @@ impl ContactPlan {
     ) {
         let size = (self.width_groups, self.rows(self.slots.max(self.buckets)));
         each(Kernel::ContactBegin, &|pass| {
-            pass.set_pipeline(&kernels.contact[0]);
+            pass.set_pipeline(kernels.pipeline(EntryPoint::ContactBegin));
             pass.set_bind_group(0, &groups[0], &[]);
             pass.dispatch_workgroups(size.0, size.1, 1);
         });
@@ -251,7 +251,7 @@ impl ContactPlan {
             Kernel::ContactApply,
         ];
         for (k, (size, name)) in sizes.into_iter().zip(names).enumerate() {
-            let (pipeline, group) = (&kernels.contact[k + 1], &groups[k + 1]);
+            let (pipeline, group) = (kernels.pipeline(EntryPoint::CONTACT[k + 1]), &groups[k + 1]);
             each(name, &|pass| {
                 pass.set_pipeline(pipeline);
                 pass.set_bind_group(0, group, &[]);

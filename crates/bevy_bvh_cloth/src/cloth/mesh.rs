@@ -8,7 +8,7 @@ use bevy::prelude::*;
 use bvh_cloth_core::backend::particle_normal;
 use bvh_cloth_core::{ClothError, ClothGrid, ClothSim, ClothTopology, MeshVertices};
 
-use crate::collider_mesh::TriangleList;
+use crate::colliders::mesh::TriangleList;
 
 /// The topology of an authored mesh, its positions scaled by `scale` (the entity's scale when
 /// the cloth is built). The mesh is read as colliders read theirs ([`TriangleList`]); a mesh

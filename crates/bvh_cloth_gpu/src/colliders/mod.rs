@@ -1,5 +1,10 @@
 //! Every collider of a scene on the GPU: frames (a primitive's whole shape), and the mesh
 //! colliders' trees concatenated.
+//!
+//! Here too is a skinned collider's refit on the device ([`skin_refit`]), which writes into
+//! these trees. Uses the kernels, the buffers and the layouts below it.
+
+pub(crate) mod skin_refit;
 
 use crate::layout::{GpuCollider, gpu_sphere_region, gpu_tree, gpu_tree_size};
 use bvh_cloth_core::{BvhNode, Collider};

@@ -6,7 +6,7 @@
 //! The collider follows the entity's [`GlobalTransform`] every frame without a rebuild; changing
 //! the resolution `n`, the [`Mesh3d`] or the mesh asset rebuilds it. On an entity with a
 //! [`SkinnedMesh`] the spheres follow the joints instead, refitted every frame in
-//! [`update_collider_poses`](crate::collider_pose::update_collider_poses) (see
+//! [`update_collider_poses`](crate::colliders::pose::update_collider_poses) (see
 //! `bvh_cloth_core::colliders::skinning`).
 
 use std::collections::HashSet;
@@ -19,9 +19,10 @@ use bevy::tasks::{AsyncComputeTaskPool, Task, block_on, poll_once};
 use bvh_cloth_core::backend::largest_scale;
 use bvh_cloth_core::{Affine3A, Collider, SkinScratch, Voxels};
 
-use crate::collider_mesh::{ColliderFailure, TriangleList};
+use crate::colliders::mesh::TriangleList;
 use crate::events::ColliderReady;
 use crate::messages::ClothMessage;
+use crate::messages::ColliderFailure;
 
 /// Meshes with at least this many vertices are voxelised on the async compute pool.
 pub const ASYNC_BUILD_MIN_VERTICES: usize = 20_000;

@@ -5,10 +5,10 @@
 use bevy::platform::collections::HashMap;
 use bevy::prelude::*;
 
-use crate::collider::{AutoCollider, ClothCollider, ColliderBuild, ColliderStatus};
-use crate::collider_mesh::ColliderFailure;
+use crate::colliders::auto::{AutoCollider, ClothCollider, ColliderBuild, ColliderStatus};
+use crate::colliders::primitive::PrimitiveCollider;
 use crate::messages::ClothMessage;
-use crate::primitive_collider::PrimitiveCollider;
+use crate::messages::ColliderFailure;
 
 /// Per-mesh settings for the meshes under an [`AutoCollider`] placed on an entity without a
 /// mesh, looked up by the [`Name`] of the mesh entity or, failing that, of its parent (glTF

@@ -6,8 +6,8 @@ use bevy::prelude::*;
 
 use crate::backend::ActiveClothBackend;
 use crate::clock::ClothClock;
-use crate::collider::ClothCollider;
-use crate::simulation::ClothSimulation;
+use crate::cloth::simulation::ClothSimulation;
+use crate::colliders::auto::ClothCollider;
 
 /// What the simulation did in the last frame.
 #[derive(Resource, Clone, Debug, Default, Reflect)]

@@ -11,9 +11,9 @@ use bevy::prelude::*;
 use bvh_cloth_core::{Affine3A, ClothError, ClothGrid, ClothSim, ClothTopology, MeshVertices, Vec3};
 
 use crate::clock::ClothClock;
-use crate::cloth::{Cloth, ClothShape};
-use crate::cloth_mesh::{authored_topology, authored_vertices, new_authored_mesh, new_grid_mesh};
-use crate::collider::{AutoCollider, ColliderStatus};
+use crate::cloth::component::{Cloth, ClothShape};
+use crate::cloth::mesh::{authored_topology, authored_vertices, new_authored_mesh, new_grid_mesh};
+use crate::colliders::auto::{AutoCollider, ColliderStatus};
 use crate::messages::{ClothMessage, ResetCloth};
 use crate::settings::ClothSettings;
 

@@ -4,7 +4,7 @@ use bevy::prelude::*;
 use bvh_cloth_gpu::layout::{GpuParticle, load_gpu_particles};
 
 use crate::clock::ClothClock;
-use crate::simulation::ClothSimulation;
+use crate::cloth::simulation::ClothSimulation;
 
 /// Put this on a [`Cloth`](crate::Cloth) entity to have its state read back from the GPU, so
 /// that [`ClothSimulation::sim`] gives its live positions and velocities on the GPU backend

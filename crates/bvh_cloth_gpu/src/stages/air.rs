@@ -19,7 +19,7 @@ use bvh_cloth_core::backend::AirSource;
 use wgpu::{BindGroup, Buffer, ComputePass, ComputePipeline, Device, Queue};
 
 use crate::buffer::{UNIFORM_STRIDE, storage_buffer};
-use crate::kernels::{ClothKernels, Kernel, KernelError, storage_binding_limit};
+use crate::kernels::{ClothKernels, EntryPoint, Kernel, KernelError, storage_binding_limit};
 
 /// What one frame of air needs written: each cloth slot's constants (zero for a cloth without
 /// aerodynamics), the wind sources, and per tick each cloth slot's ambient wind and lattice time.
@@ -171,7 +171,7 @@ impl AirPlan {
         replaced
     }
 
-    /// The bind groups of [`crate::kernels::AIR_KERNELS`], then of `vbd_predict_air`.
+    /// The bind groups of [`EntryPoint::AIR`], then of `vbd_predict_air`.
     pub fn bind_groups(&self, device: &Device, kernels: &ClothKernels, shared: &SharedBuffers<'_>) -> [BindGroup; 4] {
         fn buffer(binding: u32, buffer: &Buffer) -> wgpu::BindGroupEntry<'_> {
             wgpu::BindGroupEntry { binding, resource: buffer.as_entire_binding() }
@@ -184,8 +184,8 @@ impl AirPlan {
         let step = sized(1, shared.steps, size_of::<crate::layout::GpuBatchStep>() as u64);
         let group = |k: usize, entries: &[wgpu::BindGroupEntry<'_>]| {
             device.create_bind_group(&wgpu::BindGroupDescriptor {
-                label: Some(crate::kernels::AIR_KERNELS[k]),
-                layout: &kernels.air_layouts[k],
+                label: Some(EntryPoint::AIR[k].name()),
+                layout: kernels.layout(EntryPoint::AIR[k]),
                 entries,
             })
         };
@@ -216,7 +216,7 @@ impl AirPlan {
             group(2, &per_substep),
             device.create_bind_group(&wgpu::BindGroupDescriptor {
                 label: Some("vbd_predict_air"),
-                layout: &kernels.vbd_predict_air_layout,
+                layout: kernels.layout(EntryPoint::VbdPredictAir),
                 entries: &[
                     buffer(0, shared.frame),
                     step,
@@ -245,7 +245,9 @@ impl AirPlan {
     ) {
         let tick = tick.min(self.ticks_written.saturating_sub(1));
         let offset = [(u64::from(tick) * self.tick_stride) as u32];
-        each(Kernel::AirSample, &|pass| record(pass, &kernels.air[0], &groups[0], &offset, workgroups));
+        each(Kernel::AirSample, &|pass| {
+            record(pass, kernels.pipeline(EntryPoint::AirSample), &groups[0], &offset, workgroups)
+        });
     }
 
     /// Calls `each` with substep `k`'s forces, and the explicit integrators' kick, when an air
@@ -264,7 +266,9 @@ impl AirPlan {
         let offset = [(u64::from(3 * k) * UNIFORM_STRIDE) as u32];
         let kicks = if self.explicit { 2 } else { 1 };
         for (kernel, index) in [(Kernel::AirForces, 1), (Kernel::AirKick, 2)].into_iter().take(kicks) {
-            each(kernel, &|pass| record(pass, &kernels.air[index], &groups[index], &offset, workgroups));
+            each(kernel, &|pass| {
+                record(pass, kernels.pipeline(EntryPoint::AIR[index]), &groups[index], &offset, workgroups)
+            });
         }
     }
 
@@ -280,7 +284,9 @@ impl AirPlan {
         each: &mut impl FnMut(Kernel, &dyn Fn(&mut ComputePass<'_>)),
     ) {
         let offset = [(u64::from(3 * k) * UNIFORM_STRIDE) as u32];
-        each(Kernel::VbdPredictAir, &|pass| record(pass, &kernels.vbd_predict_air, &groups[3], &offset, workgroups));
+        each(Kernel::VbdPredictAir, &|pass| {
+            record(pass, kernels.pipeline(EntryPoint::VbdPredictAir), &groups[3], &offset, workgroups)
+        });
     }
 }
 

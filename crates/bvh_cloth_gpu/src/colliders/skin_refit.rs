@@ -8,7 +8,7 @@ use wgpu::util::DeviceExt;
 use wgpu::{BindGroup, Buffer, BufferUsages, ComputePass, Device, Queue};
 
 use crate::colliders::GpuColliders;
-use crate::kernels::{ClothKernels, KernelError};
+use crate::kernels::{ClothKernels, EntryPoint, KernelError};
 
 /// Bytes between two dispatches' parameters (the largest uniform offset alignment wgpu allows
 /// a device to ask for).
@@ -111,7 +111,8 @@ impl SkinRefit {
             collider,
             ..Default::default()
         };
-        let groups = kernels.refit_layouts.each_ref().map(|layout| {
+        let groups = EntryPoint::REFIT.map(|entry| {
+            let layout = kernels.layout(entry);
             device.create_bind_group(&wgpu::BindGroupDescriptor {
                 label: Some("bvh_cloth_skin_refit"),
                 layout,
@@ -167,7 +168,7 @@ impl SkinRefit {
     /// writes. Records nothing unless bound.
     pub fn encode(&self, pass: &mut ComputePass<'_>, kernels: &ClothKernels) {
         let Some((_, groups)) = &self.target else { return };
-        let [skin, fit, nodes, reach] = &kernels.refit;
+        let [skin, fit, nodes, reach] = EntryPoint::REFIT.map(|entry| kernels.pipeline(entry));
         let dispatch = |pass: &mut ComputePass<'_>, pipeline, group: &BindGroup, entry: usize, (x, y): (u32, u32)| {
             pass.set_pipeline(pipeline);
             pass.set_bind_group(0, group, &[(entry as u64 * PARAMS_STRIDE) as u32]);

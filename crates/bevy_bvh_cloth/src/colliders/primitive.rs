@@ -4,9 +4,9 @@ use bevy::ecs::entity::EntityHashSet;
 use bevy::prelude::*;
 use bvh_cloth_core::{Collider, Primitive};
 
-use crate::collider::{AutoCollider, ClothCollider, ColliderStatus, settle};
-use crate::collider_mesh::ColliderFailure;
+use crate::colliders::auto::{AutoCollider, ClothCollider, ColliderStatus, settle};
 use crate::messages::ClothMessage;
+use crate::messages::ColliderFailure;
 
 /// The shape of a [`PrimitiveCollider`], in the entity's local frame, with Bevy's math
 /// primitives.

@@ -1,0 +1,47 @@
+//! The cloths: the [`Cloth`](crate::Cloth) component and its mesh, each cloth's simulation
+//! kept in step with it ([`ClothSimulation`](crate::ClothSimulation)), its pins planned tick by
+//! tick, and the plugin's statistics ([`ClothPlugin`]).
+//!
+//! Stands on the colliders, the clock, the settings and the messages; the wind and the two
+//! backends step what is built here.
+
+pub(crate) mod component;
+pub(crate) mod mesh;
+pub(crate) mod simulation;
+pub(crate) mod stats;
+
+use bevy::ecs::schedule::{InternedScheduleLabel, ScheduleLabel};
+use bevy::prelude::*;
+
+use crate::clock::advance_clock;
+use crate::schedule::ClothSystems;
+use component::Cloth;
+use stats::ClothStats;
+
+/// The cloths: [`Cloth`] changes and resets applied in [`ClothSystems::Prepare`], pins
+/// planned and statistics updated in [`ClothSystems::Step`] (around the backend's step).
+#[derive(Debug, Clone)]
+pub struct ClothPlugin {
+    schedule: InternedScheduleLabel,
+}
+
+impl ClothPlugin {
+    /// The cloth systems in `schedule`.
+    pub fn new(schedule: impl ScheduleLabel) -> Self {
+        Self { schedule: schedule.intern() }
+    }
+}
+
+impl Plugin for ClothPlugin {
+    fn build(&self, app: &mut App) {
+        app.register_type::<Cloth>().register_type::<ClothStats>().init_resource::<ClothStats>().add_systems(
+            self.schedule,
+            (
+                (simulation::sync_cloths.after(advance_clock), simulation::warn_stiff_cloths)
+                    .chain()
+                    .in_set(ClothSystems::Prepare),
+                (simulation::plan_anchors, stats::update_stats).chain().in_set(ClothSystems::Step),
+            ),
+        );
+    }
+}

@@ -1,0 +1,48 @@
+//! The simulation's place in the render graph, before the camera driver: the skinned
+//! colliders' refits, every tick of the batch, the fault and state copies, the writeback; and
+//! the request to map the copies after the submit.
+
+use std::sync::atomic::Ordering;
+
+use bevy::prelude::*;
+use bevy::render::renderer::RenderContext;
+use bvh_cloth_gpu::wgpu;
+
+use super::world::GpuClothWorld;
+
+pub(super) fn simulate_cloths(mut render_context: RenderContext, world: Res<GpuClothWorld>) {
+    let (Some(kernels), Some(batch)) = (&world.kernels, &world.batch) else { return };
+    let encoder = render_context.command_encoder();
+    // Skinned colliders first: the ticks meet them in this frame's pose.
+    if world.skin_refits.iter().any(|g| g.refit.is_bound()) {
+        let mut pass = encoder.begin_compute_pass(&wgpu::ComputePassDescriptor {
+            label: Some("bvh_cloth_skin_refit"),
+            timestamp_writes: None,
+        });
+        for skin in &world.skin_refits {
+            skin.refit.encode(&mut pass, kernels);
+        }
+    }
+    batch.encode_ticks(encoder, kernels, world.ticks);
+    for render in world.cloths.values() {
+        render.faults.record(encoder, batch, render.id);
+        if let Some((state, [ticks, ticks_run])) = &render.state
+            && state.record(encoder, batch, render.id)
+        {
+            ticks.store(world.total_ticks, Ordering::Relaxed);
+            ticks_run.store(render.ticks_run, Ordering::Relaxed);
+        }
+    }
+    batch.encode_writebacks(encoder, kernels);
+}
+
+/// Asks for this frame's fault-count and state copies to be mapped, now that they are
+/// submitted.
+pub(super) fn request_fault_reads(world: Res<GpuClothWorld>) {
+    for render in world.cloths.values() {
+        render.faults.submitted();
+        if let Some((state, _)) = &render.state {
+            state.submitted();
+        }
+    }
+}
