@@ -6,8 +6,8 @@ use bevy::prelude::*;
 use bevy_bvh_cloth::bvh_cloth_core::{Affine3A, ClothError};
 use bevy_bvh_cloth::prelude::*;
 
-use crate::authored::{pole_vertices, seamed_flag};
-use crate::harness::{add_mesh, app, app_at, max_distance, positions, run, sent};
+use crate::headless::authored::{pole_vertices, seamed_flag};
+use crate::headless::harness::{add_mesh, app, app_at, max_distance, positions, run, sent};
 
 /// The first row of a 1 m grid (z = -0.5 in its local frame).
 fn first_row() -> ClothPins {

@@ -7,7 +7,7 @@ use bevy::prelude::*;
 use bevy_bvh_cloth::bvh_cloth_core::ClothError;
 use bevy_bvh_cloth::prelude::*;
 
-use crate::harness::{add_mesh, app, app_at, positions, run, sent};
+use crate::headless::harness::{add_mesh, app, app_at, positions, run, sent};
 
 /// A flag as an exporter writes one: `cols x rows` points over 1.2 m x 0.8 m in the local XY
 /// plane (the pole along x = 0), split at a UV seam down the middle column, with UVs.

@@ -7,7 +7,7 @@ use bevy_bvh_cloth::bvh_cloth_core::{Collider, ColliderShape, MeshRef, parse_obj
 use bevy_bvh_cloth::prelude::*;
 use bevy_bvh_cloth::{ClothCollider, ColliderFailure, ColliderPart};
 
-use crate::harness::{add_mesh, app, positions, run, sent, wait_for_collider};
+use crate::headless::harness::{add_mesh, app, positions, run, sent, wait_for_collider};
 
 fn ball(app: &mut App, radius: f32) -> Handle<Mesh> {
     add_mesh(app, Sphere::new(radius).mesh().uv(32, 18))

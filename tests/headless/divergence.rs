@@ -4,7 +4,7 @@
 use bevy::prelude::*;
 use bevy_bvh_cloth::prelude::*;
 
-use crate::harness::{app, positions, run, sent};
+use crate::headless::harness::{app, positions, run, sent};
 
 /// Far enough that a spring from a pin to its free neighbour overflows `f32` at once.
 const OUT_OF_RANGE: f32 = 3.0e38;

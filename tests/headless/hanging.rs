@@ -7,7 +7,7 @@ use bevy::prelude::*;
 use bevy_bvh_cloth::bvh_cloth_core::{Affine3A, ClothGrid, ClothParams, ClothSim, ClothTopology};
 use bevy_bvh_cloth::prelude::*;
 
-use crate::harness::{app, app_at, positions, run};
+use crate::headless::harness::{app, app_at, positions, run};
 
 fn hanging_cloth() -> Cloth {
     Cloth {

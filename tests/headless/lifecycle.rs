@@ -4,7 +4,7 @@
 use bevy::prelude::*;
 use bevy_bvh_cloth::prelude::*;
 
-use crate::harness::{add_mesh, app, run};
+use crate::headless::harness::{add_mesh, app, run};
 
 /// Rounds of spawn, change and despawn.
 const ROUNDS: u32 = 2_000;

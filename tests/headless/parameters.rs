@@ -4,7 +4,7 @@ use bevy::prelude::*;
 use bevy_bvh_cloth::bvh_cloth_core::ClothError;
 use bevy_bvh_cloth::prelude::*;
 
-use crate::harness::{app, max_distance, positions, run, sent};
+use crate::headless::harness::{app, max_distance, positions, run, sent};
 
 /// A hanging cloth run for one second, `edit` applied to its component, then one more second:
 /// its positions and velocities.

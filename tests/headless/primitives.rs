@@ -4,7 +4,7 @@ use bevy::prelude::*;
 use bevy_bvh_cloth::prelude::*;
 use bevy_bvh_cloth::{ClothCollider, ColliderFailure};
 
-use crate::harness::{app, positions, run, sent};
+use crate::headless::harness::{app, positions, run, sent};
 
 /// A 2 m cloth of 32 x 32 particles, flat at `height`.
 fn drop_cloth(app: &mut App, height: f32) -> Entity {

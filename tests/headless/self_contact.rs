@@ -6,7 +6,7 @@ use bevy_bvh_cloth::bvh_cloth_core::backend::crossing_pairs;
 use bevy_bvh_cloth::bvh_cloth_core::{ClothError, ClothGrid};
 use bevy_bvh_cloth::prelude::*;
 
-use crate::harness::{app, positions, run, sent};
+use crate::headless::harness::{app, positions, run, sent};
 
 /// Side and resolution of the cloths: 1.2 m over 24 x 24 particles, a spacing of 52 mm.
 const SIZE: f32 = 1.2;

@@ -5,7 +5,7 @@ use bevy::prelude::*;
 use bevy_bvh_cloth::prelude::*;
 use bevy_bvh_cloth::{ClothCollider, ColliderFailure};
 
-use crate::harness::{app, positions, run, sent, wait_for_collider};
+use crate::headless::harness::{app, positions, run, sent, wait_for_collider};
 use crate::skinned_arm::{RADIUS, arm, arm_mesh, inside, skinned_triangles, spawn_arm};
 
 /// A cloth dropped on an arm that then swings at the shoulder and bends at the elbow for 10 s:

@@ -5,7 +5,7 @@ use bevy::prelude::*;
 use bevy_bvh_cloth::bvh_cloth_core::ClothError;
 use bevy_bvh_cloth::prelude::*;
 
-use crate::harness::{app, positions, run, sent};
+use crate::headless::harness::{app, positions, run, sent};
 
 /// A 1 m curtain of 16 x 16 particles hanging from its first row in the XY plane at `x`,
 /// facing +Z, with `aerodynamics`.

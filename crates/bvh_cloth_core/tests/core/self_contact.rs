@@ -5,7 +5,7 @@
 //! shares no spring with, and no two triangles (sharing no corner) that intersect, by an exact
 //! segment–triangle test of every edge against every triangle.
 
-mod common;
+use crate::common;
 
 use std::sync::Arc;
 

@@ -31,9 +31,6 @@ use bevy::window::ExitCondition;
 use bevy::winit::WinitPlugin;
 use bevy_bvh_cloth::prelude::*;
 
-#[path = "../common/skinned_arm.rs"]
-mod skinned_arm;
-
 const WIDTH: u32 = 320;
 const HEIGHT: u32 = 240;
 const CLOTH: Color = Color::srgb(0.0, 0.0, 1.0);
@@ -463,7 +460,7 @@ fn the_gpu_backend_runs_every_tick_of_a_fixed_schedule() {
 /// tree in place instead; the arm is lowered and the cloth still rests on it.
 #[test]
 fn the_gpu_backend_refits_a_skinned_collider() {
-    use skinned_arm::{RADIUS, arm_mesh, inside, skinned_triangles, spawn_arm};
+    use crate::skinned_arm::{RADIUS, arm_mesh, inside, skinned_triangles, spawn_arm};
     let Some(mut app) = gpu_backend_app() else { return };
     let (arm, shoulder, elbow) = spawn_arm(&mut app, arm_mesh(), Vec3::new(-0.6, 1.0, 0.0));
     let cloth = app

@@ -13,7 +13,7 @@
 //! A free cloth, which has no tethers, landing on the bunny stretches at most half again as
 //! much as RK4's.
 
-mod common;
+use crate::common;
 
 use std::sync::Arc;
 

@@ -1,7 +1,7 @@
 //! The four-wide tree against the binary tree it is folded from: the same leaves in the same
 //! order for box queries (and a few more, from the wide tree's rounded boxes), and the nearest leaf of brute force for nearest-first queries.
 
-mod common;
+use crate::common;
 
 use bvh_cloth_core::backend::LEAF_BIT;
 use bvh_cloth_core::backend::WideBvh;

@@ -14,6 +14,4 @@ mod primitives;
 mod schedule;
 mod self_contact;
 mod skinned;
-#[path = "../common/skinned_arm.rs"]
-mod skinned_arm;
 mod wind;

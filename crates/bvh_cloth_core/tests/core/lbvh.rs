@@ -1,6 +1,6 @@
 //! LBVH invariants on random sphere sets, and traversal against brute force.
 
-mod common;
+use crate::common;
 
 use std::collections::BTreeSet;
 

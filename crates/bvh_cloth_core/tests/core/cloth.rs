@@ -1,7 +1,7 @@
 //! Whole-cloth behaviour: pins, settling, symmetry, collision with a draped collider, and
 //! thread-count independence.
 
-mod common;
+use crate::common;
 
 use std::sync::Arc;
 

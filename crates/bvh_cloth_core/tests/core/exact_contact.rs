@@ -7,7 +7,7 @@
 //! from the response's own test), and at the end no particle is inside a closed shape and the
 //! particles resting on the surface lie at the thickness above it.
 
-mod common;
+use crate::common;
 
 use bvh_cloth_core::backend::TriangleSurface;
 use bvh_cloth_core::backend::closest_point;

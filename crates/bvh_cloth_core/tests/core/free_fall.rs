@@ -3,7 +3,7 @@
 //! resolution, with its centre of mass moving straight down, and on a frictionless ground
 //! nothing pushes a cloth sideways.
 
-mod common;
+use crate::common;
 
 use std::sync::Arc;
 

@@ -9,7 +9,7 @@
 //! its least thickness ([`Collider::contact_thickness`]), which at a zero margin is set by the
 //! rounding of `f32` at the coordinates' magnitude.
 
-mod common;
+use crate::common;
 
 use std::collections::HashMap;
 

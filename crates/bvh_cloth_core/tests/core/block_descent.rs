@@ -1,7 +1,7 @@
 //! Block descent against the explicit integrators: the same material settles to the same sag,
 //! energy never grows, and no stiffness or resolution needs more substeps or blows up.
 
-mod common;
+use crate::common;
 
 use bvh_cloth_core::{Affine3A, ClothError, ClothParams, ClothSim, Integrator, Tethers, Vec3};
 use common::grid_topology;

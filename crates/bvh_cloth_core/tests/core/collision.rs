@@ -1,6 +1,6 @@
 //! Collision response on analytic cases (paper section 2.4.4 plus the cases it leaves open).
 
-mod common;
+use crate::common;
 
 use bvh_cloth_core::backend::ColliderFrame;
 use bvh_cloth_core::{ColliderPose, Quat, Sphere, Vec3};

@@ -8,7 +8,7 @@
 //! n = 32, 64 and 128, where the spheres are thinnest; two thin procedural shapes (a plate one
 //! voxel thick and a torus) are also checked against their exact inside.
 
-mod common;
+use crate::common;
 
 use bvh_cloth_core::backend::SURFACE_TOLERANCE;
 use bvh_cloth_core::parse_obj;
