@@ -94,7 +94,7 @@ use bvh_cloth_core::{
     Primitive, Quat, UVec2, Vec2, Vec3, Wind,
 };
 use bvh_cloth_gpu::layout::{GpuParticle, load_gpu_particles};
-use bvh_cloth_gpu::{ClothBatch, ClothKernels, GpuColliders, Kernel, SkinRefit, headless, wgpu};
+use bvh_cloth_gpu::{ClothBatch, GpuColliders, Kernel, SkinRefit, headless, wgpu};
 use parry3d::math::Vector;
 use parry3d::query::{PointQuery, Ray, RayCast};
 use parry3d::shape::{TriMesh, TriMeshFlags};
@@ -108,12 +108,11 @@ const FRAMES: usize = 30;
 fn main() {
     let threads = rayon::current_num_threads();
     let single = rayon::ThreadPoolBuilder::new().num_threads(1).build().expect("a one-thread pool");
-    let gpu = headless::device().map(|headless::HeadlessGpu { adapter, device, queue, .. }| {
-        let info = adapter.get_info();
+    let gpu = headless::kernel_rig();
+    if let Some(gpu) = &gpu {
+        let info = &gpu.info;
         println!("GPU adapter: {} ({:?}, driver {} {})", info.name, info.device_type, info.driver, info.driver_info);
-        let kernels = ClothKernels::new(&device).expect("the kernels fit the device");
-        Gpu { device, queue, kernels, software: info.device_type == wgpu::DeviceType::Cpu, name: info.name }
-    });
+    }
     if gpu.is_none() {
         println!("GPU adapter: none (set WGPU_BACKEND, e.g. vulkan for lavapipe); GPU columns are skipped");
     }

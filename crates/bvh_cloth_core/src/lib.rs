@@ -7,7 +7,7 @@
 //! its documentation.
 //!
 //! The crate is laid out by concern, in floors: each folder imports only from the floors
-//! below it (a test, `tests/house.rs`, holds it to that).
+//! below it (a test, `tests/core/house.rs`, holds it to that).
 //!
 //! | floor | module | what it owns | paper |
 //! |---|---|---|---|

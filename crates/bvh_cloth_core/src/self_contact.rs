@@ -510,3 +510,9 @@ fn bucket(c: IVec3, buckets: usize) -> usize {
         ^ (c.z as u32).wrapping_mul(83_492_791);
     h as usize & (buckets - 1)
 }
+/// The substeps of a tick of cloths stepped together with self-contact: the most any of them
+/// asks for alone (`own`), so that each keeps its own stability and contact is resolved after
+/// every substep of each. Both backends take this rule; `None` for no cloth.
+pub fn shared_substeps(own: impl IntoIterator<Item = u32>) -> Option<u32> {
+    own.into_iter().max()
+}

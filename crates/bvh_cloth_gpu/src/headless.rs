@@ -4,6 +4,8 @@
 use bytemuck::Pod;
 use wgpu::{Buffer, BufferUsages, Device, Queue};
 
+use crate::kernels::ClothKernels;
+
 /// A device without a window, with the instance and adapter it came from.
 #[derive(Debug)]
 pub struct HeadlessGpu {
@@ -38,6 +40,35 @@ pub fn device_with_limits(limit: impl FnOnce(wgpu::Limits) -> wgpu::Limits) -> O
     }))
     .ok()?;
     Some(HeadlessGpu { instance, adapter, device, queue })
+}
+
+/// A device with the kernels compiled on it: what the GPU tests and the benchmark report drive.
+#[derive(Debug)]
+pub struct KernelRig {
+    /// The device.
+    pub device: Device,
+    /// Its queue.
+    pub queue: Queue,
+    /// The kernels, compiled on the device.
+    pub kernels: ClothKernels,
+    /// The adapter's name, type and driver.
+    pub info: wgpu::AdapterInfo,
+}
+
+impl KernelRig {
+    /// Whether the adapter is a software rasteriser such as lavapipe, which runs on the CPU's
+    /// cores: a correctness device, never a timing one.
+    pub fn is_software(&self) -> bool {
+        self.info.device_type == wgpu::DeviceType::Cpu
+    }
+}
+
+/// [`device`] with the kernels compiled on it, or `None` without an adapter. Panics when the
+/// kernels do not fit the adapter's device.
+pub fn kernel_rig() -> Option<KernelRig> {
+    let HeadlessGpu { adapter, device, queue, .. } = device()?;
+    let kernels = ClothKernels::new(&device).expect("the kernels fit the device");
+    Some(KernelRig { device, queue, kernels, info: adapter.get_info() })
 }
 
 /// Copies `buffer` (which needs `COPY_SRC`) into memory, waiting for the GPU.

@@ -126,7 +126,7 @@ pub(crate) fn exact_contact_on_gpu(meshes: &[ObjMesh], gpu: Option<&Gpu>) {
             e_ms[column] / s_ms[column]
         );
     }
-    if gpu.software {
+    if gpu.is_software() {
         println!("\nThe GPU here is a software adapter on the same CPU cores: its times are not GPU figures.");
     }
 }

@@ -3,16 +3,8 @@
 
 use super::*;
 
-/// A GPU, or why there is none.
-pub(crate) struct Gpu {
-    pub(crate) device: wgpu::Device,
-    pub(crate) queue: wgpu::Queue,
-    pub(crate) kernels: ClothKernels,
-    /// A software rasteriser such as lavapipe, which runs on the CPU cores.
-    pub(crate) software: bool,
-    /// The adapter's name.
-    pub(crate) name: String,
-}
+/// The GPU the report runs on: a device with the kernels compiled on it.
+pub(crate) type Gpu = headless::KernelRig;
 
 /// Median wall time (ms) of `ticks` ticks of a `size x size` cloth on the GPU, around a blocking
 /// submit, after the cloth has fallen onto `colliders` for one simulated second.
@@ -61,7 +53,7 @@ pub(crate) fn gpu_cloths_frame_ms(
             headless::wait(&gpu.device);
         }) * 1e3
     };
-    frame(if gpu.software { 10 } else { 60 });
+    frame(if gpu.is_software() { 10 } else { 60 });
     median((0..samples).map(|_| frame(ticks)).collect())
 }
 
@@ -119,11 +111,11 @@ pub(crate) fn print_kernel_share(gpu: &Gpu, c: &Collider, cloth: &ClothSim, kern
         Some((column, total)) => {
             let part = column[kernel_column(kernel)];
             let rest = total - part;
-            println!("| {} | {part:.3} | {rest:.3} | {:.0}% |", gpu.name, part / rest * 100.0);
+            println!("| {} | {part:.3} | {rest:.3} | {:.0}% |", gpu.info.name, part / rest * 100.0);
         }
-        None => println!("| {} | no timestamp queries | | |", gpu.name),
+        None => println!("| {} | no timestamp queries | | |", gpu.info.name),
     }
-    if gpu.software {
+    if gpu.is_software() {
         println!("\nThe GPU here is a software adapter on the same CPU cores: its times are not GPU figures.");
     }
 }
@@ -145,7 +137,7 @@ pub(crate) fn kernel_ms(gpu: &Gpu, c: &Collider, cloths: &[ClothSim]) -> Option<
     }
     batch.prepare(&gpu.device, &gpu.queue, &gpu.kernels, &colliders);
     let mut encoder = gpu.device.create_command_encoder(&Default::default());
-    batch.encode_ticks(&mut encoder, &gpu.kernels, if gpu.software { 10 } else { 60 });
+    batch.encode_ticks(&mut encoder, &gpu.kernels, if gpu.is_software() { 10 } else { 60 });
     gpu.queue.submit([encoder.finish()]);
     headless::wait(&gpu.device);
     // The most queries one set may hold (wgpu's limit).

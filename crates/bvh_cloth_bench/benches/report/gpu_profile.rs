@@ -13,7 +13,7 @@ pub(crate) fn gpu_profile(meshes: &[ObjMesh], gpu: Option<&Gpu>) {
         return;
     };
     let timed = gpu.device.features().contains(wgpu::Features::TIMESTAMP_QUERY);
-    let many = if gpu.software { 8 } else { 128 };
+    let many = if gpu.is_software() { 8 } else { 128 };
     let scenes: Vec<(String, Collider, Vec<ClothSim>)> = MODELS
         .iter()
         .zip(meshes)
@@ -62,7 +62,7 @@ pub(crate) fn gpu_profile(meshes: &[ObjMesh], gpu: Option<&Gpu>) {
         );
     }
     println!("\nEach dispatch is timed in a compute pass of its own; a tick without profiling is one pass.");
-    if gpu.software {
+    if gpu.is_software() {
         println!("The GPU here is a software adapter on the same CPU cores: its times are not GPU figures.");
     }
 }
@@ -84,7 +84,7 @@ pub(crate) fn many_cloths(gpu: Option<&Gpu>) {
     println!("|---|---|---|---|---|---|");
     let bunny = [collider(&model("bunny"), 5)];
     // A software adapter runs on the CPU cores: it stops at 8,192 particles.
-    let most = if gpu.software { 8 * 1024 } else { 4 * 1024 * 1024 };
+    let most = if gpu.is_software() { 8 * 1024 } else { 4 * 1024 * 1024 };
     // Untimed: the first dispatches of a pipeline may compile it.
     gpu_cloths_frame_ms(gpu, &bunny, &[cloth_above(&bunny[0], 16, Integrator::Rk4)], true, 1, 1);
     for size in [16u32, 32, 64] {
@@ -100,13 +100,13 @@ pub(crate) fn many_cloths(gpu: Option<&Gpu>) {
                     sim
                 })
                 .collect();
-            let samples = if gpu.software || particles > 256 * 1024 { 5 } else { 15 };
+            let samples = if gpu.is_software() || particles > 256 * 1024 { 5 } else { 15 };
             let one = gpu_cloths_frame_ms(gpu, &bunny, &cloths, true, 1, samples);
             let each = gpu_cloths_frame_ms(gpu, &bunny, &cloths, false, 1, samples);
             println!("| {size}x{size} | {count} | {particles} | {one:.3} | {each:.3} | {:.1}x |", each / one);
         }
     }
-    if gpu.software {
+    if gpu.is_software() {
         println!(
             "
 The GPU here is a software adapter on the same CPU cores: only the ratios mean anything."

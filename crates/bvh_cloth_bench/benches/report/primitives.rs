@@ -38,7 +38,7 @@ pub(crate) fn primitives(bunny: &ObjMesh, gpu: Option<&Gpu>) {
         ),
         ("ground".to_string(), shaped(Primitive::HalfSpace { normal: Vec3::Y }, Vec3::ZERO, Quat::IDENTITY)),
     ];
-    let hardware = gpu.filter(|gpu| !gpu.software);
+    let hardware = gpu.filter(|gpu| !gpu.is_software());
     println!(
         "| collider | particles in contact | CPU ns / particle | mesh n = 5 / this | GPU node_update_final ms / tick |"
     );
@@ -70,7 +70,7 @@ pub(crate) fn primitives(bunny: &ObjMesh, gpu: Option<&Gpu>) {
             .map_or("-".to_string(), |(ms, _)| format!("{:.3}", ms[kernel_column(Kernel::NodeUpdateFinal)]));
         println!("| {name} | {contacts} | {ns:.1} | {:.1}x | {gpu_ms} |", reference / ns);
     }
-    if gpu.is_some_and(|gpu| gpu.software) {
+    if gpu.is_some_and(|gpu| gpu.is_software()) {
         println!("\nThe GPU here is a software adapter: its column is left out.");
     }
 }

@@ -10,7 +10,7 @@ pub(crate) fn step_scaling(gpu: Option<&Gpu>, single: &rayon::ThreadPool, thread
     println!("|---|---|---|---|---|");
     let bunny = [collider(&model("bunny"), 5)];
     let gpu_sizes: &[u32] =
-        if gpu.is_some_and(|g| !g.software) { &[32, 64, 128, 256, 512, 1024] } else { &[32, 64, 128] };
+        if gpu.is_some_and(|g| !g.is_software()) { &[32, 64, 128, 256, 512, 1024] } else { &[32, 64, 128] };
     for integrator in [Integrator::Rk4, Integrator::SemiImplicitEuler] {
         for size in [32u32, 64, 128, 256, 512, 1024] {
             let particles = f64::from(size * size);

@@ -66,7 +66,7 @@ pub(crate) fn skinned_refit(meshes: &[ObjMesh], single: &rayon::ThreadPool, gpu:
             );
         }
     }
-    if gpu.is_some_and(|g| g.software) {
+    if gpu.is_some_and(|g| g.is_software()) {
         println!("\nThe GPU here is a software adapter on the same CPU cores: its column is not a GPU figure.");
     }
 }

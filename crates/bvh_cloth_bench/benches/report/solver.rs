@@ -122,7 +122,7 @@ pub(crate) fn solver_on_gpu(meshes: &[ObjMesh], gpu: Option<&Gpu>) {
         return;
     };
     let dragon = collider(&meshes[1], 16);
-    let sizes: &[u32] = if gpu.software { &[64, 128] } else { &[64, 256, 1024] };
+    let sizes: &[u32] = if gpu.is_software() { &[64, 128] } else { &[64, 256, 1024] };
     let timed = gpu.device.features().contains(wgpu::Features::TIMESTAMP_QUERY);
     let clock = if timed { "GPU ms (timestamps)" } else { "ms (wall)" };
     println!(
@@ -144,7 +144,7 @@ pub(crate) fn solver_on_gpu(meshes: &[ObjMesh], gpu: Option<&Gpu>) {
             rk_ms / bd_ms
         );
     }
-    if gpu.software {
+    if gpu.is_software() {
         println!("\nThe GPU here is a software adapter on the same CPU cores: its times are not GPU figures.");
     }
 }

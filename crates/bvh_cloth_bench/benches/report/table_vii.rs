@@ -34,7 +34,7 @@ pub(crate) fn table_vii(meshes: &[ObjMesh], gpu: Option<&Gpu>, single: &rayon::T
         }
     }
     println!("\nQuoted from the same table of the paper: Kim et al. 2019 took 17-25 ms, Unity Cloth 211-247 ms.");
-    if gpu.is_some_and(|g| g.software) {
+    if gpu.is_some_and(|g| g.is_software()) {
         println!("The GPU here is a software adapter on the same CPU cores: its column is not a GPU figure.");
     }
 }

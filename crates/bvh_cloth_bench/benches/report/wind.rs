@@ -180,7 +180,7 @@ pub(crate) fn wind_on_gpu(bunny: &ObjMesh, gpu: Option<&Gpu>) {
             z.push(sim.position(FLAG_PROBE).z);
             energy.push(kinetic_energy(&sim));
         }
-        print_flutter(&format!("GPU ({})", gpu.name), integrator, &z, &energy);
+        print_flutter(&format!("GPU ({})", gpu.info.name), integrator, &z, &energy);
     }
 
     println!("\n### GPU against CPU in gusty wind\n");
@@ -201,7 +201,7 @@ pub(crate) fn wind_on_gpu(bunny: &ObjMesh, gpu: Option<&Gpu>) {
             worst = worst.max(on_gpu.distance(sim.position(i)));
         }
     }
-    println!("| adapter | largest gap m |\n|---|---|\n| {} | {worst:.1e} |", gpu.name);
+    println!("| adapter | largest gap m |\n|---|---|\n| {} | {worst:.1e} |", gpu.info.name);
 
     println!("\n### Cost on the GPU: the 64 x 64 cloth hanging in gusty wind\n");
     println!(
@@ -217,11 +217,11 @@ pub(crate) fn wind_on_gpu(bunny: &ObjMesh, gpu: Option<&Gpu>) {
         kernel_ms(gpu, &far_away, std::slice::from_ref(&with)),
     ) {
         (Some((_, off)), Some((_, on))) => {
-            println!("| {} | {off:.3} | {on:.3} | {:.0}% |", gpu.name, (on - off) / off * 100.0)
+            println!("| {} | {off:.3} | {on:.3} | {:.0}% |", gpu.info.name, (on - off) / off * 100.0)
         }
-        _ => println!("| {} | no timestamp queries | | |", gpu.name),
+        _ => println!("| {} | no timestamp queries | | |", gpu.info.name),
     }
-    if gpu.software {
+    if gpu.is_software() {
         println!("\nThe GPU here is a software adapter on the same CPU cores: its times are not GPU figures.");
     }
 }

@@ -8,7 +8,7 @@ use glam::{Vec3, Vec3A};
 use super::*;
 use crate::colliders::collider::Collider;
 use crate::colliders::collision::ColliderFrame;
-use crate::self_contact::{ContactBody, ContactSolver, ContactStats, SelfContact};
+use crate::self_contact::{ContactBody, ContactSolver, ContactStats, SelfContact, shared_substeps};
 use crate::solver::forces::{ForceModel, LANES};
 use crate::solver::params::Integrator;
 
@@ -159,7 +159,7 @@ impl ClothSim {
         if !(dt.is_finite() && dt > 0.0) || sims.is_empty() {
             return (0, ContactStats::default());
         }
-        let substeps = sims.iter().map(|s| s.substeps(dt)).max().unwrap_or(1);
+        let substeps = shared_substeps(sims.iter().map(|s| s.substeps(dt))).unwrap_or(1);
         let h = dt / substeps as f32;
         let frames: Vec<ColliderFrame<'_>> = colliders.iter().filter_map(ColliderFrame::new).collect();
         let mut stats = ContactStats::default();

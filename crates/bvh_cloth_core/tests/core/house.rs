@@ -285,10 +285,10 @@ const FLOORS: &[(&str, &[&[&str]])] = &[
     (
         "bvh_cloth_gpu",
         &[
-            &["layout", "buffer", "headless"],
+            &["layout", "buffer"],
             &["constants"],
             &["kernels"],
-            &["colliders", "readback", "stages"],
+            &["colliders", "readback", "stages", "headless"],
             &["batch"],
         ],
     ),

@@ -12,6 +12,7 @@ use bvh_cloth_core::ClothTopology;
 use bvh_cloth_core::backend::MAX_COLOURS;
 use bvh_cloth_core::backend::MAX_ITERATIONS;
 use bvh_cloth_core::backend::ParticleColouring;
+use bvh_cloth_core::backend::shared_substeps;
 use wgpu::{BindGroup, Buffer, BufferUsages, Device, Queue};
 
 use crate::buffer::UNIFORM_STRIDE;
@@ -108,7 +109,8 @@ impl ClothBatch {
     /// or where they lie, changed; the contact constants every frame.
     pub(super) fn prepare_contact(&mut self, device: &Device, queue: &Queue) {
         let in_contact = |slot: &Slot| slot.constants.contact_thickness > 0.0;
-        let substeps = self.slots.iter().flatten().filter(|s| in_contact(s)).map(|s| s.own_substeps).max().unwrap_or(0);
+        let substeps =
+            shared_substeps(self.slots.iter().flatten().filter(|s| in_contact(s)).map(|s| s.own_substeps)).unwrap_or(0);
         let mut thickest = 0.0f32;
         for (index, slot) in self.slots.iter_mut().enumerate() {
             let Some(slot) = slot.as_mut().filter(|slot| in_contact(slot)) else { continue };

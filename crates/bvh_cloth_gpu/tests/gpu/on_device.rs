@@ -27,7 +27,7 @@ struct Rig {
 }
 
 fn rig() -> Option<Rig> {
-    let Some(headless::HeadlessGpu { adapter, device, queue, .. }) = headless::device() else {
+    let Some(headless::KernelRig { device, queue, kernels, info }) = headless::kernel_rig() else {
         assert!(
             std::env::var_os("BVH_CLOTH_REQUIRE_GPU").is_none(),
             "no GPU adapter (install mesa-vulkan-drivers for lavapipe and set WGPU_BACKEND=vulkan)"
@@ -35,8 +35,7 @@ fn rig() -> Option<Rig> {
         eprintln!("no GPU adapter: skipped");
         return None;
     };
-    eprintln!("adapter: {:?}", adapter.get_info().name);
-    let kernels = ClothKernels::new(&device).expect("the kernels fit the device");
+    eprintln!("adapter: {:?}", info.name);
     Some(Rig { device, queue, kernels })
 }
 
