@@ -185,6 +185,17 @@ pub(super) fn descriptors() -> [KernelDescriptor; EntryPoint::ALL.len()] {
     // Both levels of the drift sums: the prediction's bindings but the inertial target, and
     // the per-block sums.
     let drift = [&predict[..6], &[storage(48, false)]].concat();
+    // The air's two substep kernels bind the same buffers: the forces and the kick.
+    let air_substep = vec![
+        frame,
+        step,
+        storage(6, true),
+        storage(8, false),
+        storage(42, true),
+        storage(44, false),
+        storage(46, false),
+        storage(47, true),
+    ];
     let contact = |point: EntryPoint, mut layout: Vec<BindGroupLayoutEntry>| {
         layout.insert(0, entry(35, BufferBindingType::Uniform, false));
         KernelDescriptor { entry: point, file: "self_contact.wgsl", layout }
@@ -352,33 +363,7 @@ pub(super) fn descriptors() -> [KernelDescriptor; EntryPoint::ALL.len()] {
                 storage(46, false),
             ],
         },
-        KernelDescriptor {
-            entry: EntryPoint::AirForces,
-            file: "air.wgsl",
-            layout: vec![
-                frame,
-                step,
-                storage(6, true),
-                storage(8, false),
-                storage(42, true),
-                storage(44, false),
-                storage(46, false),
-                storage(47, true),
-            ],
-        },
-        KernelDescriptor {
-            entry: EntryPoint::AirKick,
-            file: "air.wgsl",
-            layout: vec![
-                frame,
-                step,
-                storage(6, true),
-                storage(8, false),
-                storage(42, true),
-                storage(44, false),
-                storage(46, false),
-                storage(47, true),
-            ],
-        },
+        KernelDescriptor { entry: EntryPoint::AirForces, file: "air.wgsl", layout: air_substep.clone() },
+        KernelDescriptor { entry: EntryPoint::AirKick, file: "air.wgsl", layout: air_substep },
     ]
 }
