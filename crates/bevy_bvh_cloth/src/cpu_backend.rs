@@ -7,7 +7,7 @@ use bevy::camera::primitives::Aabb;
 use bevy::ecs::schedule::{InternedScheduleLabel, ScheduleLabel};
 use bevy::prelude::*;
 use bvh_cloth_core::backend::ContactSolver;
-use bvh_cloth_core::{ClothSim, Collider};
+use bvh_cloth_core::{ClothSim, Collider, Ticked};
 
 use crate::backend::cpu_backend_active;
 use crate::clock::ClothClock;
@@ -72,16 +72,17 @@ pub(crate) fn step_cloths(
             continue;
         }
         let state = &mut *state;
-        let mut non_finite = 0;
+        let mut faults = Faults::default();
         for k in 0..ticks {
             if let Some(targets) = state.anchor_targets.get(k) {
                 state.sim.move_pins(targets);
             }
-            non_finite = state.sim.tick(clock.tick_seconds, &colliders).non_finite;
+            faults.add(state.sim.tick(clock.tick_seconds, &colliders));
         }
-        finish_ticks(entity, state, non_finite, transform, &mut messages);
+        finish_ticks(entity, state, faults.particles(), transform, &mut messages);
     }
     if !together.is_empty() {
+        let mut faults = vec![Faults::default(); together.len()];
         for k in 0..ticks {
             let mut sims: Vec<&mut ClothSim> = Vec::with_capacity(together.len());
             for (_, state, _) in &mut together {
@@ -91,28 +92,50 @@ pub(crate) fn step_cloths(
                 }
                 sims.push(&mut state.sim);
             }
-            ClothSim::tick_together(&mut sims, clock.tick_seconds, &colliders, &mut contact);
+            let (ticked, _) = ClothSim::tick_together(&mut sims, clock.tick_seconds, &colliders, &mut contact);
+            for (faults, ticked) in faults.iter_mut().zip(ticked) {
+                faults.add(ticked);
+            }
         }
-        for (entity, mut state, transform) in together {
-            let non_finite = state.sim.non_finite_particles();
-            finish_ticks(entity, &mut state, non_finite, transform, &mut messages);
+        for ((entity, mut state, transform), faults) in together.into_iter().zip(faults) {
+            finish_ticks(entity, &mut state, faults.particles(), transform, &mut messages);
         }
     }
     stats.step_time = start.elapsed();
 }
 
-/// Marks a stepped cloth for write-back, and resets it if its ticks left `non_finite`
-/// particles non-finite.
+/// What a frame's ticks of one cloth went through: the particles they quarantined, counted
+/// per substep as the GPU counts them, and those the last tick left non-finite.
+#[derive(Clone, Copy, Debug, Default)]
+struct Faults {
+    quarantined: usize,
+    non_finite: usize,
+}
+
+impl Faults {
+    fn add(&mut self, ticked: Ticked) {
+        self.quarantined += ticked.quarantined;
+        self.non_finite = ticked.non_finite;
+    }
+
+    /// The particles to report: quarantined or left non-finite.
+    fn particles(&self) -> usize {
+        self.quarantined + self.non_finite
+    }
+}
+
+/// Marks a stepped cloth for write-back, and resets it if its ticks quarantined particles or
+/// left them non-finite (`faulty` of them).
 fn finish_ticks(
     entity: Entity,
     state: &mut ClothSimulation,
-    non_finite: usize,
+    faulty: usize,
     transform: &GlobalTransform,
     messages: &mut MessageWriter<ClothMessage>,
 ) {
     state.dirty = true;
-    if non_finite > 0 {
-        let particles = u32::try_from(non_finite).unwrap_or(u32::MAX);
+    if faulty > 0 {
+        let particles = u32::try_from(faulty).unwrap_or(u32::MAX);
         state.diverged(entity, particles, rigid_pose(transform), messages);
     }
 }

@@ -22,15 +22,16 @@ pub enum ClothMessage {
     /// A cloth's state became NaN or infinite, and it was reset to its rest pose under its
     /// entity's current transform. Other cloths are untouched.
     ///
-    /// On the CPU backend the reset comes in the tick it happened. On the GPU backend each
-    /// particle whose substep goes non-finite is first held at its last finite state (so that
-    /// it cannot spread through the springs), and the reset follows once the count reaches the
+    /// On both backends each particle whose substep goes non-finite is first held at its
+    /// last finite state (so that it cannot spread through the springs). On the CPU backend
+    /// the reset comes in the frame it happened; on the GPU backend once the count reaches the
     /// main world, a frame or two later.
     Diverged {
         /// The cloth entity.
         entity: Entity,
-        /// The cause: how many particles went non-finite. On the GPU, counted per substep
-        /// since the last report, so one particle may count more than once.
+        /// The cause: how many particles went non-finite, counted per substep since the last
+        /// report (so one particle may count more than once), plus those a state written
+        /// non-finite left so.
         particles: u32,
     },
     /// A [`ClothAnchor`](crate::ClothAnchor)'s target was despawned (or lost its

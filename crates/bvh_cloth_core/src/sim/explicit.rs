@@ -2,6 +2,8 @@
 //! bands of rows in parallel, with collision response fused into the last stage (paper
 //! Fig. 1).
 
+use std::sync::atomic::{AtomicUsize, Ordering};
+
 use glam::Vec3;
 use rayon::prelude::*;
 
@@ -100,6 +102,7 @@ impl ClothSim {
         let free: &[f32] = free;
         let band_len = BAND_ROWS * w;
         let collides = matches!(stage, Stage::Rk4Final | Stage::Euler);
+        let quarantined = AtomicUsize::new(0);
         out.par_chunks_mut(band_len)
             .zip(slope_sum.par_chunks_mut(band_len))
             .zip(held.par_chunks_mut(BAND_ROWS * width))
@@ -124,12 +127,17 @@ impl ClothSim {
                         let free_row = &free[r * width..(r + 1) * width];
                         integrate_row(stage, h, width, src_row, base_row, free_row, acc_row, sum_row, out_row);
                         if collides {
+                            let stopped = quarantine_row(width, base_row, out_row);
+                            if stopped > 0 {
+                                quarantined.fetch_add(stopped, Ordering::Relaxed);
+                            }
                             let held_row = &mut held_band[j * width..(j + 1) * width];
                             collide_row(frames, width, base_row, free_row, out_row, held_row);
                         }
                     }
                 },
             );
+        self.quarantined += quarantined.into_inner();
     }
 }
 
@@ -231,6 +239,23 @@ impl Slope<'_> {
             }
         }
     }
+}
+
+/// The quarantine of a row's last stage, as the GPU's `node_update_final` does: a particle
+/// whose substep went NaN or infinite keeps its position at the substep's start (`base`), at
+/// rest, so that it cannot spread through the springs. Returns how many it stopped.
+fn quarantine_row(cols: usize, base: &[f32], out: &mut [f32]) -> usize {
+    let mut stopped = 0;
+    for i in 0..cols {
+        if (0..LANES).all(|l| out[l * cols + i].is_finite()) {
+            continue;
+        }
+        for l in 0..LANES {
+            out[l * cols + i] = if l < 3 { base[l * cols + i] } else { 0.0 };
+        }
+        stopped += 1;
+    }
+    stopped
 }
 
 /// Collision response for every free particle of a row, from its position before the substep

@@ -33,15 +33,22 @@ pub struct Ticked {
     /// Substeps run (`looper`, or more when the stability guard asked for them).
     pub substeps: u32,
     /// Particles the tick left with a NaN or infinite position or velocity: 0 for a healthy
-    /// cloth. A cloth that went non-finite stays so; reset it ([`ClothSim::reset`]) or give it
-    /// parameters that [`ClothParams::check_tick`] accepts.
+    /// cloth. Only a state written non-finite from outside stays so (the quarantine keeps the
+    /// stepper's own results finite); reset it ([`ClothSim::reset`]).
     pub non_finite: usize,
+    /// Particles quarantined in the tick, counted per substep (so one particle may count more
+    /// than once): a particle whose substep went NaN or infinite keeps its position at the
+    /// substep's start, at rest, so that it cannot spread through the springs, as the GPU's
+    /// kernels do. A cloth that needs it has parameters its solver cannot hold (an explicit
+    /// integrator past its stability guard, see [`ClothParams::check_tick`]) or was given a
+    /// non-finite state.
+    pub quarantined: usize,
 }
 
 impl Ticked {
-    /// Whether the tick left any particle non-finite.
+    /// Whether the tick left any particle non-finite or had to quarantine one.
     pub fn diverged(&self) -> bool {
-        self.non_finite > 0
+        self.non_finite > 0 || self.quarantined > 0
     }
 }
 
@@ -63,6 +70,8 @@ pub struct ClothSim {
     /// 1 for a particle a collider touched in the last substep's collision response, else 0:
     /// self-contact weighs it as pinned.
     held: Vec<f32>,
+    /// Particles quarantined since the tick began (see [`Ticked::quarantined`]).
+    quarantined: usize,
     pins: Vec<u32>,
     /// Each particle's nearest pin and rest distance to it, for the tethers.
     tethers: Arc<TetherSet>,
@@ -129,6 +138,7 @@ impl ClothSim {
             stage_b: vec![0.0; slots * LANES],
             slope_sum: vec![0.0; slots * LANES],
             held: vec![0.0; free.len()],
+            quarantined: 0,
             free,
             tethers,
             pins,

@@ -21,10 +21,11 @@ impl ClothSim {
     /// first (the plugin does).
     pub fn tick(&mut self, dt: f32, colliders: &[Collider]) -> Ticked {
         if !(dt.is_finite() && dt > 0.0) {
-            return Ticked { substeps: 0, non_finite: self.non_finite_particles() };
+            return Ticked { substeps: 0, non_finite: self.non_finite_particles(), quarantined: 0 };
         }
         let substeps = self.substeps(dt);
         let h = dt / substeps as f32;
+        self.quarantined = 0;
         self.sample_air();
         if let Integrator::BlockDescent { iterations } = self.params.integrator {
             self.descend(h, substeps, iterations, colliders);
@@ -34,7 +35,12 @@ impl ClothSim {
             }
         }
         self.wind_time += f64::from(dt);
-        Ticked { substeps, non_finite: self.non_finite_particles() }
+        self.ticked(substeps)
+    }
+
+    /// What the tick that ran `substeps` did.
+    fn ticked(&self, substeps: u32) -> Ticked {
+        Ticked { substeps, non_finite: self.non_finite_particles(), quarantined: self.quarantined }
     }
 
     /// Runs `substeps` block-descent substeps of `h` seconds on positions kept by particle.
@@ -62,7 +68,7 @@ impl ClothSim {
             if let Some(model) = self.air_model {
                 self.air.kick(&model, &self.topology, &self.free[..n], h, &descent.x, &mut descent.v);
             }
-            descent.substep(
+            self.quarantined += descent.substep(
                 &self.topology,
                 &model,
                 &self.free[..n],
@@ -148,16 +154,17 @@ impl ClothSim {
     /// Steps several cloths together for a tick of `dt` seconds, so that the ones with
     /// self-contact also keep off each other ([`crate::self_contact`]): every cloth takes the
     /// largest substep count among them, and after each substep the contacts of all of them
-    /// are resolved at once by `solver`. Returns the substeps run and the last substep's
-    /// contact figures.
+    /// are resolved at once by `solver`. Returns what the tick did to each cloth, in order (as
+    /// [`ClothSim::tick`] does for one), and the last substep's contact figures.
     pub fn tick_together(
         sims: &mut [&mut ClothSim],
         dt: f32,
         colliders: &[Collider],
         solver: &mut ContactSolver,
-    ) -> (u32, ContactStats) {
+    ) -> (Vec<Ticked>, ContactStats) {
         if !(dt.is_finite() && dt > 0.0) || sims.is_empty() {
-            return (0, ContactStats::default());
+            let ticked = sims.iter().map(|sim| sim.ticked(0)).collect();
+            return (ticked, ContactStats::default());
         }
         let substeps = shared_substeps(sims.iter().map(|s| s.substeps(dt))).unwrap_or(1);
         let h = dt / substeps as f32;
@@ -166,6 +173,7 @@ impl ClothSim {
         let mut states: Vec<(Vec<Vec3>, Vec<Vec3>, Vec<Vec3>)> =
             sims.iter().map(|_| (Vec::new(), Vec::new(), Vec::new())).collect();
         for sim in sims.iter_mut() {
+            sim.quarantined = 0;
             sim.sample_air();
         }
         for _ in 0..substeps {
@@ -212,6 +220,6 @@ impl ClothSim {
         for sim in sims.iter_mut() {
             sim.wind_time += f64::from(dt);
         }
-        (substeps, stats)
+        (sims.iter().map(|sim| sim.ticked(substeps)).collect(), stats)
     }
 }

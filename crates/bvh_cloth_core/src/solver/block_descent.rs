@@ -96,6 +96,8 @@
 //! swings RK4's cloth back up. All of these shrink as `looper` grows; at rest every setting
 //! reaches the springs' own equilibrium (the tethers take speed, not position).
 
+use std::sync::atomic::{AtomicUsize, Ordering};
+
 use glam::{Vec3, Vec3A};
 use rayon::prelude::*;
 
@@ -267,9 +269,10 @@ impl BlockDescent {
     }
 
     /// One substep of `h` seconds with `iterations` sweeps over the colours, then the velocity
-    /// update and the collision response. `free[i]` is 0 for a held particle, which neither
-    /// moves nor changes velocity; `held[i]` becomes 1 where a collider touched particle `i`,
-    /// else 0.
+    /// update, the quarantine and the collision response. `free[i]` is 0 for a held particle,
+    /// which neither moves nor changes velocity; `held[i]` becomes 1 where a collider touched
+    /// particle `i`, else 0. Returns how many particles the quarantine stopped: a particle
+    /// whose substep went NaN or infinite keeps its start, at rest (as `vbd_finish` does).
     #[allow(clippy::too_many_arguments)]
     pub(crate) fn substep(
         &mut self,
@@ -282,8 +285,8 @@ impl BlockDescent {
         free_body: bool,
         tethers: Option<(&TetherSet, f32)>,
         frames: &[ColliderFrame<'_>],
-    ) {
-        let Ok(colouring) = topology.colouring() else { return };
+    ) -> usize {
+        let Ok(colouring) = topology.colouring() else { return 0 };
         let Self { x, v, accel, start, target, moved } = self;
         let uniform = Vec3A::from(model.uniform_accel);
         let axis = AccelAxis::new(uniform);
@@ -343,6 +346,7 @@ impl BlockDescent {
         };
         let inv_h = 1.0 / h;
         let starts: &[Vec3A] = start;
+        let quarantined = AtomicUsize::new(0);
         x.par_iter_mut()
             .zip(v.par_iter_mut())
             .zip(accel.par_iter_mut())
@@ -363,6 +367,10 @@ impl BlockDescent {
                 if let Some((tethers, scale)) = tethers {
                     tethers.hold(i, *x, v, scale, |pin| starts[pin as usize]);
                 }
+                if !(x.is_finite() && v.is_finite()) {
+                    (*x, *v) = (start, Vec3A::ZERO);
+                    quarantined.fetch_add(1, Ordering::Relaxed);
+                }
                 if !frames.is_empty() {
                     let (mut p, mut velocity) = (Vec3::from(*x), Vec3::from(*v));
                     let mut touched = false;
@@ -374,6 +382,7 @@ impl BlockDescent {
                 }
                 *estimate = axis.estimate(v0, *v, h, inv_damp);
             });
+        quarantined.into_inner()
     }
 }
 
@@ -455,8 +464,10 @@ pub(crate) fn centre_of_mass_drift(
             let range = chunk * DRIFT_CHUNK..((chunk + 1) * DRIFT_CHUNK).min(x.len());
             let mut sum = (glam::DVec3::ZERO, 0.0f64);
             for i in range {
-                if free[i] != 0.0 {
-                    let off = x[i] - (start[i] + (h * v[i] + fall) * inv_damp);
+                let off = x[i] - (start[i] + (h * v[i] + fall) * inv_damp);
+                // A particle that went non-finite is quarantined after the sums; it must not
+                // carry the rest of the cloth with it.
+                if free[i] != 0.0 && off.is_finite() {
                     let m = f64::from(share[i]);
                     sum.0 += m * off.as_dvec3();
                     sum.1 += m;

@@ -5,7 +5,9 @@ use crate::common;
 
 use std::sync::Arc;
 
-use bvh_cloth_core::{Affine3A, ClothError, ClothParams, ClothSim, ClothTopology, Collider, Integrator, MeshRef, Vec3};
+use bvh_cloth_core::{
+    Affine3A, ClothError, ClothParams, ClothSim, ClothTopology, Collider, Integrator, MeshRef, Ticked, Vec3,
+};
 use common::{grid_topology, square_grid, uv_sphere};
 
 fn hanging(rows: u32, cols: u32) -> ClothSim {
@@ -235,11 +237,13 @@ fn an_authored_dome_hangs_from_its_rim() {
     assert!(centroid.y < 1.0 - 0.1, "the dome did not fall: centroid at {centroid}");
 }
 
-/// A tick says how many particles it left non-finite: none for a healthy cloth; some for an
-/// explicit cloth past its stability guard's cap (which `ClothParams::check_tick` refuses
-/// beforehand), and for a cloth given a NaN.
+/// A tick says what went wrong: none for a healthy cloth; for an explicit cloth past its
+/// stability guard's cap (which `ClothParams::check_tick` refuses beforehand), the particles
+/// it quarantined, while the cloth stays finite; for a cloth given a NaN, that one particle,
+/// while its neighbours are quarantined instead of poisoned and the rest falls on, with every
+/// integrator.
 #[test]
-fn a_tick_reports_the_particles_it_left_non_finite() {
+fn a_tick_reports_what_it_quarantined_and_left_non_finite() {
     let healthy = ClothParams { integrator: Integrator::Rk4, ..Default::default() };
     let absurd = ClothParams { spring_k: 1.0e12, ..healthy.clone() };
     let topology = grid_topology(1.0, 16, 16);
@@ -248,16 +252,32 @@ fn a_tick_reports_the_particles_it_left_non_finite() {
     let pose = Affine3A::from_translation(Vec3::Y);
     let mut sim = ClothSim::new(healthy, grid_topology(1.0, 16, 16), pose, &[0, 15]).unwrap();
     let ticked = sim.tick(1.0 / 60.0, &[]);
-    assert_eq!((ticked.substeps, ticked.non_finite, ticked.diverged()), (16, 0, false));
+    assert_eq!(ticked, Ticked { substeps: 16, non_finite: 0, quarantined: 0 });
+    assert!(!ticked.diverged());
 
     let mut beyond = ClothSim::new(absurd, grid_topology(1.0, 16, 16), pose, &[0, 15]).unwrap();
     let reports: Vec<_> = (0..30).map(|_| beyond.tick(1.0 / 60.0, &[])).collect();
     assert!(reports.iter().all(|t| t.substeps == 256));
-    let last = reports.last().unwrap();
-    assert!(last.diverged() && last.non_finite == beyond.non_finite_particles(), "{last:?}");
+    assert!(reports.iter().any(|t| t.quarantined > 0), "{reports:?}");
+    assert!(reports.iter().all(|t| t.non_finite == 0) && beyond.is_finite(), "the quarantine kept it finite");
 
-    let mut poisoned = ClothSim::new(ClothParams::default(), grid_topology(1.0, 16, 16), pose, &[]).unwrap();
-    poisoned.set_position(40, Vec3::NAN);
-    let ticked = poisoned.tick(1.0 / 60.0, &[]);
-    assert!(ticked.non_finite >= 1 && ticked.non_finite == poisoned.non_finite_particles(), "{ticked:?}");
+    for integrator in [Integrator::Rk4, Integrator::SemiImplicitEuler, Integrator::BLOCK_DESCENT] {
+        let params = ClothParams { integrator, ..Default::default() };
+        let mut poisoned = ClothSim::new(params, grid_topology(1.0, 16, 16), pose, &[]).unwrap();
+        poisoned.set_position(40, Vec3::NAN);
+        let ticked = poisoned.tick(1.0 / 60.0, &[]);
+        assert_eq!(ticked.non_finite, 1, "{integrator:?}: only the poisoned particle, {ticked:?}");
+        assert!(ticked.quarantined > 0 && ticked.diverged(), "{integrator:?}: {ticked:?}");
+        let far = poisoned.position(255);
+        assert!(far.is_finite() && far.y < 1.0 - 1.0e-3, "{integrator:?}: the far corner fell on, at {far}");
+    }
+
+    // Stepped together, each cloth gets its own report.
+    let mut healthy = ClothSim::new(ClothParams::default(), grid_topology(1.0, 16, 16), pose, &[]).unwrap();
+    let mut poisoned = healthy.clone();
+    poisoned.set_velocity(40, Vec3::new(f32::INFINITY, 0.0, 0.0));
+    let mut solver = bvh_cloth_core::backend::ContactSolver::default();
+    let (ticked, _) = ClothSim::tick_together(&mut [&mut healthy, &mut poisoned], 1.0 / 60.0, &[], &mut solver);
+    assert!(!ticked[0].diverged(), "{ticked:?}");
+    assert!(ticked[1].diverged() && ticked[1].non_finite <= 1, "{ticked:?}");
 }

@@ -206,6 +206,11 @@ fn drift_term(i: u32, c: u32) -> vec4<f32> {
     let h = cloths[c].h;
     let fall = (h * h) * cloths[c].uniform_accel.xyz;
     let off = me.position.xyz - (b.position.xyz + (h * b.velocity.xyz + fall) * inverse_damping(c));
+    // A particle that went non-finite is quarantined after the sums (vbd_finish); it must not
+    // carry the rest of the cloth with it.
+    if (!all_finite(off)) {
+        return vec4(0.0);
+    }
     let m = 1.0 / bitcast<f32>(particle_info[i].z);
     return vec4(m * off, m);
 }
