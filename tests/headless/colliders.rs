@@ -288,6 +288,47 @@ fn an_auto_collider_on_a_root_covers_the_meshes_under_it() {
     assert!(app.world().get::<ClothCollider>(own).is_some());
 }
 
+/// Heard on a hierarchy's root: what `ColliderHierarchyReady` said, in order.
+#[derive(Resource, Default)]
+struct HierarchyReady(Vec<(Entity, u32, u32)>);
+
+/// A hierarchy never makes a collider of a mesh that is cloth (the cape of a glTF character must
+/// not collide with a copy of itself), drops the part of a mesh that becomes cloth, and tells
+/// the root once every part collides.
+#[test]
+fn a_hierarchy_leaves_its_cloth_out_and_tells_the_root_when_it_is_ready() {
+    let mut app = app();
+    app.init_resource::<HierarchyReady>();
+    let ball_mesh = ball(&mut app, 0.2);
+    let mesh = |name: &str| (Mesh3d(ball_mesh.clone()), Name::new(name.to_string()), Transform::default());
+    let root = app
+        .world_mut()
+        .spawn((AutoCollider::new(3), Transform::default()))
+        .observe(|ready: On<ColliderHierarchyReady>, mut heard: ResMut<HierarchyReady>| {
+            heard.0.push((ready.entity, ready.parts, ready.spheres));
+        })
+        .id();
+    let body = app.world_mut().spawn(mesh("Body")).insert(ChildOf(root)).id();
+    let head = app.world_mut().spawn(mesh("Head")).insert(ChildOf(root)).id();
+    let cape = app.world_mut().spawn((mesh("Cape"), Cloth::mesh())).insert(ChildOf(root)).id();
+    run(&mut app, 0.1);
+
+    assert!(app.world().get::<AutoCollider>(cape).is_none(), "the cape is cloth, not a collider");
+    assert!(app.world().get::<ClothCollider>(cape).is_none());
+    let status = |app: &App, entity: Entity| app.world().get::<ColliderStatus>(entity).cloned();
+    let spheres = match (status(&app, body), status(&app, head)) {
+        (Some(ColliderStatus::Ready { spheres: a, .. }), Some(ColliderStatus::Ready { spheres: b, .. })) => a + b,
+        other => panic!("the parts are not ready: {other:?}"),
+    };
+    assert_eq!(app.world().resource::<HierarchyReady>().0, [(root, 2, spheres)], "once, on the root");
+
+    // A part that becomes cloth stops colliding; the root, still ready, is not told again.
+    app.world_mut().entity_mut(head).insert(Cloth::mesh());
+    run(&mut app, 0.1);
+    assert!(app.world().get::<ColliderPart>(head).is_none() && app.world().get::<ClothCollider>(head).is_none());
+    assert_eq!(app.world().resource::<HierarchyReady>().0.len(), 1);
+}
+
 /// A voxel size in metres gives every mesh under one root voxels of that size, whatever its
 /// extent or its entity's scale; a size that would make too many voxels fails that collider
 /// with a clear error.

@@ -26,6 +26,22 @@ pub struct ColliderReady {
     pub spheres: u32,
 }
 
+/// Every collider under a mesh-less [`AutoCollider`](crate::AutoCollider) (a glTF scene root, a
+/// character's root) is built, or has failed and said so on its own entity: triggered on the
+/// root when its summed status becomes ready (and again after a part is rebuilt; not when a
+/// ready hierarchy gains or loses a part), so that a game can wait for a whole
+/// character (see [`ColliderHierarchy`](crate::ColliderHierarchy)). Each part also hears its
+/// own [`ColliderReady`].
+#[derive(EntityEvent, Clone, Debug, PartialEq)]
+pub struct ColliderHierarchyReady {
+    /// The root entity.
+    pub entity: Entity,
+    /// The parts that collide.
+    pub parts: u32,
+    /// Their leaf spheres, summed.
+    pub spheres: u32,
+}
+
 /// A collider could not be built: [`ClothMessage::ColliderFailed`] on its entity.
 #[derive(EntityEvent, Clone, Debug, PartialEq)]
 pub struct ColliderFailed {

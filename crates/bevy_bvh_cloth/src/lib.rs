@@ -119,11 +119,13 @@ pub use cloth::simulation::ClothSimulation;
 pub use cloth::stats::ClothStats;
 pub use colliders::ColliderPlugin;
 pub use colliders::auto::{ASYNC_BUILD_MIN_VERTICES, AutoCollider, ClothCollider, ColliderContact, ColliderStatus};
-pub use colliders::hierarchy::{ColliderHierarchy, ColliderPart};
+pub use colliders::hierarchy::{ColliderHierarchy, ColliderPart, ExcludeFromColliders};
 pub use colliders::mesh::collider_from_mesh;
 pub use colliders::primitive::{PrimitiveCollider, PrimitiveShape};
 pub use cpu_backend::CpuBackendPlugin;
-pub use events::{AnchorLost, ClothDiverged, ClothRejected, ColliderFailed, ColliderReady, WindSourceRejected};
+pub use events::{
+    AnchorLost, ClothDiverged, ClothRejected, ColliderFailed, ColliderHierarchyReady, ColliderReady, WindSourceRejected,
+};
 pub use messages::{ClothMessage, ColliderFailure, ResetCloth};
 pub use render::GpuBackendPlugin;
 pub use render::readback::ClothReadback;
@@ -137,11 +139,12 @@ pub mod prelude {
     pub use crate::panel::ClothPanelPlugin;
     pub use crate::{
         ActiveClothBackend, Aerodynamics, AmbientWind, AnchorLost, AutoCollider, BvhClothPlugin, BvhClothPlugins,
-        Cloth, ClothAnchor, ClothBackend, ClothClock, ClothDebugViewPlugin, ClothDiverged, ClothError, ClothMessage,
-        ClothParams, ClothPins, ClothReadback, ClothRejected, ClothSettings, ClothShape, ClothSimulation, ClothStats,
-        ClothSystems, ColliderContact, ColliderError, ColliderFailed, ColliderHierarchy, ColliderReady, ColliderStatus,
-        ColorChannel, Integrator, LocalWind, PrimitiveCollider, PrimitiveShape, ResetCloth, SelfContact,
-        SpringStiffness, Tethers, Wind, WindBlast, WindFan, WindSourceRejected,
+        Cloth, ClothAnchor, ClothBackend, ClothClock, ClothCollider, ClothDebugViewPlugin, ClothDiverged, ClothError,
+        ClothMessage, ClothParams, ClothPins, ClothReadback, ClothRejected, ClothSettings, ClothShape, ClothSimulation,
+        ClothStats, ClothSystems, ColliderContact, ColliderError, ColliderFailed, ColliderHierarchy,
+        ColliderHierarchyReady, ColliderPart, ColliderReady, ColliderStatus, ColorChannel, ExcludeFromColliders,
+        Integrator, LocalWind, PrimitiveCollider, PrimitiveShape, ResetCloth, SelfContact, SpringStiffness, Tethers,
+        Wind, WindBlast, WindFan, WindSourceRejected,
     };
 }
 

@@ -3,6 +3,8 @@
 use bevy::prelude::*;
 use bvh_cloth_core::{ClothError, ClothParams, ClothPins};
 
+use crate::colliders::hierarchy::ExcludeFromColliders;
+
 /// A simulated cloth. Put it on an entity with a material: either with a generated sheet
 /// ([`Cloth::grid`]), for which the plugin makes the mesh, or on an entity with an authored
 /// triangle [`Mesh3d`] ([`Cloth::mesh`]), which then moves as cloth.
@@ -21,6 +23,9 @@ use bvh_cloth_core::{ClothError, ClothParams, ClothPins};
 /// authored and a grid cloth has no mesh yet. [`ClothSettings::collider_wait`](crate::ClothSettings)
 /// bounds the wait; `start_at_once` opts out.
 ///
+/// A cloth's own mesh is never made a collider by an [`AutoCollider`](crate::AutoCollider) on an
+/// ancestor (it requires [`ExcludeFromColliders`]).
+///
 /// Editing `params` or an anchor's `offset` takes effect on the next tick and keeps the cloth's
 /// state. Editing `shape`, `pins` or which vertices or entity an anchor holds rebuilds the
 /// cloth at rest. Invalid values are refused with an error (see
@@ -36,7 +41,7 @@ use bvh_cloth_core::{ClothError, ClothParams, ClothPins};
 /// ```
 #[derive(Component, Clone, Debug, Default, PartialEq, Reflect)]
 #[reflect(Component, Default, Debug)]
-#[require(Transform, Visibility)]
+#[require(Transform, Visibility, ExcludeFromColliders)]
 pub struct Cloth {
     /// What the cloth is made of: a generated grid, or the entity's own mesh.
     pub shape: ClothShape,

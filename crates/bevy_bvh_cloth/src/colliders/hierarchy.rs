@@ -1,12 +1,16 @@
 //! An [`AutoCollider`] on an entity without a [`Mesh3d`] (a glTF scene root, a character's
 //! root) covers every mesh under it: each descendant with a `Mesh3d` gets a collider of its own,
-//! with the root's settings or an override named in [`ColliderHierarchy`].
+//! with the root's settings or an override named in [`ColliderHierarchy`]. A mesh marked
+//! [`ExcludeFromColliders`], as every [`Cloth`](crate::Cloth) is, never does: a cape must not
+//! collide with a copy of itself. When every part is built, the root hears
+//! [`ColliderHierarchyReady`].
 
 use bevy::platform::collections::HashMap;
 use bevy::prelude::*;
 
 use crate::colliders::auto::{AutoCollider, ClothCollider, ColliderBuild, ColliderStatus};
 use crate::colliders::primitive::PrimitiveCollider;
+use crate::events::ColliderHierarchyReady;
 use crate::messages::ClothMessage;
 use crate::messages::ColliderFailure;
 
@@ -14,8 +18,9 @@ use crate::messages::ColliderFailure;
 /// mesh, looked up by the [`Name`] of the mesh entity or, failing that, of its parent (glTF
 /// names the node, and its primitives are children of it).
 ///
-/// On a glTF scene, put both on the `SceneRoot` entity; the meshes are covered as the scene
-/// spawns them.
+/// On a glTF scene, put both on the `WorldAssetRoot` entity; the meshes are covered as the
+/// scene spawns them, and [`ColliderHierarchyReady`] is triggered on that entity once they all
+/// collide. Meshes that are [`Cloth`](crate::Cloth) are left out without being named.
 ///
 /// ```
 /// # use bevy::prelude::*;
@@ -57,6 +62,14 @@ impl ColliderHierarchy {
     }
 }
 
+/// A mesh entity that no [`AutoCollider`] above it makes a collider of. Every
+/// [`Cloth`](crate::Cloth) requires it, so that a cloth never collides with its own mesh; put it
+/// on any other mesh a hierarchy should leave out whatever its name (it stays when the cloth is
+/// removed).
+#[derive(Component, Clone, Copy, Debug, Default, PartialEq, Eq, Reflect)]
+#[reflect(Component, Default, Debug)]
+pub struct ExcludeFromColliders;
+
 /// A collider the plugin put on a mesh under a root's [`AutoCollider`]; it goes when the root's
 /// collider does.
 #[derive(Component, Clone, Copy, Debug, PartialEq, Eq, Reflect)]
@@ -69,16 +82,25 @@ pub struct ColliderPart {
 /// What a part carries, all removed together when it stops being one.
 type PartComponents = (AutoCollider, ColliderPart, ClothCollider, ColliderStatus, ColliderBuild);
 
-/// Gives every mesh under a mesh-less [`AutoCollider`] its collider, keeps the parts' settings
-/// in step with the root, removes parts whose root is gone, and sums the parts' statuses into
-/// the root's.
+/// Gives every mesh under a mesh-less [`AutoCollider`] its collider (those marked
+/// [`ExcludeFromColliders`] left out), keeps the
+/// parts' settings in step with the root, removes parts whose root is gone, sums the parts'
+/// statuses into the root's, and triggers [`ColliderHierarchyReady`] on the root when the sum
+/// becomes ready (again after a rebuild).
 #[allow(clippy::type_complexity)]
 pub(crate) fn spread_colliders(
     mut commands: Commands,
     mut roots: Query<(Entity, &AutoCollider, Option<&ColliderHierarchy>, &mut ColliderStatus), Without<Mesh3d>>,
     descendants: Query<&Children>,
     meshes: Query<
-        (Option<&Name>, Option<&ChildOf>, Option<&ColliderPart>, Option<&AutoCollider>, Has<PrimitiveCollider>),
+        (
+            Option<&Name>,
+            Option<&ChildOf>,
+            Option<&ColliderPart>,
+            Option<&AutoCollider>,
+            Has<PrimitiveCollider>,
+            Has<ExcludeFromColliders>,
+        ),
         With<Mesh3d>,
     >,
     parts: Query<(Entity, &ColliderPart, &ColliderStatus), With<Mesh3d>>,
@@ -96,11 +118,18 @@ pub(crate) fn spread_colliders(
         let mut found_mesh = false;
         for entity in descendants.iter_descendants(root) {
             found_child = true;
-            let Ok((name, parent, part, existing, has_primitive)) = meshes.get(entity) else { continue };
+            let Ok((name, parent, part, existing, has_primitive, excluded)) = meshes.get(entity) else { continue };
             found_mesh = true;
             // A collider the user put there is theirs.
             let ours = part.is_some_and(|part| part.root == root);
             if (existing.is_some() && !ours) || has_primitive {
+                continue;
+            }
+            // A cloth never collides with its own mesh.
+            if excluded {
+                if ours {
+                    commands.entity(entity).try_remove::<PartComponents>();
+                }
                 continue;
             }
             let parent_name = parent.and_then(|parent| names.get(parent.parent()).ok());
@@ -128,6 +157,15 @@ pub(crate) fn spread_colliders(
             if matches!(next, ColliderStatus::Failed(_)) && !has_parts {
                 error!("AutoCollider on {root}: {}; it will not collide", ColliderFailure::NoMesh3d);
                 messages.write(ClothMessage::ColliderFailed { entity: root, failure: ColliderFailure::NoMesh3d });
+            }
+            // Told when it becomes ready, not when a ready hierarchy gains or loses a part.
+            if let ColliderStatus::Ready { spheres, .. } = next
+                && !matches!(*status, ColliderStatus::Ready { .. })
+            {
+                let parts = parts
+                    .iter()
+                    .filter(|(_, part, status)| part.root == root && matches!(status, ColliderStatus::Ready { .. }));
+                commands.trigger(ColliderHierarchyReady { entity: root, parts: parts.count() as u32, spheres });
             }
             *status = next;
         }

@@ -17,7 +17,7 @@ use bevy::prelude::*;
 
 use crate::schedule::ClothSystems;
 use auto::{AutoCollider, ColliderContact, ColliderStatus};
-use hierarchy::{ColliderHierarchy, ColliderPart};
+use hierarchy::{ColliderHierarchy, ColliderPart, ExcludeFromColliders};
 use primitive::PrimitiveCollider;
 
 /// The colliders: built (or their async builds polled) and placed where their entities are, in
@@ -41,6 +41,7 @@ impl Plugin for ColliderPlugin {
             .register_type::<PrimitiveCollider>()
             .register_type::<ColliderHierarchy>()
             .register_type::<ColliderPart>()
+            .register_type::<ExcludeFromColliders>()
             .register_type::<ColliderStatus>()
             .add_systems(
                 self.schedule,
