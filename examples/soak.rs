@@ -53,7 +53,9 @@ fn count(
                     tally.divergences.push(line);
                 }
             }
-            ClothMessage::Rejected { .. } | ClothMessage::WindSourceRejected { .. } => tally.rejected += 1,
+            ClothMessage::Rejected { .. }
+            | ClothMessage::WindSourceRejected { .. }
+            | ClothMessage::NameNotFound { .. } => tally.rejected += 1,
             ClothMessage::ColliderFailed { .. } => tally.collider_failed += 1,
             ClothMessage::AnchorLost { .. } => tally.anchors_lost += 1,
         }

@@ -8,6 +8,7 @@ mod authored;
 mod colliders;
 mod divergence;
 mod hanging;
+mod hierarchy;
 mod lifecycle;
 mod parameters;
 mod primitives;

@@ -42,6 +42,26 @@ pub struct ColliderHierarchyReady {
     pub spheres: u32,
 }
 
+/// Every cloth a [`ClothHierarchy`](crate::ClothHierarchy) names is built: triggered once on
+/// the root, so that a game can wait for a dressed character.
+#[derive(EntityEvent, Clone, Debug, PartialEq)]
+pub struct ClothHierarchyReady {
+    /// The root entity.
+    pub entity: Entity,
+    /// The cloths built.
+    pub cloths: u32,
+}
+
+/// A [`ClothHierarchy`](crate::ClothHierarchy) names what its scene does not have:
+/// [`ClothMessage::NameNotFound`] on the root.
+#[derive(EntityEvent, Clone, Debug, PartialEq)]
+pub struct NameNotFound {
+    /// The root entity.
+    pub entity: Entity,
+    /// The name that matched nothing.
+    pub name: String,
+}
+
 /// A collider could not be built: [`ClothMessage::ColliderFailed`] on its entity.
 #[derive(EntityEvent, Clone, Debug, PartialEq)]
 pub struct ColliderFailed {
@@ -95,6 +115,7 @@ pub(crate) fn trigger_message_events(mut commands: Commands, mut messages: Messa
             ClothMessage::Diverged { entity, particles } => commands.trigger(ClothDiverged { entity, particles }),
             ClothMessage::AnchorLost { entity, target } => commands.trigger(AnchorLost { entity, target }),
             ClothMessage::ColliderFailed { entity, failure } => commands.trigger(ColliderFailed { entity, failure }),
+            ClothMessage::NameNotFound { entity, name } => commands.trigger(NameNotFound { entity, name }),
             ClothMessage::WindSourceRejected { entity, error } => {
                 commands.trigger(WindSourceRejected { entity, error });
             }

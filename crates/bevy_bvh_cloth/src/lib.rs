@@ -115,6 +115,7 @@ pub use bvh_cloth_core::{
 pub use clock::ClothClock;
 pub use cloth::ClothPlugin;
 pub use cloth::component::{Cloth, ClothAnchor, ClothShape};
+pub use cloth::hierarchy::{ClothHierarchy, ClothPart, JointAnchor, SceneCloth};
 pub use cloth::simulation::ClothSimulation;
 pub use cloth::stats::ClothStats;
 pub use colliders::ColliderPlugin;
@@ -124,7 +125,8 @@ pub use colliders::mesh::collider_from_mesh;
 pub use colliders::primitive::{PrimitiveCollider, PrimitiveShape};
 pub use cpu_backend::CpuBackendPlugin;
 pub use events::{
-    AnchorLost, ClothDiverged, ClothRejected, ColliderFailed, ColliderHierarchyReady, ColliderReady, WindSourceRejected,
+    AnchorLost, ClothDiverged, ClothHierarchyReady, ClothRejected, ColliderFailed, ColliderHierarchyReady,
+    ColliderReady, NameNotFound, WindSourceRejected,
 };
 pub use messages::{ClothMessage, ColliderFailure, ResetCloth};
 pub use render::GpuBackendPlugin;
@@ -140,11 +142,12 @@ pub mod prelude {
     pub use crate::{
         ActiveClothBackend, Aerodynamics, AmbientWind, AnchorLost, AutoCollider, BvhClothPlugin, BvhClothPlugins,
         Cloth, ClothAnchor, ClothBackend, ClothClock, ClothCollider, ClothDebugViewPlugin, ClothDiverged, ClothError,
-        ClothMessage, ClothParams, ClothPins, ClothReadback, ClothRejected, ClothSettings, ClothShape, ClothSimulation,
-        ClothStats, ClothSystems, ColliderContact, ColliderError, ColliderFailed, ColliderHierarchy,
-        ColliderHierarchyReady, ColliderPart, ColliderReady, ColliderStatus, ColorChannel, ExcludeFromColliders,
-        Integrator, LocalWind, PrimitiveCollider, PrimitiveShape, ResetCloth, SelfContact, SpringStiffness, Tethers,
-        Wind, WindBlast, WindFan, WindSourceRejected,
+        ClothHierarchy, ClothHierarchyReady, ClothMessage, ClothParams, ClothPart, ClothPins, ClothReadback,
+        ClothRejected, ClothSettings, ClothShape, ClothSimulation, ClothStats, ClothSystems, ColliderContact,
+        ColliderError, ColliderFailed, ColliderHierarchy, ColliderHierarchyReady, ColliderPart, ColliderReady,
+        ColliderStatus, ColorChannel, ExcludeFromColliders, Integrator, JointAnchor, LocalWind, NameNotFound,
+        PrimitiveCollider, PrimitiveShape, ResetCloth, SceneCloth, SelfContact, SpringStiffness, Tethers, Wind,
+        WindBlast, WindFan, WindSourceRejected,
     };
 }
 

@@ -52,6 +52,15 @@ pub enum ClothMessage {
         /// What is wrong, naming the field.
         error: ClothError,
     },
+    /// A [`ClothHierarchy`](crate::ClothHierarchy) names a mesh or a joint that the scene
+    /// spawned under its root does not have: the cloth that needs it is not made, and the rest
+    /// of the scene runs. Sent once per root and name.
+    NameNotFound {
+        /// The root entity.
+        entity: Entity,
+        /// The name that matched nothing.
+        name: String,
+    },
     /// An [`AutoCollider`](crate::AutoCollider) could not be built; that entity does not collide.
     ColliderFailed {
         /// The collider entity.
