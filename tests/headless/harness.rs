@@ -1,12 +1,15 @@
-//! A headless app with the plugin: MinimalPlugins, assets, meshes, transforms, OBJ loading, and a
-//! clock advanced by hand.
+//! A headless app with the plugin: MinimalPlugins, assets, meshes, transforms, OBJ loading (glTF
+//! scenes and animation too, for the glTF character), and a clock advanced by hand.
 
 use core::time::Duration;
 
+use bevy::animation::AnimationPlugin;
 use bevy::asset::AssetPlugin;
+use bevy::gltf::GltfPlugin;
 use bevy::mesh::MeshPlugin;
 use bevy::prelude::*;
 use bevy::time::TimeUpdateStrategy;
+use bevy::world_serialization::WorldSerializationPlugin;
 use bevy_bvh_cloth::prelude::*;
 use bevy_obj::ObjPlugin;
 
@@ -20,6 +23,22 @@ fn collect(mut reader: MessageReader<ClothMessage>, mut sent: ResMut<Sent>) {
 
 /// An app stepping `fps` frames per (simulated) second.
 pub fn app_at(fps: f64) -> App {
+    app_with(fps, |_| {})
+}
+
+/// An app stepping 60 frames per second that also loads glTF scenes and plays their
+/// animations.
+pub fn gltf_app() -> App {
+    app_with(60.0, |app| {
+        app.add_plugins((WorldSerializationPlugin, GltfPlugin::default(), AnimationPlugin));
+        // The glTF loader is registered when the plugins finish, as `App::run` would do.
+        app.finish();
+        app.cleanup();
+    })
+}
+
+/// An app stepping `fps` frames per (simulated) second, with the plugins `more` adds.
+fn app_with(fps: f64, more: impl FnOnce(&mut App)) -> App {
     let mut app = App::new();
     app.add_plugins((
         MinimalPlugins,
@@ -28,10 +47,11 @@ pub fn app_at(fps: f64) -> App {
         MeshPlugin,
         ObjPlugin,
         BvhClothPlugin::default(),
-    ))
-    .insert_resource(TimeUpdateStrategy::ManualDuration(Duration::from_secs_f64(1.0 / fps)))
-    .init_resource::<Sent>()
-    .add_systems(Last, collect);
+    ));
+    more(&mut app);
+    app.insert_resource(TimeUpdateStrategy::ManualDuration(Duration::from_secs_f64(1.0 / fps)))
+        .init_resource::<Sent>()
+        .add_systems(Last, collect);
     // The first update starts the clock at zero.
     app.update();
     app
