@@ -50,8 +50,8 @@ fn setup(mut commands: Commands, assets: Res<AssetServer>, mut graphs: ResMut<As
         WorldAssetRoot(assets.load(GltfAssetLabel::Scene(0).from_asset(CHARACTER))),
         AutoCollider::new(8),
         ClothHierarchy::default()
-            .with("Cape", SceneCloth::default().with_params(fabric.clone()).anchored(sewn.clone(), "Chest"))
-            .with("Skirt", SceneCloth::default().with_params(fabric).anchored(sewn, "Hips")),
+            .with("Cape", SceneCloth::new(Cloth::mesh().with_params(fabric.clone())).anchored(sewn.clone(), "Chest"))
+            .with("Skirt", SceneCloth::new(Cloth::mesh().with_params(fabric)).anchored(sewn, "Hips")),
     ));
 }
 

@@ -22,8 +22,8 @@ fn dressed() -> ClothHierarchy {
     let sewn = ClothPins::Painted { channel: ColorChannel::Red, threshold: 0.5 };
     let cloth = ClothParams { damping: 1.0, ..default() };
     ClothHierarchy::default()
-        .with("Cape", SceneCloth::default().with_params(cloth.clone()).anchored(sewn.clone(), "Chest"))
-        .with("Skirt", SceneCloth::default().with_params(cloth).anchored(sewn, "Hips"))
+        .with("Cape", SceneCloth::new(Cloth::mesh().with_params(cloth.clone())).anchored(sewn.clone(), "Chest"))
+        .with("Skirt", SceneCloth::new(Cloth::mesh().with_params(cloth)).anchored(sewn, "Hips"))
 }
 
 /// The entity called `name`.

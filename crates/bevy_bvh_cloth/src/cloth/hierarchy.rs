@@ -8,7 +8,7 @@
 use bevy::mesh::skinning::SkinnedMesh;
 use bevy::platform::collections::{HashMap, HashSet};
 use bevy::prelude::*;
-use bvh_cloth_core::{ClothParams, ClothPins};
+use bvh_cloth_core::ClothPins;
 
 use crate::cloth::component::{Cloth, ClothAnchor, ClothShape};
 use crate::cloth::simulation::ClothSimulation;
@@ -54,32 +54,28 @@ impl ClothHierarchy {
     }
 }
 
-/// One mesh of a [`ClothHierarchy`]: a [`Cloth`] of the mesh's own shape, whose anchors name
-/// their joints.
-#[derive(Clone, Debug, Default, PartialEq, Reflect)]
+/// One mesh of a [`ClothHierarchy`]: the [`Cloth`] it becomes, built as any other (its shape
+/// is always the mesh's own), and the anchors that name the scene's joints carrying it.
+#[derive(Clone, Debug, PartialEq, Reflect)]
 #[reflect(Default, Debug, PartialEq)]
 pub struct SceneCloth {
-    /// The material and how it is stepped, as [`Cloth::params`].
-    pub params: ClothParams,
-    /// Which particles the mesh's own entity holds, as [`Cloth::pins`].
-    pub pins: ClothPins,
+    /// The cloth: its parameters, its pins, its anchors to entities outside the scene and
+    /// `start_at_once`. Its `shape` is replaced by [`ClothShape::Mesh`].
+    pub cloth: Cloth,
     /// Groups of particles carried by the scene's joints.
     pub anchors: Vec<JointAnchor>,
-    /// As [`Cloth::start_at_once`].
-    pub start_at_once: bool,
+}
+
+impl Default for SceneCloth {
+    fn default() -> Self {
+        Self::new(Cloth::mesh())
+    }
 }
 
 impl SceneCloth {
-    /// The same cloth with `params`.
-    pub fn with_params(mut self, params: ClothParams) -> Self {
-        self.params = params;
-        self
-    }
-
-    /// The same cloth with `pins` held by its own entity.
-    pub fn with_pins(mut self, pins: ClothPins) -> Self {
-        self.pins = pins;
-        self
+    /// The mesh as `cloth` (for example `Cloth::mesh().with_params(..)`).
+    pub fn new(cloth: Cloth) -> Self {
+        Self { cloth, anchors: Vec::new() }
     }
 
     /// The same cloth with `pins` carried by the joint called `joint`.
@@ -90,17 +86,15 @@ impl SceneCloth {
 
     /// The [`Cloth`] of this mesh with the joints resolved to `targets`, in anchor order.
     fn to_cloth(&self, targets: &[Entity]) -> Cloth {
+        let joints = self
+            .anchors
+            .iter()
+            .zip(targets)
+            .map(|(anchor, &target)| ClothAnchor::new(anchor.pins.clone(), target).with_offset(anchor.offset));
         Cloth {
             shape: ClothShape::Mesh,
-            params: self.params.clone(),
-            pins: self.pins.clone(),
-            anchors: self
-                .anchors
-                .iter()
-                .zip(targets)
-                .map(|(anchor, &target)| ClothAnchor::new(anchor.pins.clone(), target).with_offset(anchor.offset))
-                .collect(),
-            start_at_once: self.start_at_once,
+            anchors: self.cloth.anchors.iter().cloned().chain(joints).collect(),
+            ..self.cloth.clone()
         }
     }
 }
