@@ -164,7 +164,8 @@ pub(crate) fn spread_cloths(
             }
             let Ok((parent, _, _, _)) = meshes.get(entity) else { continue };
             any_mesh = true;
-            let parent_name = parent.and_then(|parent| names.get(parent.parent()).ok());
+            // Listed once under a name, also where the mesh and its node share it.
+            let parent_name = parent.and_then(|parent| names.get(parent.parent()).ok()).filter(|&p| Some(p) != own);
             for name in [own, parent_name].into_iter().flatten() {
                 by_name.entry(name.as_str()).or_default().push(entity);
             }
