@@ -20,12 +20,12 @@ impl ClothSim {
     /// goes non-finite: check the parameters against the tick with [`ClothParams::check_tick`]
     /// first (the plugin does).
     pub fn tick(&mut self, dt: f32, colliders: &[Collider]) -> Ticked {
+        self.quarantined = 0;
         if !(dt.is_finite() && dt > 0.0) {
-            return Ticked { substeps: 0, non_finite: self.non_finite_particles(), quarantined: 0 };
+            return self.ticked(0);
         }
         let substeps = self.substeps(dt);
         let h = dt / substeps as f32;
-        self.quarantined = 0;
         self.sample_air();
         if let Integrator::BlockDescent { iterations } = self.params.integrator {
             self.descend(h, substeps, iterations, colliders);
@@ -162,6 +162,9 @@ impl ClothSim {
         colliders: &[Collider],
         solver: &mut ContactSolver,
     ) -> (Vec<Ticked>, ContactStats) {
+        for sim in sims.iter_mut() {
+            sim.quarantined = 0;
+        }
         if !(dt.is_finite() && dt > 0.0) || sims.is_empty() {
             let ticked = sims.iter().map(|sim| sim.ticked(0)).collect();
             return (ticked, ContactStats::default());
@@ -173,7 +176,6 @@ impl ClothSim {
         let mut states: Vec<(Vec<Vec3>, Vec<Vec3>, Vec<Vec3>)> =
             sims.iter().map(|_| (Vec::new(), Vec::new(), Vec::new())).collect();
         for sim in sims.iter_mut() {
-            sim.quarantined = 0;
             sim.sample_air();
         }
         for _ in 0..substeps {
