@@ -3,8 +3,8 @@
 //! a cape and a skirt as separate meshes whose sewn edges are painted red, named joints, and a
 //! walk animation. The whole cloth set-up is the three components on the scene's root:
 //! `AutoCollider` makes the body (skinned, so its spheres follow the joints) a collider and
-//! leaves the cloth out; `ClothHierarchy` makes the two garments cloth by name and sews each
-//! painted edge onto a joint.
+//! leaves the cloth out; `ClothHierarchy` makes the two garments cloth by name, and each painted
+//! edge stays where the garment's skin draws it (the cape's over the shoulders follows the arms).
 //!
 //! `cargo run --release -p bevy_bvh_cloth --features egui --example gltf_character`
 //!
@@ -50,8 +50,8 @@ fn setup(mut commands: Commands, assets: Res<AssetServer>, mut graphs: ResMut<As
         WorldAssetRoot(assets.load(GltfAssetLabel::Scene(0).from_asset(CHARACTER))),
         AutoCollider::new(8),
         ClothHierarchy::default()
-            .with("Cape", SceneCloth::new(Cloth::mesh().with_params(fabric.clone())).anchored(sewn.clone(), "Chest"))
-            .with("Skirt", SceneCloth::new(Cloth::mesh().with_params(fabric)).anchored(sewn, "Hips")),
+            .with("Cape", SceneCloth::new(Cloth::mesh().with_params(fabric.clone())).pinned(sewn.clone()))
+            .with("Skirt", SceneCloth::new(Cloth::mesh().with_params(fabric)).pinned(sewn)),
     ));
 }
 

@@ -10,8 +10,11 @@ the same bytes on any machine. What it holds:
 - a skeleton of named joints: Hips (the root), Spine, Chest, Neck, Head, UpperArm.L/R,
   LowerArm.L/R, UpperLeg.L/R, LowerLeg.L/R;
 - "Body": one skinned mesh of boxes, each box bound to one joint with weight 1;
-- "Cape": a 12 x 16 sheet behind the back, 0.5 m wide and 0.6 m long, skinned to Chest; its top
-  row is painted 1 in the red channel of COLOR_0 (the pin weight), the rest 0;
+- "Cape": a 12 x 16 sheet behind the back, 0.5 m wide and 0.6 m long, sloping 0.13 m back from
+  top to bottom so that it starts clear of the skirt, skinned to Chest, its top
+  row's outer vertices blended with the upper arm on their side (up to half, at the corners) as
+  a cape sewn over the shoulders is; its top row is painted 1 in the red channel of COLOR_0 (the
+  pin weight), the rest 0;
 - "Skirt": an open cone around the hips, 24 around by 8 down, skinned to Hips, its top ring
   painted 1 in red;
 - "Walk": a 1 s loop of the hips' bob and the legs' and arms' swing.
@@ -89,25 +92,39 @@ def body():
         positions += p
         normals += n
         indices += [base + k for k in i]
-        joints += [JOINT[joint]] * len(p)
+        joints += [one(joint)] * len(p)
     return positions, normals, indices, joints, None
 
 
+def one(joint):
+    """A vertex bound to one joint with weight 1: (joints, weights)."""
+    return (JOINT[joint], 0, 0, 0), (1.0, 0.0, 0.0, 0.0)
+
+
 def cape(cols=12, rows=16, width=0.5, length=0.6):
-    """A sheet hanging behind the back from the shoulders, facing -Z."""
-    positions, normals, colours, indices = [], [], [], []
+    """A sheet behind the back from the shoulders, facing -Z, sloping back as it goes down so
+    that it starts clear of the skirt (it swings down onto it once simulated)."""
+    positions, normals, colours, indices, skin = [], [], [], [], []
     for r in range(rows):
         for c in range(cols):
             x = width * (c / (cols - 1) - 0.5)
             y = 1.48 - length * r / (rows - 1)
-            positions.append((x, y, -0.13))
-            normals.append((0.0, 0.0, -1.0))
+            positions.append((x, y, -0.13 - 0.13 * r / (rows - 1)))
+            normals.append((0.0, 0.2121, -0.9772))
             colours.append((1.0 if r == 0 else 0.0, 0.0, 0.0, 1.0))
+            # Over the shoulders the seam follows the arm: from none at 0.1 m out to half at
+            # the corner (weights rounded to 1/8, exact in binary).
+            arm = round(8 * min(0.5, max(0.0, (abs(x) - 0.1) / 0.3))) / 8 if r == 0 else 0.0
+            side = "UpperArm.L" if x > 0 else "UpperArm.R"
+            if arm > 0:
+                skin.append(((JOINT["Chest"], JOINT[side], 0, 0), (1.0 - arm, arm, 0.0, 0.0)))
+            else:
+                skin.append(one("Chest"))
     for r in range(rows - 1):
         for c in range(cols - 1):
             i = r * cols + c
             indices += [i, i + 1, i + cols, i + 1, i + cols + 1, i + cols]
-    return positions, normals, indices, [JOINT["Chest"]] * len(positions), colours
+    return positions, normals, indices, skin, colours
 
 
 def skirt(around=24, down=8, top=0.19, bottom=0.30, length=0.40):
@@ -129,7 +146,7 @@ def skirt(around=24, down=8, top=0.19, bottom=0.30, length=0.40):
         for a in range(around):
             i, j = r * around + a, r * around + (a + 1) % around
             indices += [i, i + around, j, j, i + around, j + around]
-    return positions, normals, indices, [JOINT["Hips"]] * len(positions), colours
+    return positions, normals, indices, [one("Hips")] * len(positions), colours
 
 
 def quat_x(angle):
@@ -209,9 +226,9 @@ class Writer:
 
 def build():
     w = Writer()
-    # Skinned meshes: each vertex bound to one joint with weight 1.
+    # Skinned meshes: each vertex with its joints and weights.
     meshes = []
-    for name, (positions, normals, indices, joints, colours) in (
+    for name, (positions, normals, indices, skin, colours) in (
         ("Body", body()),
         ("Cape", cape()),
         ("Skirt", skirt()),
@@ -219,8 +236,8 @@ def build():
         attributes = {
             "POSITION": w.floats(positions, "VEC3", bounds=True),
             "NORMAL": w.floats(normals, "VEC3"),
-            "JOINTS_0": w.joints([(j, 0, 0, 0) for j in joints]),
-            "WEIGHTS_0": w.floats([(1.0, 0.0, 0.0, 0.0)] * len(joints), "VEC4"),
+            "JOINTS_0": w.joints([joints for joints, _ in skin]),
+            "WEIGHTS_0": w.floats([weights for _, weights in skin], "VEC4"),
         }
         if colours:
             attributes["COLOR_0"] = w.floats(colours, "VEC4")

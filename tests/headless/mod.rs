@@ -16,4 +16,5 @@ mod primitives;
 mod schedule;
 mod self_contact;
 mod skinned;
+mod skinned_cloth;
 mod wind;

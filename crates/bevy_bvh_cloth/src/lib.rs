@@ -117,6 +117,7 @@ pub use cloth::ClothPlugin;
 pub use cloth::component::{Cloth, ClothAnchor, ClothShape};
 pub use cloth::hierarchy::{ClothHierarchy, ClothPart, JointAnchor, SceneCloth};
 pub use cloth::simulation::ClothSimulation;
+pub use cloth::skin::ClothSkin;
 pub use cloth::stats::ClothStats;
 pub use colliders::ColliderPlugin;
 pub use colliders::auto::{ASYNC_BUILD_MIN_VERTICES, AutoCollider, ClothCollider, ColliderContact, ColliderStatus};

@@ -34,13 +34,14 @@ pub enum ClothMessage {
         /// non-finite left so.
         particles: u32,
     },
-    /// A [`ClothAnchor`](crate::ClothAnchor)'s target was despawned (or lost its
+    /// A [`ClothAnchor`](crate::ClothAnchor)'s target, or a joint of the skin that carries a
+    /// skinned cloth's pins ([`ClothSkin`](crate::ClothSkin)), was despawned (or lost its
     /// [`GlobalTransform`]). The particles it held stay where they were last held, and the
     /// cloth keeps running; give the cloth a new anchor to carry them again.
     AnchorLost {
         /// The cloth entity.
         entity: Entity,
-        /// The anchor's target.
+        /// The anchor's target, or the skin's joint.
         target: Entity,
     },
     /// A [`WindFan`](crate::WindFan)'s or [`WindBlast`](crate::WindBlast)'s values were

@@ -11,7 +11,8 @@ use crate::colliders::hierarchy::ExcludeFromColliders;
 ///
 /// The cloth starts in its rest shape under the entity's transform, at the moment it is spawned
 /// (or rebuilt). Particles chosen by `pins` stay at their rest position under the entity's
-/// transform, so moving the entity drags them; particles chosen by an [`anchor`](ClothAnchor)
+/// transform, so moving the entity drags them (on a skinned mesh, they go where its skin draws
+/// them: see [`ClothSkin`](crate::ClothSkin)); particles chosen by an [`anchor`](ClothAnchor)
 /// are carried by another entity (a pole, a character's joint). Both move every tick, their
 /// holder's motion over the frame spread evenly over the frame's ticks. The free particles are
 /// simulated in world space.

@@ -5,7 +5,6 @@
 //! soon as the scene has spawned it, on every instance of the scene; the root hears
 //! [`ClothHierarchyReady`] once every named cloth is built.
 
-use bevy::mesh::skinning::SkinnedMesh;
 use bevy::platform::collections::{HashMap, HashSet};
 use bevy::prelude::*;
 use bvh_cloth_core::ClothPins;
@@ -20,9 +19,10 @@ use crate::messages::ClothMessage;
 ///
 /// Put it on the scene's root with the [`AutoCollider`](crate::AutoCollider) that makes the
 /// body collide: the meshes named here are left out of the body's collider (every cloth is),
-/// become cloth as the scene spawns them, and drop their [`SkinnedMesh`] (the cloth simulates
-/// the vertices in the world; the skin would move them a second time). A joint named in an
-/// anchor is looked up among the root's descendants by its `Name`. A name that the spawned
+/// and become cloth as the scene spawns them. A skinned mesh (a garment bound to the body's
+/// joints, as Blender and Mixamo export them) keeps its skin for its pins: they go where the
+/// skin draws them, and the rest is simulated ([`ClothSkin`](crate::ClothSkin)). A joint named
+/// in an anchor is looked up among the root's descendants by its `Name`. A name that the spawned
 /// scene does not have is reported once as [`ClothMessage::NameNotFound`] on the root, and the
 /// cloth that needs it is not made; the rest of the scene runs.
 ///
@@ -30,12 +30,15 @@ use crate::messages::ClothMessage;
 /// # use bevy::prelude::*;
 /// # use bevy_bvh_cloth::prelude::*;
 /// # fn setup(mut commands: Commands) {
-/// let held = ClothPins::Painted { channel: ColorChannel::Red, threshold: 0.5 };
+/// let sewn = ClothPins::Painted { channel: ColorChannel::Red, threshold: 0.5 };
 /// commands.spawn((
 ///     Transform::default(),
 ///     AutoCollider::new(8),
-///     // The cape, painted red where it is sewn on, rides on the spine joint.
-///     ClothHierarchy::default().with("Cape", SceneCloth::default().anchored(held, "Spine")),
+///     ClothHierarchy::default()
+///         // The skinned cape, painted red where it is sewn on, follows its skin there.
+///         .with("Cape", SceneCloth::default().pinned(sewn.clone()))
+///         // A banner that has no skin rides on the spine joint where it is painted.
+///         .with("Banner", SceneCloth::default().anchored(sewn, "Spine")),
 /// ));
 /// # }
 /// ```
@@ -76,6 +79,13 @@ impl SceneCloth {
     /// The mesh as `cloth` (for example `Cloth::mesh().with_params(..)`).
     pub fn new(cloth: Cloth) -> Self {
         Self { cloth, anchors: Vec::new() }
+    }
+
+    /// The same cloth with `pins` held: by the skin where the mesh is skinned, otherwise by the
+    /// mesh's entity (see [`Cloth::pins`]).
+    pub fn pinned(mut self, pins: ClothPins) -> Self {
+        self.cloth.pins = pins;
+        self
     }
 
     /// The same cloth with `pins` carried by the joint called `joint`.
@@ -216,10 +226,7 @@ fn spread(
             wanted += 1;
             built += usize::from(is_built);
             if !is_cloth {
-                commands
-                    .entity(entity)
-                    .try_insert((scene_cloth.to_cloth(&targets), ClothPart { root }))
-                    .try_remove::<SkinnedMesh>();
+                commands.entity(entity).try_insert((scene_cloth.to_cloth(&targets), ClothPart { root }));
             }
         }
     }

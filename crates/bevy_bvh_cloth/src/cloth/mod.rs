@@ -1,6 +1,7 @@
 //! The cloths: the [`Cloth`](crate::Cloth) component and its mesh, the meshes a scene's
 //! [`ClothHierarchy`](crate::ClothHierarchy) makes cloth, each cloth's simulation kept in step
-//! with it ([`ClothSimulation`](crate::ClothSimulation)), its pins planned tick by tick, and
+//! with it ([`ClothSimulation`](crate::ClothSimulation)), a skinned mesh's pins on its skin
+//! ([`ClothSkin`](crate::ClothSkin)), its pins planned tick by tick, and
 //! the plugin's statistics ([`ClothPlugin`]).
 //!
 //! Stands on the colliders, the clock, the settings and the messages; the wind and the two
@@ -10,6 +11,7 @@ pub(crate) mod component;
 pub(crate) mod hierarchy;
 pub(crate) mod mesh;
 pub(crate) mod simulation;
+pub(crate) mod skin;
 pub(crate) mod stats;
 
 use bevy::ecs::schedule::{InternedScheduleLabel, ScheduleLabel};
@@ -49,7 +51,11 @@ impl Plugin for ClothPlugin {
                     // Before the colliders, so that a hierarchy's collider never takes a mesh
                     // that is about to be cloth.
                     hierarchy::spread_cloths.before(ClothSystems::BuildColliders),
-                    (simulation::sync_cloths.after(advance_clock), simulation::warn_stiff_cloths)
+                    (
+                        simulation::drop_removed_cloths,
+                        simulation::sync_cloths.after(advance_clock),
+                        simulation::warn_stiff_cloths,
+                    )
                         .chain()
                         .in_set(ClothSystems::Prepare),
                     (simulation::plan_anchors, stats::update_stats).chain().in_set(ClothSystems::Step),

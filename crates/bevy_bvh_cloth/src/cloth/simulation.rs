@@ -7,12 +7,14 @@ use std::sync::Arc;
 use bevy::camera::visibility::NoAutoAabb;
 use bevy::ecs::entity::{EntityHashMap, EntityHashSet};
 use bevy::ecs::system::SystemParam;
+use bevy::mesh::skinning::{SkinnedMesh, SkinnedMeshInverseBindposes};
 use bevy::prelude::*;
 use bvh_cloth_core::{Affine3A, ClothError, ClothGrid, ClothSim, ClothTopology, MeshVertices, Vec3};
 
 use crate::clock::ClothClock;
 use crate::cloth::component::{Cloth, ClothShape};
 use crate::cloth::mesh::{authored_topology, authored_vertices, new_authored_mesh, new_grid_mesh};
+use crate::cloth::skin::{ClothSkin, SkinBinding};
 use crate::colliders::auto::{AutoCollider, ColliderStatus};
 use crate::messages::{ClothMessage, ResetCloth};
 use crate::settings::ClothSettings;
@@ -41,6 +43,8 @@ pub struct ClothSimulation {
     own_pins: Vec<u32>,
     /// The groups other entities hold, one per [`Cloth::anchors`] entry.
     anchors: Vec<AnchorBinding>,
+    /// The skin that holds the pins of a skinned mesh (instead of the entity).
+    skin: Option<SkinBinding>,
     /// Where the pins go in each tick of this frame (`(particle, world position)` per pin), from
     /// their holders' poses at the end of last frame to this frame's: see [`plan_anchors`].
     pub(crate) anchor_targets: Vec<Vec<(u32, Vec3)>>,
@@ -109,9 +113,12 @@ impl ClothSimulation {
         messages.write(ClothMessage::Diverged { entity, particles });
     }
 
-    /// Back to the rest pose under `pose`.
+    /// Back to the rest pose under `pose`, or for a skinned cloth where its skin was last drawn.
     pub(crate) fn reset(&mut self, pose: Affine3A) {
         self.sim.reset(pose);
+        if let Some(skin) = &self.skin {
+            place_on_skin(&mut self.sim, skin);
+        }
         self.pose = pose;
         self.dirty = true;
         self.generation = next_generation();
@@ -133,15 +140,32 @@ struct Built {
     source: Option<Handle<Mesh>>,
     own_pins: Vec<u32>,
     anchors: Vec<AnchorBinding>,
+    skin: Option<SkinBinding>,
+    /// Why the mesh's skin could not hold the pins (they are held by the entity instead).
+    skin_refused: Option<String>,
+}
+
+/// A skinned mesh's skin as [`build`] takes it: the `SkinnedMesh`, its inverse bind poses, and
+/// where its joints are (their whole world transform).
+type Skin<'a> = (&'a SkinnedMesh, &'a SkinnedMeshInverseBindposes, &'a dyn Fn(Entity) -> Option<Affine3A>);
+
+/// Puts every particle of `sim` where `skin` was last drawn, at rest.
+fn place_on_skin(sim: &mut ClothSim, skin: &SkinBinding) {
+    for (i, p) in skin.placed().enumerate() {
+        sim.set_position(i, p);
+        sim.set_velocity(i, Vec3::ZERO);
+    }
 }
 
 /// Builds the simulation of `cloth` at `transform`, its anchors bound to where `target_pose`
-/// puts their targets now. `Ok(None)` while its authored mesh is still loading.
+/// puts their targets now; an authored mesh with a `skin` starts where the skin draws it, and
+/// the skin holds its own pins. `Ok(None)` while its authored mesh is still loading.
 fn build(
     cloth: &Cloth,
     transform: &GlobalTransform,
     source: Option<Handle<Mesh>>,
     meshes: &Assets<Mesh>,
+    skin: Option<Skin<'_>>,
     target_pose: impl Fn(Entity) -> Option<Affine3A>,
     tick_seconds: Option<f32>,
 ) -> Result<Option<Built>, ClothError> {
@@ -181,7 +205,7 @@ fn build(
             holder[i as usize] = Some(a);
         }
     }
-    let own_pins: Vec<u32> =
+    let mut own_pins: Vec<u32> =
         (0..topology.len() as u32).filter(|&i| held[i as usize] && holder[i as usize].is_none()).collect();
     let anchors = cloth
         .anchors
@@ -204,12 +228,28 @@ fn build(
     if let Some(dt) = tick_seconds {
         params.check_tick(dt, &topology)?;
     }
-    let sim = ClothSim::new(params, Arc::new(topology), pose, &pins)?;
+    // A skinned mesh's own pins ride on its skin.
+    let (skin, skin_refused) = match (skin, &from) {
+        (Some((skinned, inverse, joint_pose)), Made::Authored(mesh, _)) => {
+            match SkinBinding::new(skinned, inverse, mesh, &topology, own_pins.clone(), joint_pose) {
+                Ok(binding) => (Some(binding), None),
+                Err(reason) => (None, Some(reason)),
+            }
+        }
+        _ => (None, None),
+    };
+    if skin.is_some() {
+        own_pins.clear();
+    }
+    let mut sim = ClothSim::new(params, Arc::new(topology), pose, &pins)?;
+    if let Some(skin) = &skin {
+        place_on_skin(&mut sim, skin);
+    }
     let (mesh, source) = match from {
         Made::Grid(grid, _) => (new_grid_mesh(&grid, &sim, transform), None),
         Made::Authored(authored, source) => (new_authored_mesh(authored, &sim, transform), Some(source)),
     };
-    Ok(Some(Built { sim, mesh, source, own_pins, anchors }))
+    Ok(Some(Built { sim, mesh, source, own_pins, anchors, skin, skin_refused }))
 }
 
 /// Creates, updates, rebuilds and resets the simulation of every [`Cloth`].
@@ -217,8 +257,16 @@ fn build(
 pub(crate) fn sync_cloths(
     mut commands: Commands,
     mut meshes: ResMut<Assets<Mesh>>,
-    mut cloths: Query<(Entity, Ref<Cloth>, &GlobalTransform, Option<&mut ClothSimulation>, Option<&Mesh3d>)>,
+    mut cloths: Query<(
+        Entity,
+        Ref<Cloth>,
+        &GlobalTransform,
+        Option<&mut ClothSimulation>,
+        Option<&Mesh3d>,
+        (Option<&SkinnedMesh>, Option<&ClothSkin>),
+    )>,
     targets: Query<&GlobalTransform>,
+    bindposes: Res<Assets<SkinnedMeshInverseBindposes>>,
     mut resets: MessageReader<ResetCloth>,
     mut messages: MessageWriter<ClothMessage>,
     mut loading: Local<EntityHashSet>,
@@ -231,7 +279,7 @@ pub(crate) fn sync_cloths(
     let resets: Vec<ResetCloth> = resets.read().copied().collect();
     // The colliders still being built, found when a new cloth first asks.
     let mut pending: Option<Vec<Entity>> = None;
-    for (entity, cloth, transform, state, mesh3d) in &mut cloths {
+    for (entity, cloth, transform, state, mesh3d, (skinned, kept_skin)) in &mut cloths {
         let pose = rigid_pose(transform);
         let reset = resets.iter().any(|r| *r == ResetCloth::All || *r == ResetCloth::One(entity));
         let mut reject = |error| {
@@ -275,8 +323,20 @@ pub(crate) fn sync_cloths(
                     Some(state) => state.source.clone(),
                     None => mesh3d.map(|m| m.0.clone()),
                 };
+                // A skinned mesh waits for its inverse bind poses as for its mesh. (Joints are
+                // placed by their whole transform, anchors by its rigid part.)
+                let skinned = skinned.or(kept_skin.map(|kept| &kept.0));
+                let joint_pose = |joint| targets.get(joint).ok().map(GlobalTransform::affine);
+                let skin = match skinned.map(|s| (s, bindposes.get(&s.inverse_bindposes))) {
+                    Some((_, None)) if cloth.shape == ClothShape::Mesh => {
+                        loading.insert(entity);
+                        continue;
+                    }
+                    Some((s, Some(inverse))) => Some((s, inverse, &joint_pose as &dyn Fn(Entity) -> Option<Affine3A>)),
+                    _ => None,
+                };
                 let target_pose = |target| targets.get(target).ok().map(rigid_pose);
-                let built = match build(&cloth, transform, source, &meshes, target_pose, tick_seconds) {
+                let built = match build(&cloth, transform, source, &meshes, skin, target_pose, tick_seconds) {
                     Ok(Some(built)) => built,
                     Ok(None) => {
                         loading.insert(entity);
@@ -289,6 +349,14 @@ pub(crate) fn sync_cloths(
                     }
                 };
                 loading.remove(&entity);
+                if let Some(reason) = &built.skin_refused {
+                    warn!("Cloth on {entity}: its skin cannot carry its pins ({reason}); the entity holds them");
+                }
+                // The renderer must not skin the simulated vertices again: the skin is kept
+                // for the pins, off the renderer's sight.
+                if let (Some(skinned), Some(_)) = (skinned, &built.source) {
+                    commands.entity(entity).try_remove::<SkinnedMesh>().try_insert(ClothSkin(skinned.clone()));
+                }
                 // A rebuilt cloth keeps its mesh handle, so materials and user references stay.
                 let mesh = match state.map(|s| s.mesh.clone()) {
                     Some(handle) if meshes.contains(&handle) => {
@@ -308,6 +376,7 @@ pub(crate) fn sync_cloths(
                         source: built.source,
                         own_pins: built.own_pins,
                         anchors: built.anchors,
+                        skin: built.skin,
                         anchor_targets: Vec::new(),
                         dirty: true,
                         guard_warned: None,
@@ -323,6 +392,27 @@ pub(crate) fn sync_cloths(
     }
     loading.retain(|&entity| cloths.contains(entity));
     start.since.retain(|&entity, _| loading.contains(&entity));
+}
+
+/// Stops the simulation of an entity whose [`Cloth`] was removed: an authored mesh shows its
+/// own mesh again, and a skinned one gets its [`SkinnedMesh`] back, so that it moves with the
+/// body as it did before it was cloth. A grid keeps the mesh it last drew.
+pub(crate) fn drop_removed_cloths(
+    mut commands: Commands,
+    mut removed: RemovedComponents<Cloth>,
+    stopped: Query<(Option<&ClothSimulation>, Option<&ClothSkin>), Without<Cloth>>,
+) {
+    for entity in removed.read() {
+        let Ok((state, skin)) = stopped.get(entity) else { continue };
+        let mut entity = commands.entity(entity);
+        entity.try_remove::<(ClothSimulation, NoAutoAabb)>();
+        if let Some(source) = state.and_then(|state| state.source.clone()) {
+            entity.try_insert(Mesh3d(source));
+        }
+        if let Some(ClothSkin(skinned)) = skin {
+            entity.try_remove::<ClothSkin>().try_insert(skinned.clone());
+        }
+    }
 }
 
 /// What decides whether a new cloth waits for colliders still being built, and since when each
@@ -409,6 +499,17 @@ pub(crate) fn plan_anchors(
             target_poses.push((binding.pose, now));
             binding.pose = now;
         }
+        let skin_moves = match &mut state.skin {
+            Some(skin) => {
+                let (moves, gone) = skin.advance(|joint| targets.get(joint).ok().map(GlobalTransform::affine));
+                if let Some(joint) = gone {
+                    warn!("Cloth on {entity}: joint {joint} of its skin is gone; its pins stay where they are");
+                    messages.write(ClothMessage::AnchorLost { entity, target: joint });
+                }
+                moves
+            }
+            None => Vec::new(),
+        };
         if !state.sim.pins().is_empty() {
             let rest = state.sim.topology().rest_positions();
             for k in 1..=clock.ticks {
@@ -422,6 +523,7 @@ pub(crate) fn plan_anchors(
                         binding.particles.iter().map(|&(i, local)| (i, pose.transform_point3(local + binding.offset))),
                     );
                 }
+                tick.extend(skin_moves.iter().map(|&(i, was, now)| (i, was.lerp(now, t))));
                 state.anchor_targets.push(tick);
             }
         }
