@@ -55,7 +55,8 @@ fn count(
             }
             ClothMessage::Rejected { .. }
             | ClothMessage::WindSourceRejected { .. }
-            | ClothMessage::NameNotFound { .. } => tally.rejected += 1,
+            | ClothMessage::NameNotFound { .. }
+            | ClothMessage::SceneNotSpawned { .. } => tally.rejected += 1,
             ClothMessage::ColliderFailed { .. } => tally.collider_failed += 1,
             ClothMessage::AnchorLost { .. } => tally.anchors_lost += 1,
         }

@@ -214,3 +214,27 @@ fn a_gltf_character_wears_its_cape_and_skirt_while_it_walks() {
     assert!(failures.is_empty(), "{failures:?}");
     assert!(app.world().get::<ColliderStatus>(root).is_some_and(|s| matches!(s, ColliderStatus::Ready { .. })));
 }
+
+/// A root whose scene file does not exist says so once, naming the root, after
+/// `ClothSettings::scene_wait`; nothing panics and a cloth beside it keeps falling.
+#[test]
+fn a_scene_that_never_spawns_is_reported_on_its_root() {
+    let mut app = gltf_app();
+    app.world_mut().resource_mut::<ClothSettings>().scene_wait = 2.0;
+    let scene = app.world().resource::<AssetServer>().load(GltfAssetLabel::Scene(0).from_asset("models/missing.glb"));
+    let root = app.world_mut().spawn((WorldAssetRoot(scene), AutoCollider::new(8), dressed())).id();
+    let beside = app.world_mut().spawn(Cloth::grid(Vec2::ONE, UVec2::splat(8)).starting_at_once()).id();
+    run(&mut app, 1.5);
+    let not_spawned = |app: &App| {
+        sent(app)
+            .iter()
+            .filter(|m| matches!(m, ClothMessage::SceneNotSpawned { entity, .. } if *entity == root))
+            .count()
+    };
+    assert_eq!(not_spawned(&app), 0, "not before the wait");
+    let height = positions(&app, beside)[0].y;
+    run(&mut app, 3.0);
+    assert_eq!(not_spawned(&app), 1, "said once, naming the root");
+    let now = positions(&app, beside);
+    assert!(now.iter().all(|p| p.is_finite()) && now[0].y < height - 1.0, "the cloth beside it kept falling");
+}

@@ -62,6 +62,16 @@ pub struct NameNotFound {
     pub name: String,
 }
 
+/// A [`ClothHierarchy`](crate::ClothHierarchy)'s scene has not spawned in time:
+/// [`ClothMessage::SceneNotSpawned`] on the root.
+#[derive(EntityEvent, Clone, Debug, PartialEq)]
+pub struct SceneNotSpawned {
+    /// The root entity.
+    pub entity: Entity,
+    /// How long it had waited, in seconds.
+    pub waited: f32,
+}
+
 /// A collider could not be built: [`ClothMessage::ColliderFailed`] on its entity.
 #[derive(EntityEvent, Clone, Debug, PartialEq)]
 pub struct ColliderFailed {
@@ -116,6 +126,7 @@ pub(crate) fn trigger_message_events(mut commands: Commands, mut messages: Messa
             ClothMessage::AnchorLost { entity, target } => commands.trigger(AnchorLost { entity, target }),
             ClothMessage::ColliderFailed { entity, failure } => commands.trigger(ColliderFailed { entity, failure }),
             ClothMessage::NameNotFound { entity, name } => commands.trigger(NameNotFound { entity, name }),
+            ClothMessage::SceneNotSpawned { entity, waited } => commands.trigger(SceneNotSpawned { entity, waited }),
             ClothMessage::WindSourceRejected { entity, error } => {
                 commands.trigger(WindSourceRejected { entity, error });
             }

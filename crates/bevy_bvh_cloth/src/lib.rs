@@ -127,7 +127,7 @@ pub use colliders::primitive::{PrimitiveCollider, PrimitiveShape};
 pub use cpu_backend::CpuBackendPlugin;
 pub use events::{
     AnchorLost, ClothDiverged, ClothHierarchyReady, ClothRejected, ColliderFailed, ColliderHierarchyReady,
-    ColliderReady, NameNotFound, WindSourceRejected,
+    ColliderReady, NameNotFound, SceneNotSpawned, WindSourceRejected,
 };
 pub use messages::{ClothMessage, ColliderFailure, ResetCloth};
 pub use render::GpuBackendPlugin;
@@ -144,11 +144,11 @@ pub mod prelude {
         ActiveClothBackend, Aerodynamics, AmbientWind, AnchorLost, AutoCollider, BvhClothPlugin, BvhClothPlugins,
         Cloth, ClothAnchor, ClothBackend, ClothClock, ClothCollider, ClothDebugViewPlugin, ClothDiverged, ClothError,
         ClothHierarchy, ClothHierarchyReady, ClothMessage, ClothParams, ClothPart, ClothPins, ClothReadback,
-        ClothRejected, ClothSettings, ClothShape, ClothSimulation, ClothStats, ClothSystems, ColliderContact,
-        ColliderError, ColliderFailed, ColliderHierarchy, ColliderHierarchyReady, ColliderPart, ColliderReady,
-        ColliderStatus, ColorChannel, ExcludeFromColliders, Integrator, JointAnchor, LocalWind, NameNotFound,
-        PrimitiveCollider, PrimitiveShape, ResetCloth, SceneCloth, SelfContact, SpringStiffness, Tethers, Wind,
-        WindBlast, WindFan, WindSourceRejected,
+        ClothRejected, ClothSettings, ClothShape, ClothSimulation, ClothSkin, ClothStats, ClothSystems,
+        ColliderContact, ColliderError, ColliderFailed, ColliderHierarchy, ColliderHierarchyReady, ColliderPart,
+        ColliderReady, ColliderStatus, ColorChannel, ExcludeFromColliders, Integrator, JointAnchor, LocalWind,
+        NameNotFound, PrimitiveCollider, PrimitiveShape, ResetCloth, SceneCloth, SceneNotSpawned, SelfContact,
+        SpringStiffness, Tethers, Wind, WindBlast, WindFan, WindSourceRejected,
     };
 }
 

@@ -62,6 +62,16 @@ pub enum ClothMessage {
         /// The name that matched nothing.
         name: String,
     },
+    /// A [`ClothHierarchy`](crate::ClothHierarchy)'s root has no mesh under it after
+    /// [`ClothSettings::scene_wait`](crate::ClothSettings) seconds: its scene failed to load
+    /// (the asset server logs why, with the path), is still loading, or was never given. Sent
+    /// once per root; a scene that spawns later is still dressed.
+    SceneNotSpawned {
+        /// The root entity.
+        entity: Entity,
+        /// How long it had waited, in seconds.
+        waited: f32,
+    },
     /// An [`AutoCollider`](crate::AutoCollider) could not be built; that entity does not collide.
     ColliderFailed {
         /// The collider entity.

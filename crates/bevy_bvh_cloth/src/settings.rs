@@ -20,10 +20,22 @@ pub struct ClothSettings {
     /// being built before it starts without them (a warning names them). Such a collider may
     /// never finish: a mesh-less root whose scene never spawns waits forever.
     pub collider_wait: f32,
+    /// How long, in seconds, a [`ClothHierarchy`](crate::ClothHierarchy) root waits for its
+    /// scene to spawn a mesh before it says so once
+    /// ([`ClothMessage::SceneNotSpawned`](crate::ClothMessage::SceneNotSpawned)); it keeps
+    /// waiting, and a scene that arrives later is dressed as any other.
+    pub scene_wait: f32,
 }
 
 impl Default for ClothSettings {
     fn default() -> Self {
-        Self { tick_rate: 60.0, max_ticks_per_frame: 4, paused: false, debug_view: false, collider_wait: 10.0 }
+        Self {
+            tick_rate: 60.0,
+            max_ticks_per_frame: 4,
+            paused: false,
+            debug_view: false,
+            collider_wait: 10.0,
+            scene_wait: 10.0,
+        }
     }
 }

@@ -13,6 +13,7 @@ use crate::cloth::component::{Cloth, ClothAnchor, ClothShape};
 use crate::cloth::simulation::ClothSimulation;
 use crate::events::ClothHierarchyReady;
 use crate::messages::ClothMessage;
+use crate::settings::ClothSettings;
 
 /// Which meshes under this entity become cloth, by the [`Name`] of the mesh entity or, failing
 /// that, of its parent (glTF names the node, and its primitives are children of it).
@@ -129,12 +130,15 @@ pub struct ClothPart {
     pub root: Entity,
 }
 
-/// What a root has been told: the names reported missing, and whether it heard that its cloths
-/// are built.
+/// What a root has been told: the names reported missing, whether it heard that its cloths
+/// are built, and since when it has waited for its scene (and whether it was told it waited
+/// too long).
 #[derive(Component, Clone, Debug, Default)]
 pub(crate) struct HierarchyReports {
     missing: HashSet<String>,
     ready: bool,
+    waiting_since: Option<f64>,
+    told_waiting: bool,
 }
 
 /// A scene's mesh entities: their parent, whether a hierarchy made them cloth, whether they are
@@ -155,7 +159,10 @@ pub(crate) fn spread_cloths(
     names: Query<&Name>,
     meshes: SceneMeshes,
     mut messages: MessageWriter<ClothMessage>,
+    time: Res<Time>,
+    settings: Res<ClothSettings>,
 ) {
+    let now = time.elapsed_secs_f64();
     for (root, hierarchy, kept) in &mut roots {
         // A new root's reports are kept from its first frame on.
         let mut created = None;
@@ -180,9 +187,19 @@ pub(crate) fn spread_cloths(
                 by_name.entry(name.as_str()).or_default().push(entity);
             }
         }
-        // Nothing spawned yet: a scene still loading.
+        // Nothing spawned yet: a scene still loading, or one that never will.
         if any_mesh {
             spread(&mut commands, &mut messages, root, hierarchy, reports, &named, &by_name, &meshes);
+        } else {
+            let waited = (now - *reports.waiting_since.get_or_insert(now)) as f32;
+            if waited >= settings.scene_wait && !reports.told_waiting {
+                reports.told_waiting = true;
+                warn!(
+                    "ClothHierarchy on {root}: no mesh under it after {waited:.1} s; its scene failed to load (the \
+                     asset server logs why, with the path), is still loading, or was never given. It keeps waiting"
+                );
+                messages.write(ClothMessage::SceneNotSpawned { entity: root, waited });
+            }
         }
         if let Some(created) = created {
             commands.entity(root).try_insert(created);

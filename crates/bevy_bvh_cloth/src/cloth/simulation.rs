@@ -145,9 +145,9 @@ struct Built {
     skin_refused: Option<String>,
 }
 
-/// A skinned mesh's skin as [`build`] takes it: the `SkinnedMesh`, its inverse bind poses, and
-/// where its joints are (their whole world transform).
-type Skin<'a> = (&'a SkinnedMesh, &'a SkinnedMeshInverseBindposes, &'a dyn Fn(Entity) -> Option<Affine3A>);
+/// A skinned mesh's skin as [`build`] takes it: the `SkinnedMesh`, its inverse bind poses
+/// (`None` when they are not loaded), and where its joints are (their whole world transform).
+type Skin<'a> = (&'a SkinnedMesh, Option<&'a SkinnedMeshInverseBindposes>, &'a dyn Fn(Entity) -> Option<Affine3A>);
 
 /// Puts every particle of `sim` where `skin` was last drawn, at rest.
 fn place_on_skin(sim: &mut ClothSim, skin: &SkinBinding) {
@@ -231,9 +231,13 @@ fn build(
     // A skinned mesh's own pins ride on its skin.
     let (skin, skin_refused) = match (skin, &from) {
         (Some((skinned, inverse, joint_pose)), Made::Authored(mesh, _)) => {
-            match SkinBinding::new(skinned, inverse, mesh, &topology, own_pins.clone(), joint_pose) {
+            let binding = inverse
+                .ok_or_else(|| "its inverse bind poses are not loaded".to_string())
+                .and_then(|inverse| SkinBinding::new(skinned, inverse, mesh, &topology, own_pins.clone(), joint_pose));
+            match binding {
                 Ok(binding) => (Some(binding), None),
-                Err(reason) => (None, Some(reason)),
+                // Said only where it matters: the skin had pins to carry.
+                Err(reason) => (None, (!own_pins.is_empty()).then_some(reason)),
             }
         }
         _ => (None, None),
@@ -323,18 +327,13 @@ pub(crate) fn sync_cloths(
                     Some(state) => state.source.clone(),
                     None => mesh3d.map(|m| m.0.clone()),
                 };
-                // A skinned mesh waits for its inverse bind poses as for its mesh. (Joints are
-                // placed by their whole transform, anchors by its rigid part.)
+                // A skinned mesh's skin (loaded with its mesh, from the same file). Joints are
+                // placed by their whole transform, anchors by its rigid part.
                 let skinned = skinned.or(kept_skin.map(|kept| &kept.0));
                 let joint_pose = |joint| targets.get(joint).ok().map(GlobalTransform::affine);
-                let skin = match skinned.map(|s| (s, bindposes.get(&s.inverse_bindposes))) {
-                    Some((_, None)) if cloth.shape == ClothShape::Mesh => {
-                        loading.insert(entity);
-                        continue;
-                    }
-                    Some((s, Some(inverse))) => Some((s, inverse, &joint_pose as &dyn Fn(Entity) -> Option<Affine3A>)),
-                    _ => None,
-                };
+                let skin = skinned.map(|s| {
+                    (s, bindposes.get(&s.inverse_bindposes), &joint_pose as &dyn Fn(Entity) -> Option<Affine3A>)
+                });
                 let target_pose = |target| targets.get(target).ok().map(rigid_pose);
                 let built = match build(&cloth, transform, source, &meshes, skin, target_pose, tick_seconds) {
                     Ok(Some(built)) => built,
