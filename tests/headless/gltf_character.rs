@@ -5,6 +5,7 @@
 //! for 10 s.
 
 use bevy::gltf::GltfAssetLabel;
+use bevy::math::Affine3A;
 use bevy::mesh::VertexAttributeValues;
 use bevy::mesh::skinning::{SkinnedMesh, SkinnedMeshInverseBindposes};
 use bevy::prelude::*;
@@ -23,11 +24,11 @@ struct Heard {
 }
 
 /// The file.
-const CHARACTER: &str = "models/character.glb";
+pub(crate) const CHARACTER: &str = "models/character.glb";
 
 /// The cape and the skirt held by their skin where they are painted red, keeping off
 /// themselves and each other.
-fn dressed() -> ClothHierarchy {
+pub(crate) fn dressed() -> ClothHierarchy {
     let sewn = ClothPins::Painted { channel: ColorChannel::Red, threshold: 0.5 };
     let contact = Some(SelfContact { thickness: 0.006, friction: 0.3 });
     let cloth = Cloth::mesh().with_params(ClothParams { damping: 1.0, self_contact: contact, ..default() });
@@ -40,7 +41,7 @@ fn dressed() -> ClothHierarchy {
 /// (`mesh`, its index in the file), the skin the plugin kept and the joints' transforms: the
 /// sum of each vertex's weights times its joints' world transforms times their inverse bind
 /// poses, applied to its bind position, as Bevy's vertex shader places it.
-fn skinned_pins(app: &App, cloth: Entity, mesh: usize) -> Vec<(u32, Vec3)> {
+pub(crate) fn skinned_pins(app: &App, cloth: Entity, mesh: usize) -> Vec<(u32, Vec3)> {
     let world = app.world();
     let handle = world
         .resource::<AssetServer>()
@@ -83,9 +84,58 @@ fn skinned_pins(app: &App, cloth: Entity, mesh: usize) -> Vec<(u32, Vec3)> {
 }
 
 /// The entity called `name`.
-fn named(app: &mut App, name: &str) -> Entity {
+pub(crate) fn named(app: &mut App, name: &str) -> Entity {
     let mut query = app.world_mut().query::<(Entity, &Name)>();
     query.iter(app.world()).find(|(_, n)| n.as_str() == name).map(|(e, _)| e).unwrap_or_else(|| panic!("no {name}"))
+}
+
+/// The body's boxes as the skin draws them now: each 24-vertex box of the file's body mesh
+/// (mesh 0), bound to one joint, as that joint's matrix (world transform times inverse bind
+/// pose) and the box's bind-pose bounds. A point is inside the body when it is inside one.
+pub(crate) fn body_boxes(app: &App, body: Entity) -> Vec<(Affine3A, Vec3, Vec3)> {
+    let world = app.world();
+    let handle = world
+        .resource::<AssetServer>()
+        .get_handle::<Mesh>(GltfAssetLabel::Primitive { mesh: 0, primitive: 0 }.from_asset(CHARACTER))
+        .expect("the scene holds the body");
+    let mesh = world.resource::<Assets<Mesh>>().get(&handle).unwrap();
+    let (Some(VertexAttributeValues::Float32x3(bind)), Some(VertexAttributeValues::Uint16x4(joints))) =
+        (mesh.attribute(Mesh::ATTRIBUTE_POSITION), mesh.attribute(Mesh::ATTRIBUTE_JOINT_INDEX))
+    else {
+        panic!("the body is skinned")
+    };
+    let skin = world.get::<SkinnedMesh>(body).expect("the body keeps its skin");
+    let inverse = world.resource::<Assets<SkinnedMeshInverseBindposes>>().get(&skin.inverse_bindposes).unwrap();
+    bind.chunks_exact(24)
+        .zip(joints.chunks_exact(24))
+        .map(|(corners, joints)| {
+            let j = joints[0][0] as usize;
+            let joint = world.get::<GlobalTransform>(skin.joints[j]).unwrap().affine();
+            let (lo, hi) = corners.iter().fold((Vec3::INFINITY, Vec3::NEG_INFINITY), |(lo, hi), &c| {
+                (lo.min(Vec3::from(c)), hi.max(Vec3::from(c)))
+            });
+            (joint * Affine3A::from_mat4(inverse[j]), lo, hi)
+        })
+        .collect()
+}
+
+/// Whether `p` is inside one of the body's `boxes` (see [`body_boxes`]).
+pub(crate) fn inside_body(boxes: &[(Affine3A, Vec3, Vec3)], p: Vec3) -> bool {
+    boxes.iter().any(|(to_world, lo, hi)| {
+        let q = to_world.inverse().transform_point3(p);
+        q.cmpgt(*lo).all() && q.cmplt(*hi).all()
+    })
+}
+
+/// The mesh entity of the node `node`: glTF names the node, and its primitive is the entity
+/// with the mesh, under it or on it.
+pub(crate) fn mesh_of(app: &mut App, node: Entity) -> Entity {
+    let mut query = app.world_mut().query_filtered::<(Entity, Option<&ChildOf>), With<Mesh3d>>();
+    query
+        .iter(app.world())
+        .find(|(e, parent)| *e == node || parent.is_some_and(|p| p.parent() == node))
+        .map(|(e, _)| e)
+        .expect("a mesh")
 }
 
 #[test]
@@ -122,15 +172,6 @@ fn a_gltf_character_wears_its_cape_and_skirt_while_it_walks() {
     );
     let tris = |app: &App, cloth: Entity| {
         app.world().get::<ClothSimulation>(cloth).unwrap().sim().topology().triangles().to_vec()
-    };
-    // glTF names the node; its primitive is the entity with the mesh, under it or on it.
-    let mesh_of = |app: &mut App, node: Entity| {
-        let mut query = app.world_mut().query_filtered::<(Entity, Option<&ChildOf>), With<Mesh3d>>();
-        query
-            .iter(app.world())
-            .find(|(e, parent)| *e == node || parent.is_some_and(|p| p.parent() == node))
-            .map(|(e, _)| e)
-            .expect("a mesh")
     };
     let (body, cape, skirt) = (mesh_of(&mut app, body), mesh_of(&mut app, cape), mesh_of(&mut app, skirt));
     for cloth in [cape, skirt] {

@@ -7,7 +7,7 @@ mod anchors;
 mod authored;
 mod colliders;
 mod divergence;
-mod gltf_character;
+pub(crate) mod gltf_character;
 mod hanging;
 mod hierarchy;
 mod lifecycle;

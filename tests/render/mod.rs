@@ -31,6 +31,8 @@ use bevy::window::ExitCondition;
 use bevy::winit::WinitPlugin;
 use bevy_bvh_cloth::prelude::*;
 
+mod gltf_character;
+
 const WIDTH: u32 = 320;
 const HEIGHT: u32 = 240;
 const CLOTH: Color = Color::srgb(0.0, 0.0, 1.0);
