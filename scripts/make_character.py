@@ -14,9 +14,9 @@ the same bytes on any machine. What it holds:
   top to bottom so that it starts clear of the skirt, skinned to Chest, its top
   row's outer vertices blended with the upper arm on their side (up to half, at the corners) as
   a cape sewn over the shoulders is; its top row is painted 1 in the red channel of COLOR_0 (the
-  pin weight), the rest 0;
+  pin weight), the rest 0, and it is blue in green and blue;
 - "Skirt": an open cone around the hips, 24 around by 8 down, skinned to Hips, its top ring
-  painted 1 in red;
+  painted 1 in red, green in green and blue;
 - "Walk": a 1 s loop of the hips' bob and the legs' and arms' swing.
 
 The model is 1.7 m tall, +Y up, facing +Z, in metres, as glTF and Bevy expect.
@@ -44,6 +44,11 @@ JOINTS = [
     ("LowerLeg.R", "UpperLeg.R", (-0.10, 0.50, 0.0)),
 ]
 JOINT = {name: i for i, (name, _, _) in enumerate(JOINTS)}
+
+# The garments' colours in COLOR_0's green and blue channels (red holds the pin weight), which
+# Bevy multiplies into the material's white: a blue cape and a green skirt.
+CAPE = (0.25, 0.75)
+SKIRT = (0.6, 0.25)
 
 # The body's boxes: joint, centre, half extents (metres, model space).
 BOXES = [
@@ -111,7 +116,7 @@ def cape(cols=12, rows=16, width=0.5, length=0.6):
             y = 1.48 - length * r / (rows - 1)
             positions.append((x, y, -0.13 - 0.13 * r / (rows - 1)))
             normals.append((0.0, 0.2121, -0.9772))
-            colours.append((1.0 if r == 0 else 0.0, 0.0, 0.0, 1.0))
+            colours.append((1.0 if r == 0 else 0.0, *CAPE, 1.0))
             # Over the shoulders the seam follows the arm: from none at 0.1 m out to half at
             # the corner (weights rounded to 1/8, exact in binary).
             arm = round(8 * min(0.5, max(0.0, (abs(x) - 0.1) / 0.3))) / 8 if r == 0 else 0.0
@@ -141,7 +146,7 @@ def skirt(around=24, down=8, top=0.19, bottom=0.30, length=0.40):
             positions.append((radius * s, y, radius * c))
             k = 1.0 / math.sqrt(1.0 + slope * slope)
             normals.append((s * k, slope * k, c * k))
-            colours.append((1.0 if r == 0 else 0.0, 0.0, 0.0, 1.0))
+            colours.append((1.0 if r == 0 else 0.0, *SKIRT, 1.0))
     for r in range(down - 1):
         for a in range(around):
             i, j = r * around + a, r * around + (a + 1) % around

@@ -8,6 +8,8 @@ use bevy_bvh_cloth::prelude::*;
 
 /// Set this to a PNG path to take a screenshot after a few seconds and exit.
 const SCREENSHOT_ENV: &str = "CLOTH_EXAMPLE_SCREENSHOT";
+/// Set this to `cpu` or `gpu` to ask for that backend (the plugin's `ClothBackend`).
+const BACKEND_ENV: &str = "CLOTH_EXAMPLE_BACKEND";
 
 /// The app every example starts from: a window, the cloth plugins, the panel when the `egui`
 /// feature is on, and the shared scene.
@@ -24,6 +26,12 @@ pub fn example_app(title: &str) -> App {
     .add_systems(Update, (orbit_camera, keys, screenshot_and_exit));
     #[cfg(feature = "egui")]
     app.add_plugins(ClothPanelPlugin);
+    match std::env::var(BACKEND_ENV).as_deref() {
+        Ok("cpu") => _ = app.insert_resource(ClothBackend::Cpu),
+        Ok("gpu") => _ = app.insert_resource(ClothBackend::Gpu),
+        Ok(other) => warn!("{BACKEND_ENV}={other}: not cpu or gpu; the plugin picks"),
+        Err(_) => {}
+    }
     app
 }
 

@@ -7,12 +7,18 @@
 //! collider is not refitted: the render world's is), no garment triangle crossing another, the garments hanging below
 //! their seams.
 
+use std::sync::{Arc, Mutex};
+
+use bevy::asset::RenderAssetUsages;
+use bevy::camera::RenderTarget;
 use bevy::prelude::*;
+use bevy::render::render_resource::TextureFormat;
+use bevy::render::view::screenshot::{Screenshot, ScreenshotCaptured};
 use bevy::world_serialization::WorldAssetRoot;
 use bevy_bvh_cloth::bvh_cloth_core::backend::crossing_pairs;
 use bevy_bvh_cloth::prelude::*;
 
-use super::{adapter_present, gpu_backend_app_with, render_app};
+use super::{HEIGHT, WIDTH, adapter_present, gpu_backend_app_with, render_app};
 use crate::headless::gltf_character::{CHARACTER, body_boxes, dressed, inside_body, mesh_of, named, skinned_pins};
 
 /// Whether the root heard that its cloths are built.
@@ -29,12 +35,65 @@ struct Walked {
     crossing: usize,
     hang: [f32; 2],
     mean: Vec3,
+    /// Pixels of the picture that show the blue cape and the green skirt.
+    pixels: [usize; 2],
 }
 
-/// Loads and dresses the character in `app`, walks it for 3 s, pauses, and measures; on the
+/// A camera behind the character, rendering into an image, and a light.
+fn spawn_camera(app: &mut App) -> Handle<Image> {
+    let world = app.world_mut();
+    let target = world.resource_mut::<Assets<Image>>().add({
+        let mut image = Image::new_target_texture(WIDTH, HEIGHT, TextureFormat::Rgba8UnormSrgb, None);
+        image.asset_usage = RenderAssetUsages::default();
+        image
+    });
+    world.spawn((
+        Camera3d::default(),
+        RenderTarget::Image(target.clone().into()),
+        Transform::from_xyz(1.2, 1.3, -2.4).looking_at(Vec3::new(0.0, 1.0, 0.0), Vec3::Y),
+    ));
+    world.spawn((DirectionalLight::default(), Transform::from_xyz(1.0, 3.0, -2.0).looking_at(Vec3::ZERO, Vec3::Y)));
+    target
+}
+
+/// The picture in `target`, saved as `$CARGO_TARGET_TMPDIR/gltf_character_{name}.png`, and its
+/// blue (cape) and green (skirt) pixels.
+fn picture(app: &mut App, target: Handle<Image>, name: &str) -> [usize; 2] {
+    let captured: Arc<Mutex<Option<Image>>> = Arc::default();
+    let slot = captured.clone();
+    app.world_mut().spawn(Screenshot::image(target)).observe(move |shot: On<ScreenshotCaptured>| {
+        *slot.lock().unwrap() = Some(shot.image.clone());
+    });
+    for _ in 0..20 {
+        app.update();
+        if captured.lock().unwrap().is_some() {
+            break;
+        }
+    }
+    let image = captured.lock().unwrap().take().expect("a screenshot within 20 frames");
+    let png = std::path::Path::new(env!("CARGO_TARGET_TMPDIR")).join(format!("gltf_character_{name}.png"));
+    image.clone().try_into_dynamic().unwrap().to_rgb8().save(&png).unwrap();
+    eprintln!("saved {}", png.display());
+    let mut pixels = [0, 0];
+    for y in 0..HEIGHT {
+        for x in 0..WIDTH {
+            let c = image.get_color_at(x, y).unwrap().to_srgba();
+            if c.blue > c.red + 0.15 && c.blue > c.green + 0.15 {
+                pixels[0] += 1;
+            } else if c.green > c.red + 0.15 && c.green > c.blue + 0.15 {
+                pixels[1] += 1;
+            }
+        }
+    }
+    pixels
+}
+
+/// Loads and dresses the character in `app`, walks it for 3 s, pauses, measures and takes its
+/// picture; on the
 /// GPU backend (`gpu`) the state measured is the one read back.
 fn walk(app: &mut App, gpu: bool) -> Walked {
     app.init_resource::<Dressed>();
+    let target = spawn_camera(app);
     let server = app.world().resource::<AssetServer>();
     let scene = server.load(GltfAssetLabel::Scene(0).from_asset(CHARACTER));
     let clip = server.load(GltfAssetLabel::Animation(0).from_asset(CHARACTER));
@@ -94,7 +153,8 @@ fn walk(app: &mut App, gpu: bool) -> Walked {
     let crossing =
         crossing_pairs(&ta, &a, None) + crossing_pairs(&tb, &b, None) + crossing_pairs(&ta, &a, Some((&tb, &b)));
     let mean = free.iter().sum::<Vec3>() / free.len() as f32;
-    Walked { seam, inside, crossing, hang, mean }
+    let pixels = picture(app, target, if gpu { "gpu" } else { "cpu" });
+    Walked { seam, inside, crossing, hang, mean, pixels }
 }
 
 /// Each backend's walk passes the checks; the GPU's ends near the CPU's (the walk is not
@@ -119,6 +179,12 @@ fn the_gltf_character_walks_in_its_garments_on_both_backends() {
             walked.hang.iter().all(|&h| h > 0.25),
             "{backend}: the garments hang {:?} m below their seams",
             walked.hang
+        );
+        let area = (WIDTH * HEIGHT) as usize;
+        assert!(
+            walked.pixels.iter().all(|&p| p > area / 100),
+            "{backend}: the garments show {:?} pixels",
+            walked.pixels
         );
         results.push(walked);
     }

@@ -51,10 +51,14 @@ pub(crate) fn new_grid_mesh(grid: &ClothGrid, sim: &ClothSim, transform: &Global
 }
 
 /// The mesh a cloth built from `source` draws: a copy of it (UVs, colours and any other
-/// attribute kept) that both worlds hold, with normals, written from `sim`.
+/// attribute kept) that both worlds hold, with normals, written from `sim`. A skinned source's
+/// joint indices and weights are left out: the cloth's vertices are never skinned, and a mesh
+/// with them but no `SkinnedMesh` would be drawn by Bevy's skinned pipeline without a skin.
 pub(crate) fn new_authored_mesh(source: &Mesh, sim: &ClothSim, transform: &GlobalTransform) -> Mesh {
     let mut mesh = source.clone();
     mesh.asset_usage = RenderAssetUsages::default();
+    mesh.remove_attribute(Mesh::ATTRIBUTE_JOINT_INDEX);
+    mesh.remove_attribute(Mesh::ATTRIBUTE_JOINT_WEIGHT);
     let vertices = sim.topology().vertex_particle().len();
     if !matches!(mesh.attribute(Mesh::ATTRIBUTE_NORMAL), Some(VertexAttributeValues::Float32x3(n)) if n.len() == vertices)
     {

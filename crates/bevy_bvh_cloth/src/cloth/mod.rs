@@ -59,6 +59,7 @@ impl Plugin for ClothPlugin {
                         .chain()
                         .in_set(ClothSystems::Prepare),
                     (simulation::plan_anchors, stats::update_stats).chain().in_set(ClothSystems::Step),
+                    skin::redraw_unskinned.in_set(ClothSystems::Prepare),
                 ),
             );
     }

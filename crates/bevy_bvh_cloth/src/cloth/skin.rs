@@ -9,6 +9,7 @@
 //! times the joint's inverse bind pose, applied to the bind-pose position. The free particles
 //! are simulated.
 
+use bevy::ecs::entity::EntityHashSet;
 use bevy::mesh::VertexAttributeValues;
 use bevy::mesh::skinning::{SkinnedMesh, SkinnedMeshInverseBindposes};
 use bevy::prelude::*;
@@ -153,4 +154,20 @@ impl SkinBinding {
         self.matrices = now;
         (moves, gone)
     }
+}
+
+/// Marks the mesh of each cloth that lost its skin as changed, once, a frame or two after:
+/// Bevy's renderer read the entity's skin when it first drew the cloth's mesh, in the frame the
+/// skin came off, and keeps it until the entity's mesh changes. On the CPU backend the mesh
+/// changes every frame anyway; on the GPU backend it would never be drawn.
+pub(crate) fn redraw_unskinned(
+    mut cloths: Query<(Entity, Ref<ClothSkin>, &mut Mesh3d)>,
+    mut redrawn: Local<EntityHashSet>,
+) {
+    for (entity, skin, mut mesh) in &mut cloths {
+        if !skin.is_added() && redrawn.insert(entity) {
+            mesh.set_changed();
+        }
+    }
+    redrawn.retain(|&entity| cloths.contains(entity));
 }
