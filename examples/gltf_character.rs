@@ -48,6 +48,8 @@ fn setup(mut commands: Commands, assets: Res<AssetServer>, mut graphs: ResMut<As
     };
     commands.spawn((
         WorldAssetRoot(assets.load(GltfAssetLabel::Scene(0).from_asset(CHARACTER))),
+        // Turned three-quarters away, so that the camera sees the cape and the skirt.
+        Transform::from_rotation(Quat::from_rotation_y(2.4)),
         AutoCollider::new(8),
         ClothHierarchy::default()
             .with("Cape", SceneCloth::new(Cloth::mesh().with_params(fabric.clone())).pinned(sewn.clone()))
