@@ -21,6 +21,8 @@ use crate::headless::harness::{gltf_app, positions, run, sent};
 struct Heard {
     colliders: u32,
     cloths: u32,
+    /// Each `ColliderReady`'s entity.
+    parts: Vec<Entity>,
 }
 
 /// The file.
@@ -142,6 +144,7 @@ pub(crate) fn mesh_of(app: &mut App, node: Entity) -> Entity {
 fn a_gltf_character_wears_its_cape_and_skirt_while_it_walks() {
     let mut app = gltf_app();
     app.init_resource::<Heard>();
+    app.add_observer(|ready: On<ColliderReady>, mut heard: ResMut<Heard>| heard.parts.push(ready.entity));
     // The scene and the walk loop from one load of the file (a label asked for after the file's
     // own asset is dropped would load it again, and respawn the scene).
     let server = app.world().resource::<AssetServer>();
@@ -180,6 +183,7 @@ fn a_gltf_character_wears_its_cape_and_skirt_while_it_walks() {
         assert!(app.world().get::<ClothCollider>(cloth).is_none(), "{cloth} is not part of the body's collider");
     }
     assert!(app.world().get::<ClothCollider>(body).is_some(), "the body collides");
+    assert_eq!(app.world().resource::<Heard>().parts, [body], "the body's part said it was ready, once");
 
     // Play the walk loop.
     let (graph, walk) = AnimationGraph::from_clip(clip);
