@@ -103,3 +103,33 @@ fn names_the_scene_lacks_are_reported_on_the_root_and_the_rest_runs() {
     assert!(app.world().get::<ClothCollider>(body).is_some(), "the rest of the scene runs");
     assert!(app.world().resource::<Ready>().0.is_empty());
 }
+
+/// A named mesh that cannot become cloth (a line list) is refused on its entity, naming the
+/// error; the scene's other cloth and its body run on.
+#[test]
+fn a_named_mesh_that_cannot_be_cloth_is_refused_and_the_rest_runs() {
+    let mut app = app();
+    app.init_resource::<Ready>();
+    let hierarchy = ClothHierarchy::default()
+        .with("Cape", SceneCloth::default().anchored(ClothPins::Indices(vec![0]), "Spine"))
+        .with("Rope", SceneCloth::default());
+    let (root, _, cape, body) = character(&mut app, hierarchy, 0.0);
+    let lines = Mesh::new(bevy::mesh::PrimitiveTopology::LineList, bevy::asset::RenderAssetUsages::default())
+        .with_inserted_attribute(Mesh::ATTRIBUTE_POSITION, vec![[0.0f32, 0.0, 0.0], [0.0, -1.0, 0.0]]);
+    let lines = add_mesh(&mut app, lines);
+    let rope = app.world_mut().spawn((Mesh3d(lines), Name::new("Rope"), Transform::default(), ChildOf(root))).id();
+    run(&mut app, 0.5);
+    let refused: Vec<Entity> = sent(&app)
+        .iter()
+        .filter_map(|m| match m {
+            ClothMessage::Rejected { entity, .. } => Some(*entity),
+            _ => None,
+        })
+        .collect();
+    assert_eq!(refused, [rope], "the rope is refused once, on its entity");
+    assert_eq!(app.world().get::<ClothPart>(rope), Some(&ClothPart { root }));
+    assert!(app.world().get::<ClothSimulation>(cape).is_some(), "the cape is built");
+    assert!(positions(&app, cape).iter().all(|p| p.is_finite()));
+    assert!(app.world().get::<ClothCollider>(body).is_some(), "the body collides");
+    assert!(app.world().resource::<Ready>().0.is_empty(), "not every named cloth is built: no ClothHierarchyReady");
+}

@@ -114,8 +114,8 @@ pub use bvh_cloth_core::{
 };
 pub use clock::ClothClock;
 pub use cloth::ClothPlugin;
-pub use cloth::component::{Cloth, ClothAnchor, ClothShape};
-pub use cloth::hierarchy::{ClothHierarchy, ClothPart, JointAnchor, SceneCloth};
+pub use cloth::component::{Cloth, ClothAnchor, ClothPart, ClothShape};
+pub use cloth::hierarchy::{ClothHierarchy, JointAnchor, SceneCloth};
 pub use cloth::simulation::ClothSimulation;
 pub use cloth::skin::ClothSkin;
 pub use cloth::stats::ClothStats;

@@ -92,6 +92,15 @@ impl ClothAnchor {
     }
 }
 
+/// A cloth the plugin made from a mesh under a root's
+/// [`ClothHierarchy`](crate::ClothHierarchy).
+#[derive(Component, Clone, Copy, Debug, PartialEq, Eq, Reflect)]
+#[reflect(Component, Debug)]
+pub struct ClothPart {
+    /// The entity whose [`ClothHierarchy`](crate::ClothHierarchy) this cloth comes from.
+    pub root: Entity,
+}
+
 /// What a [`Cloth`] is made of.
 #[derive(Clone, Debug, PartialEq, Reflect)]
 #[reflect(Default, Debug)]

@@ -9,7 +9,7 @@ use bevy::platform::collections::{HashMap, HashSet};
 use bevy::prelude::*;
 use bvh_cloth_core::ClothPins;
 
-use crate::cloth::component::{Cloth, ClothAnchor, ClothShape};
+use crate::cloth::component::{Cloth, ClothAnchor, ClothPart, ClothShape};
 use crate::cloth::simulation::ClothSimulation;
 use crate::events::ClothHierarchyReady;
 use crate::messages::ClothMessage;
@@ -120,14 +120,6 @@ pub struct JointAnchor {
     pub joint: String,
     /// As [`ClothAnchor::offset`].
     pub offset: Vec3,
-}
-
-/// A cloth the plugin made from a mesh under a root's [`ClothHierarchy`].
-#[derive(Component, Clone, Copy, Debug, PartialEq, Eq, Reflect)]
-#[reflect(Component, Debug)]
-pub struct ClothPart {
-    /// The entity whose [`ClothHierarchy`] this cloth comes from.
-    pub root: Entity,
 }
 
 /// What a root has been told: the names reported missing, whether it heard that its cloths

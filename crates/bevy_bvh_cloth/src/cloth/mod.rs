@@ -20,7 +20,8 @@ use bevy::prelude::*;
 use crate::clock::advance_clock;
 use crate::schedule::ClothSystems;
 use component::Cloth;
-use hierarchy::{ClothHierarchy, ClothPart};
+use component::ClothPart;
+use hierarchy::ClothHierarchy;
 use stats::ClothStats;
 
 /// The cloths: a scene's [`ClothHierarchy`] applied before [`ClothSystems::BuildColliders`],

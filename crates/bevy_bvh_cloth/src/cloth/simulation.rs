@@ -12,7 +12,7 @@ use bevy::prelude::*;
 use bvh_cloth_core::{Affine3A, ClothError, ClothGrid, ClothSim, ClothTopology, MeshVertices, Vec3};
 
 use crate::clock::ClothClock;
-use crate::cloth::component::{Cloth, ClothShape};
+use crate::cloth::component::{Cloth, ClothPart, ClothShape};
 use crate::cloth::mesh::{authored_topology, authored_vertices, new_authored_mesh, new_grid_mesh};
 use crate::cloth::skin::{ClothSkin, SkinBinding};
 use crate::colliders::auto::{AutoCollider, ColliderStatus};
@@ -268,6 +268,7 @@ pub(crate) fn sync_cloths(
         Option<&mut ClothSimulation>,
         Option<&Mesh3d>,
         (Option<&SkinnedMesh>, Option<&ClothSkin>),
+        (Option<&ClothPart>, Option<&Name>),
     )>,
     targets: Query<&GlobalTransform>,
     bindposes: Res<Assets<SkinnedMeshInverseBindposes>>,
@@ -283,11 +284,17 @@ pub(crate) fn sync_cloths(
     let resets: Vec<ResetCloth> = resets.read().copied().collect();
     // The colliders still being built, found when a new cloth first asks.
     let mut pending: Option<Vec<Entity>> = None;
-    for (entity, cloth, transform, state, mesh3d, (skinned, kept_skin)) in &mut cloths {
+    for (entity, cloth, transform, state, mesh3d, (skinned, kept_skin), (part, name)) in &mut cloths {
         let pose = rigid_pose(transform);
         let reset = resets.iter().any(|r| *r == ResetCloth::All || *r == ResetCloth::One(entity));
+        // A scene's cloth is named with its scene's root, which its user knows.
+        let from_scene = match (part, name) {
+            (Some(part), Some(name)) => format!(" (\"{name}\" of the ClothHierarchy on {})", part.root),
+            (Some(part), None) => format!(" (of the ClothHierarchy on {})", part.root),
+            _ => String::new(),
+        };
         let mut reject = |error| {
-            error!("Cloth on {entity}: {error}; keeping its last valid state");
+            error!("Cloth on {entity}{from_scene}: {error}; keeping its last valid state");
             messages.write(ClothMessage::Rejected { entity, error });
         };
         match state {
