@@ -144,6 +144,7 @@ type SceneMeshes<'w, 's> = Query<
 
 /// Makes cloth of the meshes each [`ClothHierarchy`] names once the scene has spawned them,
 /// reports names it does not have, and tells the root when every named cloth is built.
+#[allow(clippy::too_many_arguments)]
 pub(crate) fn spread_cloths(
     mut commands: Commands,
     mut roots: Query<(Entity, &ClothHierarchy, Option<&mut HierarchyReports>)>,
