@@ -90,7 +90,7 @@ fn setup(
         Mesh3d(meshes.add(body_mesh())),
         MeshMaterial3d(skin),
         SkinnedMesh { inverse_bindposes, joints: vec![hips, shoulders, left_leg, right_leg, left_arm, right_arm] },
-        AutoCollider { margin: 0.01, ..AutoCollider::with_voxel_size(0.04) },
+        AutoCollider::from_voxel_size(0.04).with_margin(0.01),
         // The body's bounds move with its joints, not with its entity.
         NoFrustumCulling,
         ChildOf(walker),

@@ -57,6 +57,7 @@ fn count(
             | ClothMessage::WindSourceRejected { .. }
             | ClothMessage::NameNotFound { .. }
             | ClothMessage::SceneNotSpawned { .. } => tally.rejected += 1,
+            ClothMessage::WindNotFelt { .. } => {}
             ClothMessage::ColliderFailed { .. } => tally.collider_failed += 1,
             ClothMessage::AnchorLost { .. } => tally.anchors_lost += 1,
         }

@@ -80,7 +80,7 @@ pub fn spawn_arm(app: &mut App, mesh: Mesh, at: Vec3) -> (Entity, Entity, Entity
         .spawn((
             Mesh3d(mesh),
             SkinnedMesh { inverse_bindposes: inverse, joints: vec![shoulder, elbow] },
-            AutoCollider { margin: 0.01, ..AutoCollider::with_voxel_size(0.06) },
+            AutoCollider::from_voxel_size(0.06).with_margin(0.01),
         ))
         .id();
     (arm, shoulder, elbow)

@@ -337,7 +337,7 @@ fn a_voxel_size_in_metres_is_the_same_for_every_mesh() {
     let mut app = app();
     let small = ball(&mut app, 0.2);
     let big = ball(&mut app, 0.8);
-    let root = app.world_mut().spawn((AutoCollider::with_voxel_size(0.1), Transform::default())).id();
+    let root = app.world_mut().spawn((AutoCollider::from_voxel_size(0.1), Transform::default())).id();
     let parts = [
         app.world_mut().spawn(Mesh3d(small.clone())).insert(ChildOf(root)).id(),
         app.world_mut().spawn(Mesh3d(big)).insert(ChildOf(root)).id(),
@@ -346,7 +346,7 @@ fn a_voxel_size_in_metres_is_the_same_for_every_mesh() {
             .insert(ChildOf(root))
             .id(),
     ];
-    let tiny = app.world_mut().spawn((Mesh3d(small), AutoCollider::with_voxel_size(1e-5))).id();
+    let tiny = app.world_mut().spawn((Mesh3d(small), AutoCollider::from_voxel_size(1e-5))).id();
     run(&mut app, 0.1);
     let counts: Vec<UVec3> = parts
         .iter()

@@ -78,8 +78,10 @@ fn the_cloth_runs_in_fixed_post_update() {
     let mut core =
         ClothSim::new(params, topology, bvh_cloth_core::Affine3A::from_translation(Vec3::new(0.0, 10.0, 0.0)), &[])
             .unwrap();
+    // Each run's step in two ticks (f32 rounding aside, 1/60 s): the same ticks for the core.
+    assert!((clock.tick_seconds - 1.0 / 60.0).abs() < 1e-7, "ticks of {} s", clock.tick_seconds);
     for _ in 0..clock.total_ticks {
-        core.tick(1.0 / 60.0, &[]);
+        core.tick(clock.tick_seconds, &[]);
     }
     let got = app.world().get::<ClothSimulation>(cloth).unwrap().sim().positions();
     let gap = core.positions().iter().zip(got.iter()).map(|(a, b)| a.distance(*b)).fold(0.0f32, f32::max);
@@ -90,4 +92,65 @@ fn the_cloth_runs_in_fixed_post_update() {
     let top = on_ball.iter().map(|p| p.y).fold(f32::MIN, f32::max);
     assert!(top > 0.45, "the cloth rests on the ball (highest particle at {top} m)");
     assert!(on_ball.iter().all(|p| p.distance(Vec3::new(5.0, 0.0, 0.0)) > 0.49), "no particle inside the ball");
+}
+
+/// How many times the fixed schedule ran.
+#[derive(Resource, Default)]
+struct FixedRuns(u64);
+
+fn count_runs(mut runs: ResMut<FixedRuns>) {
+    runs.0 += 1;
+}
+
+/// At Bevy's default fixed step (64 Hz) and 60 frames per second, the cloth steps once per run
+/// of `FixedPostUpdate`, by that run's 1/64 s, as a physics engine there does: 120 runs are
+/// 120 ticks and the cloth is exactly the core's after 120 ticks of 1/64 s. (With the cloth's
+/// own 60 Hz accumulator, 4 of every 64 runs advanced no cloth.)
+#[test]
+fn at_any_fixed_rate_cloth_and_physics_step_one_to_one() {
+    let mut app = App::new();
+    app.add_plugins((
+        MinimalPlugins,
+        TransformPlugin,
+        AssetPlugin::default(),
+        MeshPlugin,
+        BvhClothPlugin::new(FixedPostUpdate),
+    ))
+    .insert_resource(TimeUpdateStrategy::ManualDuration(Duration::from_secs_f64(1.0 / 60.0)))
+    .insert_resource(Time::<Fixed>::from_hz(64.0))
+    .init_resource::<SeenInFixed>()
+    .init_resource::<FixedRuns>()
+    .add_systems(FixedPostUpdate, (count_runs, watch.after(ClothSystems::Step)));
+    app.update();
+    let params = ClothParams { damping: 0.5, ..default() };
+    let cloth = app
+        .world_mut()
+        .spawn((
+            Cloth { params: params.clone(), ..Cloth::grid(Vec2::ONE, UVec2::splat(10)) },
+            Transform::from_xyz(0.0, 10.0, 0.0),
+        ))
+        .id();
+    app.update();
+    let (runs_before, ticks_before) =
+        (app.world().resource::<FixedRuns>().0, app.world().resource::<ClothClock>().total_ticks);
+    for _ in 0..120 {
+        app.update();
+    }
+    let runs = app.world().resource::<FixedRuns>().0 - runs_before;
+    let clock = app.world().resource::<ClothClock>();
+    assert!(runs >= 120, "the fixed schedule ran {runs} times in 2 s");
+    assert_eq!(clock.total_ticks - ticks_before, runs, "one tick per fixed run");
+    assert_eq!(app.world().resource::<SeenInFixed>().most, 1);
+    assert!((clock.tick_seconds - 1.0 / 64.0).abs() < 1e-7, "each tick is the fixed step, {} s", clock.tick_seconds);
+
+    let topology = std::sync::Arc::new(ClothTopology::grid(ClothGrid::new(Vec2::ONE, UVec2::splat(10))).unwrap());
+    let mut core =
+        ClothSim::new(params, topology, bvh_cloth_core::Affine3A::from_translation(Vec3::new(0.0, 10.0, 0.0)), &[])
+            .unwrap();
+    for _ in 0..clock.total_ticks {
+        core.tick(1.0 / 64.0, &[]);
+    }
+    let got = app.world().get::<ClothSimulation>(cloth).unwrap().sim().positions();
+    let gap = core.positions().iter().zip(got.iter()).map(|(a, b)| a.distance(*b)).fold(0.0f32, f32::max);
+    assert!(gap < 1e-5, "the cloth is {gap} m from the core's after the same ticks of 1/64 s");
 }

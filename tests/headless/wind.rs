@@ -24,8 +24,8 @@ fn downwind(app: &App, cloth: Entity) -> f32 {
     p.iter().map(|p| p.z).sum::<f32>() / p.len() as f32
 }
 
-/// The ambient wind blows a cloth with aerodynamics out, leaves one without them hanging, and
-/// a cloth's own still air shelters it.
+/// The ambient wind blows a cloth with aerodynamics out, leaves one without them hanging (and
+/// says so once), and a cloth's own still air shelters it.
 #[test]
 fn the_ambient_wind_blows_cloths_that_catch_the_air() {
     let mut app = app();
@@ -38,6 +38,15 @@ fn the_ambient_wind_blows_cloths_that_catch_the_air() {
     let (b, v, s) = (downwind(&app, blown), downwind(&app, vacuum), downwind(&app, sheltered));
     assert!(b > 0.2, "the wind blows the curtain out: {b} m");
     assert!(v.abs() < 1e-3 && s.abs() < 1e-3, "no aerodynamics, or still air of its own: {v} m, {s} m");
+    // The one that cannot feel the wind is told so, once; the others are not.
+    let unfelt: Vec<(Entity, f32)> = sent(&app)
+        .iter()
+        .filter_map(|m| match m {
+            ClothMessage::WindNotFelt { entity, speed } => Some((*entity, *speed)),
+            _ => None,
+        })
+        .collect();
+    assert_eq!(unfelt, [(vacuum, 6.0)], "said once, naming the cloth without aerodynamics and the wind's speed");
 }
 
 /// A fan behind a curtain, pointing at it, blows it out; turned away, it does not. A blast

@@ -4,8 +4,16 @@ use bevy::prelude::*;
 
 use crate::settings::ClothSettings;
 
-/// The simulation clock, advanced once per frame from [`Time`] (virtual time, so pausing or
-/// slowing `Time<Virtual>` slows the cloth too).
+/// The simulation clock, advanced once per run of the cloth's schedule from that schedule's
+/// [`Time`] (virtual time in `PostUpdate`, so pausing or slowing `Time<Virtual>` slows the cloth
+/// too).
+///
+/// In `PostUpdate` (the default) it runs whole ticks of `1 / tick_rate` seconds and carries the
+/// rest over. In one of Bevy's fixed-timestep schedules (`FixedPostUpdate` and its siblings,
+/// where a physics engine steps) it is in [`lockstep`](Self::lockstep): every run of the
+/// schedule advances the cloth by exactly that run's step, as a whole number of ticks (the
+/// step times [`ClothSettings::tick_rate`], rounded, at least one), so that cloth and physics
+/// step one to one at any fixed rate.
 #[derive(Resource, Clone, Debug, Default, Reflect)]
 #[reflect(Resource, Default, Debug)]
 pub struct ClothClock {
@@ -17,6 +25,9 @@ pub struct ClothClock {
     pub tick_seconds: f32,
     /// Ticks run since start-up.
     pub total_ticks: u64,
+    /// Each run advances by that run's whole step (see above); set by the plugin when its
+    /// schedule is one of Bevy's fixed-timestep schedules.
+    pub lockstep: bool,
 }
 
 impl ClothClock {
@@ -25,6 +36,15 @@ impl ClothClock {
         let rate = settings.tick_rate;
         if settings.paused || !(rate.is_finite() && rate > 0.0) || !(delta.is_finite() && delta >= 0.0) {
             self.ticks = 0;
+            return;
+        }
+        if self.lockstep {
+            // The whole step, in as many ticks as the tick rate asks (at least one).
+            let ticks = ((delta * rate).round() as u32).clamp(1, settings.max_ticks_per_frame.max(1));
+            self.ticks = if delta > 0.0 { ticks } else { 0 };
+            self.tick_seconds = if delta > 0.0 { delta / ticks as f32 } else { 1.0 / rate };
+            self.accumulated = 0.0;
+            self.total_ticks += u64::from(self.ticks);
             return;
         }
         self.tick_seconds = 1.0 / rate;
@@ -36,6 +56,16 @@ impl ClothClock {
         self.accumulated = self.accumulated.clamp(0.0, self.tick_seconds);
         self.ticks = ticks;
         self.total_ticks += u64::from(ticks);
+    }
+
+    /// The length of a tick the clock runs, for checks made before it runs one: the last tick's
+    /// in lockstep, otherwise `1 / tick_rate`. `None` for a rate that is not positive.
+    pub(crate) fn tick_length(&self, settings: &ClothSettings) -> Option<f32> {
+        if self.lockstep && self.tick_seconds > 0.0 {
+            return Some(self.tick_seconds);
+        }
+        let rate = settings.tick_rate;
+        (rate.is_finite() && rate > 0.0).then(|| 1.0 / rate)
     }
 }
 
@@ -57,6 +87,21 @@ mod tests {
             }
             // Ten seconds are 600 ticks at 60 Hz whatever the frame rate (one may still be due).
             assert!((599..=600).contains(&clock.total_ticks), "{fps} fps ran {} ticks", clock.total_ticks);
+        }
+    }
+
+    #[test]
+    fn in_lockstep_every_run_advances_its_whole_step() {
+        let settings = ClothSettings::default();
+        for (hz, per_run) in [(64.0f32, 1), (50.0, 1), (30.0, 2), (20.0, 3), (120.0, 1)] {
+            let mut clock = ClothClock { lockstep: true, ..default() };
+            for _ in 0..hz as usize {
+                clock.advance(1.0 / hz, &settings);
+                assert_eq!(clock.ticks, per_run, "at {hz} Hz");
+            }
+            // One second of runs is one second of cloth, whatever the rate.
+            let simulated = clock.total_ticks as f32 * clock.tick_seconds;
+            assert!((simulated - 1.0).abs() < 1e-4, "{hz} Hz simulated {simulated} s");
         }
     }
 

@@ -72,6 +72,15 @@ pub struct SceneNotSpawned {
     pub waited: f32,
 }
 
+/// A wind blows on a cloth that cannot feel it: [`ClothMessage::WindNotFelt`] on the cloth.
+#[derive(EntityEvent, Clone, Debug, PartialEq)]
+pub struct WindNotFelt {
+    /// The cloth entity.
+    pub entity: Entity,
+    /// The wind's speed plus its turbulence, in m/s.
+    pub speed: f32,
+}
+
 /// A collider could not be built: [`ClothMessage::ColliderFailed`] on its entity.
 #[derive(EntityEvent, Clone, Debug, PartialEq)]
 pub struct ColliderFailed {
@@ -127,6 +136,7 @@ pub(crate) fn trigger_message_events(mut commands: Commands, mut messages: Messa
             ClothMessage::ColliderFailed { entity, failure } => commands.trigger(ColliderFailed { entity, failure }),
             ClothMessage::NameNotFound { entity, name } => commands.trigger(NameNotFound { entity, name }),
             ClothMessage::SceneNotSpawned { entity, waited } => commands.trigger(SceneNotSpawned { entity, waited }),
+            ClothMessage::WindNotFelt { entity, speed } => commands.trigger(WindNotFelt { entity, speed }),
             ClothMessage::WindSourceRejected { entity, error } => {
                 commands.trigger(WindSourceRejected { entity, error });
             }

@@ -127,7 +127,7 @@ pub use colliders::primitive::{PrimitiveCollider, PrimitiveShape};
 pub use cpu_backend::CpuBackendPlugin;
 pub use events::{
     AnchorLost, ClothDiverged, ClothHierarchyReady, ClothRejected, ColliderFailed, ColliderHierarchyReady,
-    ColliderReady, NameNotFound, SceneNotSpawned, WindSourceRejected,
+    ColliderReady, NameNotFound, SceneNotSpawned, WindNotFelt, WindSourceRejected,
 };
 pub use messages::{ClothMessage, ColliderFailure, ResetCloth};
 pub use render::GpuBackendPlugin;
@@ -148,7 +148,7 @@ pub mod prelude {
         ColliderContact, ColliderError, ColliderFailed, ColliderHierarchy, ColliderHierarchyReady, ColliderPart,
         ColliderReady, ColliderStatus, ColorChannel, ExcludeFromColliders, Integrator, JointAnchor, LocalWind,
         NameNotFound, PrimitiveCollider, PrimitiveShape, ResetCloth, SceneCloth, SceneNotSpawned, SelfContact,
-        SpringStiffness, Tethers, Wind, WindBlast, WindFan, WindSourceRejected,
+        SpringStiffness, Tethers, Wind, WindBlast, WindFan, WindNotFelt, WindSourceRejected,
     };
 }
 

@@ -62,6 +62,15 @@ pub enum ClothMessage {
         /// The name that matched nothing.
         name: String,
     },
+    /// A wind blows on a cloth whose [`Aerodynamics`](crate::Aerodynamics) has no drag or lift,
+    /// so it does not feel it (set `Aerodynamics::FABRIC`). Sent once per cloth; the cloth runs
+    /// on as it was.
+    WindNotFelt {
+        /// The cloth entity.
+        entity: Entity,
+        /// The wind's speed plus its turbulence, in m/s.
+        speed: f32,
+    },
     /// A [`ClothHierarchy`](crate::ClothHierarchy)'s root has no mesh under it after
     /// [`ClothSettings::scene_wait`](crate::ClothSettings) seconds: its scene failed to load
     /// (the asset server logs why, with the path), is still loading, or was never given. Sent

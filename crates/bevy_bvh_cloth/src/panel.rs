@@ -134,10 +134,14 @@ fn cloth_panel(
                 }
                 let mut contact = c.params.self_contact.is_some();
                 if ui.checkbox(&mut contact, "Self-contact").changed() {
-                    c.params.self_contact = contact.then_some(SelfContact { thickness: 0.5 * spacing, friction: 0.3 });
+                    c.params.self_contact = contact.then(SelfContact::default);
                 }
                 if let Some(contact) = &mut c.params.self_contact {
-                    ui.add(egui::Slider::new(&mut contact.thickness, 0.001..=spacing.max(0.002)).text("Thickness (m)"));
+                    // 0 is the cloth's own: half its particle spacing.
+                    ui.add(
+                        egui::Slider::new(&mut contact.thickness, 0.0..=spacing.max(0.002))
+                            .text("Thickness (m, 0: half the spacing)"),
+                    );
                     ui.add(egui::Slider::new(&mut contact.friction, 0.0..=1.0).text("Friction between layers"));
                 }
             });

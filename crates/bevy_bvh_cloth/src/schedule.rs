@@ -35,6 +35,13 @@ pub enum ClothSystems {
     Writeback,
 }
 
+/// Whether `schedule` is one of Bevy's fixed-timestep schedules, where the clock runs in
+/// [`lockstep`](ClothClock::lockstep).
+fn is_fixed(schedule: InternedScheduleLabel) -> bool {
+    [FixedFirst.intern(), FixedPreUpdate.intern(), FixedUpdate.intern(), FixedPostUpdate.intern(), FixedLast.intern()]
+        .contains(&schedule)
+}
+
 /// The system sets in the cloth's schedule, the clock, the settings and the messages: the
 /// ground the other sub-plugins of [`BvhClothPlugin`](crate::BvhClothPlugin) stand on.
 #[derive(Debug, Clone)]
@@ -57,7 +64,7 @@ impl Plugin for ClothSchedulePlugin {
             .register_type::<ClothBackend>()
             .register_type::<ActiveClothBackend>()
             .init_resource::<ClothSettings>()
-            .init_resource::<ClothClock>()
+            .insert_resource(ClothClock { lockstep: is_fixed(schedule), ..default() })
             .init_resource::<ClothBackend>()
             .init_resource::<ActiveClothBackend>()
             .add_message::<ClothMessage>()

@@ -7,7 +7,9 @@ use bevy::prelude::*;
 #[reflect(Resource, Default, Debug)]
 pub struct ClothSettings {
     /// Simulation ticks per second. Each tick runs `looper` substeps of every cloth, so the
-    /// cloth behaves the same at 30 and at 144 frames per second.
+    /// cloth behaves the same at 30 and at 144 frames per second. Under a fixed-timestep
+    /// schedule each run of it is a whole number of ticks, this rate rounded to that step
+    /// (see [`ClothClock`](crate::ClothClock)).
     pub tick_rate: f32,
     /// Most ticks run in one frame. After a long hitch the simulation drops time instead of
     /// trying to catch up (which would make the next frame slower still).

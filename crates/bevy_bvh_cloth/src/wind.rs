@@ -197,12 +197,23 @@ pub(crate) fn gather_wind(
     sources: Res<WindSources>,
     mut cloths: Query<(Entity, &mut ClothSimulation, Option<Ref<LocalWind>>)>,
     mut messages: MessageWriter<ClothMessage>,
+    mut unfelt: Local<EntityHashSet>,
 ) {
     let first_tick = clock.total_ticks.saturating_sub(u64::from(clock.ticks)) as f64 * f64::from(clock.tick_seconds);
     let ambient_changed = ambient.is_changed();
     for (entity, mut state, local) in &mut cloths {
         let changed = ambient_changed || local.as_ref().is_some_and(|l| l.is_changed());
         let wind = local.map_or(ambient.0, |l| l.0);
+        // A wind blows where the cloth cannot feel it: said once per cloth, since the cloth
+        // still falls as it should and drag is a cost some cloths do without.
+        let speed = wind.velocity.length() + wind.turbulence;
+        if speed > 0.0 && speed.is_finite() && !state.sim.params().aerodynamics.is_active() && unfelt.insert(entity) {
+            warn!(
+                "Cloth on {entity}: a {speed:.1} m/s wind blows, but its params.aerodynamics has no drag or lift, so \
+                 it does not feel it; set Aerodynamics::FABRIC"
+            );
+            messages.write(ClothMessage::WindNotFelt { entity, speed });
+        }
         state.sim.set_wind_time(first_tick);
         let result = state.sim.set_wind(wind, &sources.0);
         if let Err(error) = result {
@@ -215,6 +226,7 @@ pub(crate) fn gather_wind(
             }
         }
     }
+    unfelt.retain(|&entity| cloths.contains(entity));
 }
 
 fn report(entity: Entity, error: ClothError, messages: &mut MessageWriter<ClothMessage>) {

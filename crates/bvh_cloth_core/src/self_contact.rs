@@ -61,6 +61,8 @@
 //! Looper 16) is not. Edges are not tested against edges: two edges can pass through each
 //! other between the particles of both layers.
 
+#[cfg(feature = "bevy_reflect")]
+use bevy_reflect::std_traits::ReflectDefault;
 use glam::{IVec3, Vec3, Vec3A};
 use rayon::prelude::*;
 
@@ -86,23 +88,55 @@ pub const MAX_HELD_SCALE: f32 = 16.0;
 const PARALLEL_MIN: usize = 2048;
 
 /// How a cloth keeps off itself and other cloths.
+///
+/// `SelfContact::default()` fits any cloth: its thickness is taken from the cloth's own
+/// particle spacing when the cloth is built ([`Self::AUTO_THICKNESS`]), and its friction is 0.3.
+///
+/// ```
+/// # use bvh_cloth_core::{ClothParams, SelfContact};
+/// let params = ClothParams { self_contact: Some(SelfContact::default()), ..Default::default() };
+/// ```
 #[derive(Clone, Copy, Debug, PartialEq)]
-#[cfg_attr(feature = "bevy_reflect", derive(bevy_reflect::Reflect), reflect(Debug, PartialEq))]
+#[cfg_attr(feature = "bevy_reflect", derive(bevy_reflect::Reflect), reflect(Default, Debug, PartialEq))]
 pub struct SelfContact {
     /// The least distance between a particle and a triangle it is not a corner of, in metres.
     /// At most the cloth's particle spacing (the mean rest length of its structural springs):
-    /// thicker, and the cloth's own neighbouring triangles would push its particles.
+    /// thicker, and the cloth's own neighbouring triangles would push its particles. 0 (the
+    /// default) is half that spacing, whatever the cloth's size and resolution.
     pub thickness: f32,
     /// Coulomb friction between layers (0 slides freely).
     pub friction: f32,
 }
 
+impl Default for SelfContact {
+    fn default() -> Self {
+        Self { thickness: 0.0, friction: 0.3 }
+    }
+}
+
 impl SelfContact {
-    /// Checks the fields alone: a positive, finite thickness and a non-negative, finite
-    /// friction.
+    /// The share of the cloth's particle spacing a thickness of 0 stands for: half, thick
+    /// enough that a particle crossing a layer at up to half the spacing per substep is caught,
+    /// and thin enough that the cloth's own triangles never push their neighbours.
+    pub const AUTO_THICKNESS: f32 = 0.5;
+
+    /// Checks the fields alone: a finite thickness, positive or 0 (see [`Self::thickness`]),
+    /// and a non-negative, finite friction.
     pub fn validate(&self) -> Result<(), ClothError> {
-        ClothError::check_positive("self_contact.thickness", self.thickness)?;
+        if self.thickness != 0.0 {
+            ClothError::check_positive("self_contact.thickness", self.thickness)?;
+        }
         ClothError::check_non_negative("self_contact.friction", self.friction)
+    }
+
+    /// The same contact with a thickness of 0 replaced by [`Self::AUTO_THICKNESS`] of
+    /// `topology`'s particle spacing; any other thickness is kept.
+    pub fn resolved_for(self, topology: &ClothTopology) -> Self {
+        if self.thickness == 0.0 {
+            Self { thickness: Self::AUTO_THICKNESS * particle_spacing(topology), ..self }
+        } else {
+            self
+        }
     }
 
     /// [`Self::validate`], and a thickness no larger than `topology`'s particle spacing.

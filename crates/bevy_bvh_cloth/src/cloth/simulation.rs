@@ -277,10 +277,10 @@ pub(crate) fn sync_cloths(
     mut loading: Local<EntityHashSet>,
     mut start: ColliderWait,
     settings: Res<ClothSettings>,
+    clock: Res<ClothClock>,
 ) {
     // The tick the clock runs, which the explicit integrators' stability guard depends on.
-    let rate = settings.tick_rate;
-    let tick_seconds = (rate.is_finite() && rate > 0.0).then(|| 1.0 / rate);
+    let tick_seconds = clock.tick_length(&settings);
     let resets: Vec<ResetCloth> = resets.read().copied().collect();
     // The colliders still being built, found when a new cloth first asks.
     let mut pending: Option<Vec<Entity>> = None;

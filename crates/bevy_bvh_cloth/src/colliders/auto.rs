@@ -115,8 +115,33 @@ impl AutoCollider {
     }
 
     /// A collider with cubic voxels of `size` world units (metres) and the default margin.
-    pub fn with_voxel_size(size: f32) -> Self {
-        Self { voxel_size: Some(size), ..default() }
+    pub fn from_voxel_size(size: f32) -> Self {
+        Self::default().with_voxel_size(size)
+    }
+
+    /// The same collider with cubic voxels of `size` world units (metres) instead of a count
+    /// per axis: `AutoCollider::new(8).with_voxel_size(0.04)`.
+    pub fn with_voxel_size(mut self, size: f32) -> Self {
+        self.voxel_size = Some(size);
+        self
+    }
+
+    /// The same collider with `margin` world units between its surface and the cloth.
+    pub fn with_margin(mut self, margin: f32) -> Self {
+        self.margin = margin;
+        self
+    }
+
+    /// The same collider with Coulomb friction `friction` (0 slides freely, 1 holds on 45°).
+    pub fn with_friction(mut self, friction: f32) -> Self {
+        self.friction = friction;
+        self
+    }
+
+    /// The same collider with `contact`: the mesh's triangles or the voxel spheres.
+    pub fn with_contact(mut self, contact: ColliderContact) -> Self {
+        self.contact = contact;
+        self
     }
 
     /// The voxels to build with, in the mesh's units, for an entity whose world scale is

@@ -25,6 +25,12 @@ pub const MAX_AIR_DENSITY: f32 = 10.0;
 ///
 /// The default is no aerodynamics at all, the paper's model: the cloth moves as if in vacuum
 /// (its `damping` aside), and wind does not touch it. [`Self::FABRIC`] is a woven fabric.
+///
+/// Why not `FABRIC` by default: drag acts in still air too, so it would change how every cloth
+/// falls (a free cloth would no longer drop as gravity and damping say), and it costs a pass
+/// over the triangles each substep (about 15 % of a tick on the GPU; BENCHMARKS.md, wind). A
+/// cloth in a wind it cannot feel is named instead: the Bevy plugin sends
+/// `ClothMessage::WindNotFelt` once for it.
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
 #[cfg_attr(feature = "bevy_reflect", derive(bevy_reflect::Reflect), reflect(Default, Debug, PartialEq))]
 pub struct Aerodynamics {

@@ -106,6 +106,7 @@ impl ClothSim {
         pins: &[u32],
     ) -> Result<Self, ClothError> {
         params.validate_for(&topology)?;
+        let params = params.resolved_for(&topology);
         if !pose.is_finite() {
             return Err(ClothError::NotFinite { field: "pose" });
         }
@@ -209,7 +210,7 @@ impl ClothSim {
     /// parameters, when the new ones are invalid.
     pub fn set_params(&mut self, params: ClothParams) -> Result<(), ClothError> {
         params.validate_for(&self.topology)?;
-        self.params = params;
+        self.params = params.resolved_for(&self.topology);
         Ok(())
     }
 

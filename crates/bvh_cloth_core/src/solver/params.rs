@@ -253,6 +253,14 @@ impl ClothParams {
         self.aerodynamics.validate()
     }
 
+    /// The same parameters with what depends on the cloth filled in from `topology`: a
+    /// self-contact thickness of 0 becomes its share of the particle spacing
+    /// ([`SelfContact::resolved_for`]). A [`ClothSim`](crate::ClothSim) holds its parameters so.
+    pub fn resolved_for(mut self, topology: &ClothTopology) -> Self {
+        self.self_contact = self.self_contact.map(|contact| contact.resolved_for(topology));
+        self
+    }
+
     /// [`Self::validate`], and whether `topology` can be stepped with these parameters: block
     /// descent needs the topology's colouring.
     pub fn validate_for(&self, topology: &ClothTopology) -> Result<(), ClothError> {

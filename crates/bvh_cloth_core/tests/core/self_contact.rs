@@ -133,14 +133,14 @@ fn two_cloths_dropped_on_a_ball_keep_apart() {
     assert_eq!(own, 0, "a cloth's particles closer than half the thickness to each other");
 }
 
-/// Thicknesses of zero, below zero, NaN and above the particle spacing are refused, naming the
-/// field; so is a negative friction.
+/// Thicknesses below zero, NaN and above the particle spacing are refused, naming the field; so
+/// is a negative friction.
 #[test]
 fn bad_thickness_and_friction_are_refused() {
     let topology = common::grid_topology(1.0, 48, 48);
     let spacing = particle_spacing(&topology);
     assert!((spacing - 1.0 / 47.0).abs() < 1e-6, "spacing {spacing}");
-    for thickness in [0.0, -0.01, f32::NAN, f32::INFINITY] {
+    for thickness in [-0.01, f32::NAN, f32::INFINITY, -0.0 - f32::MIN_POSITIVE] {
         let contact = SelfContact { thickness, friction: 0.0 };
         let err = contact.validate_for(&topology).unwrap_err();
         assert!(err.to_string().contains("self_contact.thickness"), "{err}");
@@ -153,6 +153,28 @@ fn bad_thickness_and_friction_are_refused() {
     assert!(err.to_string().contains("self_contact.thickness"), "{err}");
     let err = SelfContact { thickness: 0.01, friction: -1.0 }.validate().unwrap_err();
     assert!(err.to_string().contains("self_contact.friction"), "{err}");
+}
+
+/// `SelfContact::default()` fits any cloth: its thickness of 0 becomes half of each cloth's
+/// own particle spacing when the cloth is built (and when its parameters change), on a coarse
+/// and a fine grid alike.
+#[test]
+fn the_default_thickness_is_half_of_each_cloths_spacing() {
+    for (side, cells) in [(1.0, 8), (1.0, 96), (3.0, 24)] {
+        let topology = common::grid_topology(side, cells, cells);
+        let spacing = particle_spacing(&topology);
+        let p = ClothParams { self_contact: Some(SelfContact::default()), ..ClothParams::default() };
+        let mut sim = ClothSim::new(p.clone(), Arc::clone(&topology), Affine3A::IDENTITY, &[]).unwrap();
+        let resolved = sim.params().self_contact.unwrap();
+        assert!((resolved.thickness - 0.5 * spacing).abs() < 1e-7, "{} for a spacing of {spacing}", resolved.thickness);
+        assert_eq!(resolved.friction, 0.3);
+        sim.set_params(p).unwrap();
+        assert_eq!(sim.params().self_contact.unwrap().thickness, resolved.thickness);
+        // A thickness given is kept.
+        let given = SelfContact { thickness: 0.25 * spacing, friction: 0.1 };
+        sim.set_params(ClothParams { self_contact: Some(given), ..ClothParams::default() }).unwrap();
+        assert_eq!(sim.params().self_contact, Some(given));
+    }
 }
 
 /// Every particle of a 64 x 64 cloth at one point: each examines at most `MAX_CANDIDATES`

@@ -316,6 +316,9 @@ impl ClothBatch {
         if params.validate_for(&slot.topology).is_err() {
             return;
         }
+        // A self-contact thickness of 0 is this cloth's own, as the core resolves it.
+        let resolved = params.clone().resolved_for(&slot.topology);
+        let params = &resolved;
         let substeps = params.substeps(tick_seconds, &slot.topology).min(MAX_SUBSTEPS);
         let h = tick_seconds / substeps as f32;
         slot.constants = GpuBatchCloth::new(params, &slot.topology, slot.particle_start, slot.ends_start, substeps, h);
