@@ -95,6 +95,8 @@ fn cloth_panel(
             // The thickest self-contact the cloth accepts: its particle spacing (5 cm until the
             // cloth is built).
             let spacing = simulation.map_or(0.05, |s| particle_spacing(s.sim().topology()));
+            // The cloth's rest area, to show its weight per square metre (none until built).
+            let area = simulation.map(|s| s.sim().topology().rest_area()).filter(|&a| a > 0.0);
             ui.separator();
             let shape = match &cloth.shape {
                 ClothShape::Grid { size, particles } => {
@@ -107,6 +109,15 @@ fn cloth_panel(
                 ui.add(egui::Slider::new(&mut c.params.looper, 1..=64).text("Looper"));
                 ui.add(egui::Slider::new(&mut c.params.spring_k, 10.0..=400.0).logarithmic(true).text("SpringK (N/m)"));
                 ui.add(egui::Slider::new(&mut c.params.damping, 0.0..=10.0).text("Damping (1/s)"));
+                // The fabric's weight: moving it sets the density, which keeps the fabric when
+                // the cloth is resized.
+                if let Some(area) = area {
+                    let mut density = c.params.density.unwrap_or(c.params.mass / area);
+                    let slider = egui::Slider::new(&mut density, 0.01..=2.0).logarithmic(true).text("Fabric (kg/m²)");
+                    if ui.add(slider).changed() {
+                        c.params.density = Some(density);
+                    }
+                }
                 ui.label("External Force (N)");
                 ui.horizontal(|ui| {
                     for (axis, value) in ["x", "y", "z"].into_iter().zip(c.params.external_force.as_mut()) {

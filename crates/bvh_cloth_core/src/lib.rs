@@ -73,4 +73,5 @@ pub use mesh::MeshRef;
 pub use mesh::obj::{ObjError, ObjMesh, parse_obj};
 pub use self_contact::SelfContact;
 pub use sim::{ClothSim, Ticked};
+pub use solver::params::MAX_DENSITY;
 pub use solver::{ClothParams, Integrator, SpringStiffness};

@@ -69,6 +69,7 @@ pub struct ClothTopology {
     vertex_particle: Vec<u32>,
     stencil: Option<ClothGrid>,
     stiffness_bound: [f32; 3],
+    rest_area: f32,
     colouring: Result<ParticleColouring, ClothError>,
 }
 
@@ -253,6 +254,13 @@ impl ClothTopology {
             Some(known) => Ok(known),
             None => ParticleColouring::greedy(n, &spring_offsets, &spring_ends),
         };
+        let rest_area = triangles
+            .iter()
+            .map(|t| {
+                let [a, b, c] = t.map(|p| rest[p as usize].as_dvec3());
+                0.5 * (b - a).cross(c - a).length()
+            })
+            .sum::<f64>() as f32;
         Self {
             rest,
             mass_share,
@@ -266,6 +274,7 @@ impl ClothTopology {
             vertex_particle,
             stencil: None,
             stiffness_bound,
+            rest_area,
             colouring,
         }
     }
@@ -283,6 +292,11 @@ impl ClothTopology {
     /// Rest positions in the cloth's local frame.
     pub fn rest_positions(&self) -> &[Vec3] {
         &self.rest
+    }
+
+    /// The area of the rest surface in square metres: its triangles' areas summed.
+    pub fn rest_area(&self) -> f32 {
+        self.rest_area
     }
 
     /// Each particle's share of the cloth's mass (they sum to 1; zero for a particle that no

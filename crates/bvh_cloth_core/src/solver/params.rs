@@ -18,6 +18,10 @@ pub const MAX_ITERATIONS: u32 = 16;
 /// to be worth simulating explicitly.
 pub const MAX_SUBSTEPS_PER_TICK: u32 = 256;
 
+/// The heaviest fabric accepted, in kg/m²: ten times heavy canvas (about 0.6 kg/m²), past any
+/// cloth; more is a unit mistake (grams for kilograms, say).
+pub const MAX_DENSITY: f32 = 10.0;
+
 /// Which time integrator advances the cloth (paper section 2.2, and block descent).
 ///
 /// The default is block descent with one sweep per substep: a game sets a stiffness and a
@@ -94,6 +98,11 @@ pub struct ClothParams {
     /// it that [`ClothTopology::mass_share`] gives: its share of the surface for an authored
     /// mesh, an equal share on the generated grid (as in the paper).
     pub mass: f32,
+    /// The fabric's weight in kg/m² (voile about 0.05, cotton shirting 0.12, denim 0.4): when
+    /// set, the cloth's mass is this times its rest area ([`ClothTopology::rest_area`]) and
+    /// `mass` is ignored, so that resizing or remeshing a cloth keeps its fabric. At most
+    /// [`MAX_DENSITY`]. `None` (the default) takes `mass` as given.
+    pub density: Option<f32>,
     /// Simulation substeps per tick ("Looper").
     pub looper: u32,
     /// Stiffness of the cloth in N/m ("SpringK", the `c_e` of paper eq. 1), independent of the
@@ -134,6 +143,7 @@ impl Default for ClothParams {
     fn default() -> Self {
         Self {
             mass: 1.0,
+            density: None,
             looper: 16,
             spring_k: 200.0,
             damping: 0.5,
@@ -164,7 +174,7 @@ impl ClothParams {
         let s = self.stiffness;
         let bound = topology.stiffness_bound();
         let per_mass = s.structural * bound[0] + s.shear * bound[1] + s.bending * bound[2];
-        let omega = (2.0 * self.spring_k / self.mass * per_mass).sqrt() + self.damping;
+        let omega = (2.0 * self.spring_k / self.total_mass(topology) * per_mass).sqrt() + self.damping;
         let limit = match self.integrator {
             Integrator::Rk4 => 2.0 * core::f32::consts::SQRT_2,
             Integrator::SemiImplicitEuler => 2.0,
@@ -216,6 +226,12 @@ impl ClothParams {
     /// Checks that a cloth can be stepped with these parameters.
     pub fn validate(&self) -> Result<(), ClothError> {
         ClothError::check_positive("mass", self.mass)?;
+        if let Some(density) = self.density {
+            ClothError::check_positive("density", density)?;
+            if density > MAX_DENSITY {
+                return Err(ClothError::OutOfRange { field: "density", value: density, min: 0.0, max: MAX_DENSITY });
+            }
+        }
         if self.looper == 0 {
             return Err(ClothError::ZeroLooper);
         }
@@ -253,12 +269,20 @@ impl ClothParams {
         self.aerodynamics.validate()
     }
 
-    /// The same parameters with what depends on the cloth filled in from `topology`: a
-    /// self-contact thickness of 0 becomes its share of the particle spacing
-    /// ([`SelfContact::resolved_for`]). A [`ClothSim`](crate::ClothSim) holds its parameters so.
+    /// The same parameters with what depends on the cloth filled in from `topology`: the
+    /// `mass` a `density` gives ([`Self::total_mass`]), and a self-contact thickness of 0 as its
+    /// share of the particle spacing ([`SelfContact::resolved_for`]). A
+    /// [`ClothSim`](crate::ClothSim) holds its parameters so.
     pub fn resolved_for(mut self, topology: &ClothTopology) -> Self {
+        self.mass = self.total_mass(topology);
         self.self_contact = self.self_contact.map(|contact| contact.resolved_for(topology));
         self
+    }
+
+    /// The cloth's mass in kilograms on `topology`: `density` times its rest area when a
+    /// density is set, otherwise `mass`.
+    pub fn total_mass(&self, topology: &ClothTopology) -> f32 {
+        self.density.map_or(self.mass, |density| density * topology.rest_area())
     }
 
     /// [`Self::validate`], and whether `topology` can be stepped with these parameters: block

@@ -281,3 +281,38 @@ fn a_tick_reports_what_it_quarantined_and_left_non_finite() {
     assert!(!ticked[0].diverged(), "{ticked:?}");
     assert!(ticked[1].diverged() && ticked[1].non_finite <= 1, "{ticked:?}");
 }
+
+/// A cloth's weight given per square metre: two sheets of one fabric, 1 m and 2 m across, weigh
+/// in proportion to their areas, each particle carrying its share; the stability guard counts
+/// with that mass; densities that are NaN, not positive or absurd are refused naming the field.
+#[test]
+fn a_density_weighs_each_cloth_by_its_area() {
+    let fabric = ClothParams { density: Some(0.2), ..ClothParams::default() };
+    let mut masses = Vec::new();
+    for side in [1.0, 2.0] {
+        let topology = grid_topology(side, 24, 24);
+        assert!((topology.rest_area() - side * side).abs() < 1e-5, "area {}", topology.rest_area());
+        let sim = ClothSim::new(fabric.clone(), Arc::clone(&topology), Affine3A::IDENTITY, &[]).unwrap();
+        let mass = sim.params().mass;
+        assert!((mass - 0.2 * side * side).abs() < 1e-6, "{side} m: {mass} kg");
+        let particles: f32 = (0..sim.len()).map(|i| sim.particle_mass(i)).sum();
+        assert!((particles - mass).abs() < 1e-5, "the particles carry {particles} kg of {mass}");
+        masses.push(mass);
+        // The guard: a light fabric needs more explicit substeps than its `mass` field says.
+        let rk4 = ClothParams { integrator: Integrator::Rk4, spring_k: 5000.0, ..fabric.clone() };
+        let heavy = ClothParams { density: None, mass: 1.0, ..rk4.clone() };
+        assert_eq!(
+            rk4.substeps(1.0 / 60.0, &topology),
+            rk4.clone().resolved_for(&topology).substeps(1.0 / 60.0, &topology)
+        );
+        if side == 1.0 {
+            assert!(rk4.substeps(1.0 / 60.0, &topology) > heavy.substeps(1.0 / 60.0, &topology));
+        }
+    }
+    assert!((masses[1] / masses[0] - 4.0).abs() < 1e-4, "twice the side, four times the mass");
+
+    for density in [f32::NAN, 0.0, -0.1, 11.0, f32::INFINITY] {
+        let error = ClothParams { density: Some(density), ..ClothParams::default() }.validate().unwrap_err();
+        assert!(error.to_string().contains("density"), "{density}: {error}");
+    }
+}
