@@ -438,3 +438,55 @@ fn removing_a_collider_component_stops_the_collision() {
         "{primitive:?}"
     );
 }
+
+/// How many times each entity heard `ColliderReady`.
+#[derive(Resource, Default)]
+struct ReadyCount(Vec<Entity>);
+
+/// A mesh asset reported modified is built again only when what the collider is made of
+/// changed: touched with its triangles as they were (as a glTF mesh is right after it loads), the
+/// collider is not rebuilt and `ColliderReady` is not heard again; grown to twice its size, it
+/// is rebuilt, its shell where the new surface is.
+#[test]
+fn a_collider_is_rebuilt_when_its_mesh_changes_and_only_then() {
+    let mut app = app();
+    app.init_resource::<ReadyCount>();
+    app.add_observer(|ready: On<ColliderReady>, mut heard: ResMut<ReadyCount>| heard.0.push(ready.entity));
+    let mesh = ball(&mut app, 0.5);
+    let body = app.world_mut().spawn((Mesh3d(mesh.clone()), AutoCollider::new(8))).id();
+    wait_for_collider(&mut app, body);
+    run(&mut app, 0.1);
+    assert_eq!(app.world().resource::<ReadyCount>().0, [body]);
+    let reach =
+        |app: &App| app.world().get::<ClothCollider>(body).unwrap().collider().contains(Vec3::new(0.0, 1.0, 0.0));
+    assert!(!reach(&app), "the shell of a 0.5 m ball does not reach 1 m");
+
+    // Touched, unchanged.
+    {
+        let mut meshes = app.world_mut().resource_mut::<Assets<Mesh>>();
+        let mut touched = meshes.get_mut(&mesh).unwrap();
+        let _: &mut Mesh = &mut touched;
+    }
+    run(&mut app, 0.2);
+    assert_eq!(app.world().resource::<ReadyCount>().0, [body], "an unchanged mesh is not built again");
+
+    // Grown to twice its size.
+    {
+        let mut meshes = app.world_mut().resource_mut::<Assets<Mesh>>();
+        let mut grown = meshes.get_mut(&mesh).unwrap();
+        let Some(bevy::mesh::VertexAttributeValues::Float32x3(positions)) =
+            grown.attribute_mut(Mesh::ATTRIBUTE_POSITION)
+        else {
+            unreachable!()
+        };
+        positions.iter_mut().for_each(|p| *p = (Vec3::from(*p) * 2.0).to_array());
+    }
+    for _ in 0..500 {
+        if app.world().resource::<ReadyCount>().0.len() == 2 {
+            break;
+        }
+        run(&mut app, 1.0 / 60.0);
+    }
+    assert_eq!(app.world().resource::<ReadyCount>().0, [body, body], "a changed mesh is built again");
+    assert!(reach(&app), "the grown ball's shell reaches 1 m");
+}

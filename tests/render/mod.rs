@@ -365,15 +365,15 @@ fn gpu_cloths_spawned_changed_and_despawned_leave_no_gpu_resource() {
 }
 
 /// The largest distance between `got` and the core's 12 x 12 cloth (1 m, damping 0.5) after
-/// `ticks` 60 Hz ticks of falling from 10 m, with no pins and no colliders.
-fn gap_to_core_fall(ticks: u64, got: &[Vec3]) -> f32 {
+/// `ticks` ticks of `tick` seconds falling from 10 m, with no pins and no colliders.
+fn gap_to_core_fall(ticks: u64, tick: f32, got: &[Vec3]) -> f32 {
     let grid = bvh_cloth_core::ClothGrid::new(Vec2::ONE, UVec2::splat(12));
     let topology = std::sync::Arc::new(bvh_cloth_core::ClothTopology::grid(grid).unwrap());
     let params = bvh_cloth_core::ClothParams { damping: 0.5, ..Default::default() };
     let start = bvh_cloth_core::Affine3A::from_translation(Vec3::new(0.0, 10.0, 0.0));
     let mut core = bvh_cloth_core::ClothSim::new(params, topology, start, &[]).unwrap();
     for _ in 0..ticks {
-        core.tick(1.0 / 60.0, &[]);
+        core.tick(tick, &[]);
     }
     core.positions().iter().zip(got).map(|(a, b)| a.distance(*b)).fold(0.0f32, f32::max)
 }
@@ -403,9 +403,12 @@ fn the_gpu_backend_reads_a_cloth_back_when_asked() {
     assert!(late <= 3, "the state is {late} ticks late (one tick per frame here)");
     let ran = readback.ticks_run.expect("a state arrived");
     let got = app.world().get::<ClothSimulation>(read).unwrap().sim().positions();
-    let ticks = app.world().resource::<ClothClock>().total_ticks;
+    let (ticks, tick) =
+        (app.world().resource::<ClothClock>().total_ticks, app.world().resource::<ClothClock>().tick_seconds);
     assert!(ran + late <= ticks && ran > 30, "{ran} ticks run, {late} late, of {ticks}");
-    let gap = gap_to_core_fall(ran, &got);
+    // `FixedPostUpdate` at Bevy's default 64 Hz: one tick of 1/64 s per run.
+    assert_eq!(tick, 1.0 / 64.0);
+    let gap = gap_to_core_fall(ran, tick, &got);
     eprintln!("read back {late} ticks late, {ran} run (of {ticks}): within {gap:e} m of the core's state");
     assert!(gap < 1e-4, "the read-back state is not the core's after {ran} ticks ({gap} m)");
     assert!(got.iter().all(|p| p.y < 8.0), "the read-back cloth has fallen");
@@ -446,7 +449,10 @@ fn the_gpu_backend_runs_every_tick_of_a_fixed_schedule() {
     assert!(late <= 6, "the state is {late} ticks late (two ticks per frame at the end)");
     assert!(ran > 60, "{ran} ticks run");
     let got = app.world().get::<ClothSimulation>(cloth).unwrap().sim().positions();
-    let gap = gap_to_core_fall(ran, &got);
+    // Each run's step, f32 rounding aside 1/60 s: the core takes the same ticks.
+    let tick = app.world().resource::<ClothClock>().tick_seconds;
+    assert!((tick - 1.0 / 60.0).abs() < 1e-7, "ticks of {tick} s");
+    let gap = gap_to_core_fall(ran, tick, &got);
     eprintln!(
         "fixed schedule: {ran} ticks run + {late} late of {ticks} since it spawned; within {gap:e} m of the core's state"
     );

@@ -13,6 +13,7 @@ use std::collections::HashSet;
 
 use bevy::asset::LoadState;
 use bevy::ecs::system::SystemParam;
+use bevy::mesh::Indices;
 use bevy::mesh::skinning::{SkinnedMesh, SkinnedMeshInverseBindposes};
 use bevy::prelude::*;
 use bevy::tasks::{AsyncComputeTaskPool, Task, block_on, poll_once};
@@ -249,6 +250,27 @@ pub(crate) struct ColliderBuild {
     done: Option<BuildKey>,
     /// A build in flight.
     pending: Option<(BuildKey, Task<Result<Collider, ColliderFailure>>)>,
+    /// What the last build's mesh held (see [`fingerprint`]).
+    fingerprint: Option<u64>,
+}
+
+/// A hash of what a collider is built from in `mesh`: its positions, indices, joint indices
+/// and weights, bit for bit.
+fn fingerprint(mesh: &Mesh) -> u64 {
+    use std::hash::{Hash, Hasher};
+    let mut hasher = std::collections::hash_map::DefaultHasher::new();
+    for attribute in [Mesh::ATTRIBUTE_POSITION, Mesh::ATTRIBUTE_JOINT_INDEX, Mesh::ATTRIBUTE_JOINT_WEIGHT] {
+        if let Some(values) = mesh.attribute(attribute) {
+            values.get_bytes().hash(&mut hasher);
+        }
+    }
+    match mesh.indices() {
+        Some(Indices::U16(indices)) => indices.hash(&mut hasher),
+        Some(Indices::U32(indices)) => indices.hash(&mut hasher),
+        None => 0u8.hash(&mut hasher),
+    }
+    mesh.primitive_topology().hash(&mut hasher);
+    hasher.finish()
 }
 
 /// Starts, polls and finishes collider builds; reports failures.
@@ -395,6 +417,13 @@ fn advance_build(
     if build.done == Some(key) && !modified {
         return Progress::Idle;
     }
+    // A mesh can be reported modified with its triangles unchanged (a glTF mesh is, right after
+    // it loads): that is no reason to build again, and tell the entity twice that it is ready.
+    let fingerprint = meshes.get(key.mesh).map(fingerprint);
+    if build.done == Some(key) && fingerprint.is_some() && fingerprint == build.fingerprint {
+        return Progress::Idle;
+    }
+    build.fingerprint = fingerprint;
     let Some(mesh) = meshes.get(key.mesh) else {
         return match load_failure(key.mesh) {
             Some(reason) => {
