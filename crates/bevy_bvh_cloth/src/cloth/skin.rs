@@ -13,22 +13,14 @@ use bevy::ecs::entity::EntityHashSet;
 use bevy::mesh::VertexAttributeValues;
 use bevy::mesh::skinning::{SkinnedMesh, SkinnedMeshInverseBindposes};
 use bevy::prelude::*;
-use bvh_cloth_core::{Affine3A, ClothTopology, Vec3};
+use bvh_cloth_core::backend::SkinnedVertices;
+use bvh_cloth_core::{Affine3A, ClothTopology, Vec3, Vec3A};
 
 /// The skin of a mesh that became cloth: the [`SkinnedMesh`] the plugin took off it, so that
 /// the renderer does not skin the simulated vertices a second time. The cloth's pins follow
 /// it; removing the cloth puts the `SkinnedMesh` back.
 #[derive(Component, Clone, Debug)]
 pub struct ClothSkin(pub SkinnedMesh);
-
-/// How one particle's vertex is skinned: up to four joints, their weights (unnormalised, as
-/// Bevy's shader takes them), and the vertex's bind-pose position in the mesh's coordinates.
-#[derive(Clone, Copy, Debug)]
-struct SkinnedVertex {
-    joints: [u16; 4],
-    weights: [f32; 4],
-    bind: Vec3,
-}
 
 /// A cloth's skin as built: every particle's vertex skin, the joints, and the joint matrices
 /// of the end of the last frame, from which the pins move on.
@@ -37,8 +29,8 @@ pub(crate) struct SkinBinding {
     joints: Vec<Entity>,
     /// Each joint's inverse bind pose.
     inverse: Vec<Affine3A>,
-    /// By particle.
-    vertices: Vec<SkinnedVertex>,
+    /// Each particle's vertex: its bind position, four joints and their weights.
+    vertices: SkinnedVertices,
     /// The particles the skin holds.
     pub(crate) pins: Vec<u32>,
     /// Each joint's world transform times its inverse bind pose, at the end of the last frame.
@@ -76,9 +68,9 @@ impl SkinBinding {
         if joints.len() != map.len() || weights.len() != map.len() || positions.len() != map.len() {
             return Err("its joint attributes do not cover every vertex".into());
         }
-        let mut vertices = vec![None; topology.len()];
+        let mut first = vec![None; topology.len()];
         for (v, &particle) in map.iter().enumerate() {
-            let slot = &mut vertices[particle as usize];
+            let slot = &mut first[particle as usize];
             if slot.is_none() {
                 let used = joints[v].iter().zip(&weights[v]).filter(|&(_, &w)| w != 0.0);
                 if let Some((&joint, _)) = used.clone().find(|&(&j, _)| usize::from(j) >= count) {
@@ -87,13 +79,18 @@ impl SkinBinding {
                 if !weights[v].iter().all(|w| w.is_finite()) || !Vec3::from(positions[v]).is_finite() {
                     return Err(format!("vertex {v} has a non-finite position or weight"));
                 }
-                *slot = Some(SkinnedVertex { joints: joints[v], weights: weights[v], bind: positions[v].into() });
+                *slot = Some(v);
             }
         }
-        let vertices = vertices
+        let first = first
             .into_iter()
             .map(|v| v.ok_or_else(|| "a particle has no vertex".to_string()))
             .collect::<Result<Vec<_>, _>>()?;
+        let vertices = SkinnedVertices {
+            positions: first.iter().map(|&v| Vec3A::from_array(positions[v])).collect(),
+            joints: first.iter().map(|&v| joints[v]).collect(),
+            weights: first.iter().map(|&v| weights[v]).collect(),
+        };
         let inverse: Vec<Affine3A> = inverse.iter().take(count).map(|m| Affine3A::from_mat4(*m)).collect();
         let mut binding =
             Self { joints: skin.joints[..count].to_vec(), inverse, vertices, pins, matrices: Vec::new(), lost: false };
@@ -116,19 +113,12 @@ impl SkinBinding {
 
     /// Where particle `i` is skinned by `matrices`.
     fn place(&self, matrices: &[Affine3A], i: u32) -> Vec3 {
-        let vertex = &self.vertices[i as usize];
-        let mut sum = Vec3::ZERO;
-        for (&joint, &weight) in vertex.joints.iter().zip(&vertex.weights) {
-            if weight != 0.0 {
-                sum += weight * matrices[joint as usize].transform_point3(vertex.bind);
-            }
-        }
-        sum
+        self.vertices.skin_vertex(i as usize, matrices).into()
     }
 
     /// Where every particle is skinned at the end of the last frame: where the cloth starts.
     pub(crate) fn placed(&self) -> impl Iterator<Item = Vec3> + '_ {
-        (0..self.vertices.len() as u32).map(|i| self.place(&self.matrices, i))
+        (0..self.vertices.positions.len() as u32).map(|i| self.place(&self.matrices, i))
     }
 
     /// Moves the skin to this frame's joints and returns each pin's place at the end of the last

@@ -82,13 +82,7 @@ impl SkinnedVertices {
     pub fn skin_into(&self, joint_matrices: &[Affine3A], out: &mut Vec<Vec3A>) {
         out.resize(self.positions.len(), Vec3A::ZERO);
         let skin = |((p, joints), weights): ((&Vec3A, &[u16; 4]), &[f32; 4]), out: &mut Vec3A| {
-            let mut sum = Vec3A::ZERO;
-            for (&joint, &weight) in joints.iter().zip(weights) {
-                if weight != 0.0 {
-                    sum += weight * joint_matrices[joint as usize].transform_point3a(*p);
-                }
-            }
-            *out = sum;
+            *out = skin_point(*p, joints, weights, joint_matrices);
         };
         if self.positions.len() >= PARALLEL_MIN {
             self.positions
@@ -103,6 +97,25 @@ impl SkinnedVertices {
             items.zip(out.iter_mut()).for_each(|(item, out)| skin(item, out));
         }
     }
+}
+
+impl SkinnedVertices {
+    /// Vertex `i` skinned by `joint_matrices`, as [`Self::skin_into`] places it.
+    pub fn skin_vertex(&self, i: usize, joint_matrices: &[Affine3A]) -> Vec3A {
+        skin_point(self.positions[i], &self.joints[i], &self.weights[i], joint_matrices)
+    }
+}
+
+/// `p` placed by linear blend skinning: each joint's matrix weighted, unnormalised.
+#[inline]
+fn skin_point(p: Vec3A, joints: &[u16; 4], weights: &[f32; 4], joint_matrices: &[Affine3A]) -> Vec3A {
+    let mut sum = Vec3A::ZERO;
+    for (&joint, &weight) in joints.iter().zip(weights) {
+        if weight != 0.0 {
+            sum += weight * joint_matrices[joint as usize].transform_point3a(p);
+        }
+    }
+    sum
 }
 
 /// Above this many vertices or leaves a refit runs on the rayon pool.
