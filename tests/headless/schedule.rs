@@ -32,18 +32,7 @@ fn watch(clock: Res<ClothClock>, mut seen: ResMut<SeenInFixed>) {
 /// other rests on a ball.
 #[test]
 fn the_cloth_runs_in_fixed_post_update() {
-    let mut app = App::new();
-    app.add_plugins((
-        MinimalPlugins,
-        TransformPlugin,
-        AssetPlugin::default(),
-        MeshPlugin,
-        BvhClothPlugin::new(FixedPostUpdate),
-    ))
-    .insert_resource(TimeUpdateStrategy::ManualDuration(Duration::from_secs_f64(1.0 / 30.0)))
-    .insert_resource(Time::<Fixed>::from_hz(30.0))
-    .init_resource::<SeenInFixed>()
-    .add_systems(FixedPostUpdate, watch.after(ClothSystems::Step));
+    let mut app = fixed_app(30.0, 30.0);
     app.update();
     let params = ClothParams { damping: 0.5, ..default() };
     let cloth = app
@@ -74,17 +63,9 @@ fn the_cloth_runs_in_fixed_post_update() {
     assert_eq!(seen.total, clock.total_ticks, "every tick ran in the fixed schedule");
     assert!((116..=120).contains(&clock.total_ticks), "{} ticks in 2 s", clock.total_ticks);
 
-    let topology = std::sync::Arc::new(ClothTopology::grid(ClothGrid::new(Vec2::ONE, UVec2::splat(10))).unwrap());
-    let mut core =
-        ClothSim::new(params, topology, bvh_cloth_core::Affine3A::from_translation(Vec3::new(0.0, 10.0, 0.0)), &[])
-            .unwrap();
     // Each run's step in two ticks (f32 rounding aside, 1/60 s): the same ticks for the core.
     assert!((clock.tick_seconds - 1.0 / 60.0).abs() < 1e-7, "ticks of {} s", clock.tick_seconds);
-    for _ in 0..clock.total_ticks {
-        core.tick(clock.tick_seconds, &[]);
-    }
-    let got = app.world().get::<ClothSimulation>(cloth).unwrap().sim().positions();
-    let gap = core.positions().iter().zip(got.iter()).map(|(a, b)| a.distance(*b)).fold(0.0f32, f32::max);
+    let gap = gap_to_core(&app, cloth, params, clock.total_ticks, clock.tick_seconds);
     assert!(gap < 1e-5, "the fixed-schedule cloth is {gap} m from the core's after the same ticks");
 
     assert!(matches!(app.world().get::<ColliderStatus>(ball), Some(ColliderStatus::Ready { .. })));
@@ -92,6 +73,37 @@ fn the_cloth_runs_in_fixed_post_update() {
     let top = on_ball.iter().map(|p| p.y).fold(f32::MIN, f32::max);
     assert!(top > 0.45, "the cloth rests on the ball (highest particle at {top} m)");
     assert!(on_ball.iter().all(|p| p.distance(Vec3::new(5.0, 0.0, 0.0)) > 0.49), "no particle inside the ball");
+}
+
+/// An app with the cloth systems in `FixedPostUpdate` at `fixed_hz`, `fps` frames per
+/// (simulated) second, and [`watch`] after the cloth's step.
+fn fixed_app(fps: f64, fixed_hz: f64) -> App {
+    let mut app = App::new();
+    app.add_plugins((
+        MinimalPlugins,
+        TransformPlugin,
+        AssetPlugin::default(),
+        MeshPlugin,
+        BvhClothPlugin::new(FixedPostUpdate),
+    ))
+    .insert_resource(TimeUpdateStrategy::ManualDuration(Duration::from_secs_f64(1.0 / fps)))
+    .insert_resource(Time::<Fixed>::from_hz(fixed_hz))
+    .init_resource::<SeenInFixed>()
+    .add_systems(FixedPostUpdate, watch.after(ClothSystems::Step));
+    app
+}
+
+/// The largest distance between `cloth` (a 1 m, 10 x 10 grid dropped from 10 m with `params`)
+/// and the core's same cloth after `ticks` ticks of `tick` seconds.
+fn gap_to_core(app: &App, cloth: Entity, params: ClothParams, ticks: u64, tick: f32) -> f32 {
+    let topology = std::sync::Arc::new(ClothTopology::grid(ClothGrid::new(Vec2::ONE, UVec2::splat(10))).unwrap());
+    let start = bvh_cloth_core::Affine3A::from_translation(Vec3::new(0.0, 10.0, 0.0));
+    let mut core = ClothSim::new(params, topology, start, &[]).unwrap();
+    for _ in 0..ticks {
+        core.tick(tick, &[]);
+    }
+    let got = app.world().get::<ClothSimulation>(cloth).unwrap().sim().positions();
+    core.positions().iter().zip(got.iter()).map(|(a, b)| a.distance(*b)).fold(0.0f32, f32::max)
 }
 
 /// How many times the fixed schedule ran.
@@ -108,19 +120,8 @@ fn count_runs(mut runs: ResMut<FixedRuns>) {
 /// own 60 Hz accumulator, 4 of every 64 runs advanced no cloth.)
 #[test]
 fn at_any_fixed_rate_cloth_and_physics_step_one_to_one() {
-    let mut app = App::new();
-    app.add_plugins((
-        MinimalPlugins,
-        TransformPlugin,
-        AssetPlugin::default(),
-        MeshPlugin,
-        BvhClothPlugin::new(FixedPostUpdate),
-    ))
-    .insert_resource(TimeUpdateStrategy::ManualDuration(Duration::from_secs_f64(1.0 / 60.0)))
-    .insert_resource(Time::<Fixed>::from_hz(64.0))
-    .init_resource::<SeenInFixed>()
-    .init_resource::<FixedRuns>()
-    .add_systems(FixedPostUpdate, (count_runs, watch.after(ClothSystems::Step)));
+    let mut app = fixed_app(60.0, 64.0);
+    app.init_resource::<FixedRuns>().add_systems(FixedPostUpdate, count_runs);
     app.update();
     let params = ClothParams { damping: 0.5, ..default() };
     let cloth = app
@@ -143,14 +144,6 @@ fn at_any_fixed_rate_cloth_and_physics_step_one_to_one() {
     assert_eq!(app.world().resource::<SeenInFixed>().most, 1);
     assert!((clock.tick_seconds - 1.0 / 64.0).abs() < 1e-7, "each tick is the fixed step, {} s", clock.tick_seconds);
 
-    let topology = std::sync::Arc::new(ClothTopology::grid(ClothGrid::new(Vec2::ONE, UVec2::splat(10))).unwrap());
-    let mut core =
-        ClothSim::new(params, topology, bvh_cloth_core::Affine3A::from_translation(Vec3::new(0.0, 10.0, 0.0)), &[])
-            .unwrap();
-    for _ in 0..clock.total_ticks {
-        core.tick(1.0 / 64.0, &[]);
-    }
-    let got = app.world().get::<ClothSimulation>(cloth).unwrap().sim().positions();
-    let gap = core.positions().iter().zip(got.iter()).map(|(a, b)| a.distance(*b)).fold(0.0f32, f32::max);
+    let gap = gap_to_core(&app, cloth, params, clock.total_ticks, 1.0 / 64.0);
     assert!(gap < 1e-5, "the cloth is {gap} m from the core's after the same ticks of 1/64 s");
 }

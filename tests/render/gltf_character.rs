@@ -7,18 +7,13 @@
 //! collider is not refitted: the render world's is), no garment triangle crossing another, the garments hanging below
 //! their seams.
 
-use std::sync::{Arc, Mutex};
-
-use bevy::asset::RenderAssetUsages;
 use bevy::camera::RenderTarget;
 use bevy::prelude::*;
-use bevy::render::render_resource::TextureFormat;
-use bevy::render::view::screenshot::{Screenshot, ScreenshotCaptured};
 use bevy::world_serialization::WorldAssetRoot;
 use bevy_bvh_cloth::bvh_cloth_core::backend::crossing_pairs;
 use bevy_bvh_cloth::prelude::*;
 
-use super::{HEIGHT, WIDTH, adapter_present, gpu_backend_app_with, render_app};
+use super::{HEIGHT, WIDTH, adapter_present, capture, gpu_backend_app_with, image_target, render_app};
 use crate::headless::gltf_character::{CHARACTER, body_boxes, dressed, inside_body, mesh_of, named, skinned_pins};
 
 /// Whether the root heard that its cloths are built.
@@ -42,11 +37,7 @@ struct Walked {
 /// A camera behind the character, rendering into an image, and a light.
 fn spawn_camera(app: &mut App) -> Handle<Image> {
     let world = app.world_mut();
-    let target = world.resource_mut::<Assets<Image>>().add({
-        let mut image = Image::new_target_texture(WIDTH, HEIGHT, TextureFormat::Rgba8UnormSrgb, None);
-        image.asset_usage = RenderAssetUsages::default();
-        image
-    });
+    let target = image_target(world);
     world.spawn((
         Camera3d::default(),
         RenderTarget::Image(target.clone().into()),
@@ -59,18 +50,7 @@ fn spawn_camera(app: &mut App) -> Handle<Image> {
 /// The picture in `target`, saved as `$CARGO_TARGET_TMPDIR/gltf_character_{name}.png`, and its
 /// blue (cape) and green (skirt) pixels.
 fn picture(app: &mut App, target: Handle<Image>, name: &str) -> [usize; 2] {
-    let captured: Arc<Mutex<Option<Image>>> = Arc::default();
-    let slot = captured.clone();
-    app.world_mut().spawn(Screenshot::image(target)).observe(move |shot: On<ScreenshotCaptured>| {
-        *slot.lock().unwrap() = Some(shot.image.clone());
-    });
-    for _ in 0..20 {
-        app.update();
-        if captured.lock().unwrap().is_some() {
-            break;
-        }
-    }
-    let image = captured.lock().unwrap().take().expect("a screenshot within 20 frames");
+    let image = capture(app, target);
     let png = std::path::Path::new(env!("CARGO_TARGET_TMPDIR")).join(format!("gltf_character_{name}.png"));
     image.clone().try_into_dynamic().unwrap().to_rgb8().save(&png).unwrap();
     eprintln!("saved {}", png.display());

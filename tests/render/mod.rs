@@ -161,13 +161,34 @@ fn the_cpu_backend_drapes_the_same_scene_through_the_renderer() {
 
 /// Loads the bunny with an `AutoCollider`, drops a 48 x 48 cloth on it, runs three seconds and
 /// returns a picture of the scene.
-fn render_bunny_scene(app: &mut App) -> Image {
-    let world = app.world_mut();
-    let target = world.resource_mut::<Assets<Image>>().add({
+/// A `WIDTH` x `HEIGHT` image for a camera to render into.
+fn image_target(world: &mut World) -> Handle<Image> {
+    world.resource_mut::<Assets<Image>>().add({
         let mut image = Image::new_target_texture(WIDTH, HEIGHT, TextureFormat::Rgba8UnormSrgb, None);
         image.asset_usage = RenderAssetUsages::default();
         image
+    })
+}
+
+/// The picture in `target`, taken within 20 frames.
+fn capture(app: &mut App, target: Handle<Image>) -> Image {
+    let captured: Arc<Mutex<Option<Image>>> = Arc::default();
+    let slot = captured.clone();
+    app.world_mut().spawn(Screenshot::image(target)).observe(move |shot: On<ScreenshotCaptured>| {
+        *slot.lock().unwrap() = Some(shot.image.clone());
     });
+    for _ in 0..20 {
+        app.update();
+        if captured.lock().unwrap().is_some() {
+            break;
+        }
+    }
+    captured.lock().unwrap().take().expect("a screenshot within 20 frames")
+}
+
+fn render_bunny_scene(app: &mut App) -> Image {
+    let world = app.world_mut();
+    let target = image_target(world);
     world.spawn((
         Camera3d::default(),
         RenderTarget::Image(target.clone().into()),
@@ -196,19 +217,7 @@ fn render_bunny_scene(app: &mut App) -> Image {
     for _ in 0..180 {
         app.update();
     }
-
-    let captured: Arc<Mutex<Option<Image>>> = Arc::default();
-    let slot = captured.clone();
-    app.world_mut().spawn(Screenshot::image(target)).observe(move |shot: On<ScreenshotCaptured>| {
-        *slot.lock().unwrap() = Some(shot.image.clone());
-    });
-    for _ in 0..20 {
-        app.update();
-        if captured.lock().unwrap().is_some() {
-            break;
-        }
-    }
-    captured.lock().unwrap().take().expect("a screenshot within 20 frames")
+    capture(app, target)
 }
 
 /// The cloth is visible, covers the bunny's top and hangs down its sides. Saves the picture.
