@@ -387,8 +387,8 @@ fn gap_to_core_fall(ticks: u64, tick: f32, got: &[Vec3]) -> f32 {
     core.positions().iter().zip(got).map(|(a, b)| a.distance(*b)).fold(0.0f32, f32::max)
 }
 
-/// On the GPU backend a cloth with `ClothReadback` has its live state in `ClothSimulation`, a
-/// frame or two late and without a blocking read; a cloth without it keeps the state it was
+/// On the GPU backend a cloth with `ClothReadback` has its live state in `ClothSimulation`, two
+/// or three frames late and without a blocking read; a cloth without it keeps the state it was
 /// built with. A free fall (no pins, no colliders: the springs stay at rest) is compared with
 /// the core's CPU stepper: the state read back must be the core's after exactly the ticks
 /// `ticks_run` says it has run (1e-4 m; a tick of fall at this speed moves the cloth over
@@ -404,13 +404,23 @@ fn the_gpu_backend_reads_a_cloth_back_when_asked() {
     };
     let read = app.world_mut().spawn((cloth(0.0), ClothReadback::default())).id();
     let unread = app.world_mut().spawn(cloth(3.0)).id();
-    for _ in 0..60 {
+    // How late each frame's state is, over the last 30 frames. One tick per frame here (two in
+    // one frame of 16); with Bevy's pipelined rendering a state copied in one frame's render
+    // reaches the main world two or three frames later: 3 to 5 ticks on an idle machine.
+    // lavapipe shares the CPU with the other tests, so a frame can be later; a read that stops
+    // arriving, or a queue of copies that grows, passes both bounds within 30 frames.
+    let mut lates = Vec::new();
+    for frame in 0..60 {
         app.update();
+        if frame >= 30 {
+            lates.push(app.world().get::<ClothReadback>(read).unwrap().ticks_late.expect("a state arrived"));
+        }
     }
-    let readback = app.world().get::<ClothReadback>(read).unwrap();
-    let late = readback.ticks_late.expect("a state arrived");
-    assert!(late <= 3, "the state is {late} ticks late (one tick per frame here)");
-    let ran = readback.ticks_run.expect("a state arrived");
+    lates.sort_unstable();
+    let (least, most) = (lates[0], lates[lates.len() - 1]);
+    assert!(least <= 4 && most <= 10, "the state is {least} to {most} ticks late (one tick per frame here)");
+    let late = app.world().get::<ClothReadback>(read).unwrap().ticks_late.unwrap();
+    let ran = app.world().get::<ClothReadback>(read).unwrap().ticks_run.expect("a state arrived");
     let got = app.world().get::<ClothSimulation>(read).unwrap().sim().positions();
     let (ticks, tick) =
         (app.world().resource::<ClothClock>().total_ticks, app.world().resource::<ClothClock>().tick_seconds);
@@ -418,7 +428,9 @@ fn the_gpu_backend_reads_a_cloth_back_when_asked() {
     // `FixedPostUpdate` at Bevy's default 64 Hz: one tick of 1/64 s per run.
     assert_eq!(tick, 1.0 / 64.0);
     let gap = gap_to_core_fall(ran, tick, &got);
-    eprintln!("read back {late} ticks late, {ran} run (of {ticks}): within {gap:e} m of the core's state");
+    eprintln!(
+        "read back {least} to {most} ticks late over 30 frames, {late} at the end, {ran} run (of {ticks}): within {gap:e} m of the core's state"
+    );
     assert!(gap < 1e-4, "the read-back state is not the core's after {ran} ticks ({gap} m)");
     assert!(got.iter().all(|p| p.y < 8.0), "the read-back cloth has fallen");
     let rest = app.world().get::<ClothSimulation>(unread).unwrap().sim().positions();

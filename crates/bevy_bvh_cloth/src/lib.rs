@@ -66,7 +66,7 @@
 //!   `normal_shader` writes positions and normals straight into the cloth mesh's vertex
 //!   slab. Nothing on the hot path waits for the GPU: each cloth's count of non-finite
 //!   particles is read back without waiting for it, and so is its whole state when the cloth
-//!   has [`ClothReadback`] (then [`ClothSimulation`] is one or two frames late; without it,
+//!   has [`ClothReadback`] (then [`ClothSimulation`] is two or three frames late; without it,
 //!   [`ClothSimulation`] holds the state as of the last rebuild or reset).
 //!   The kernels are compiled by Bevy's pipeline cache, off the render thread; cloths wait at
 //!   rest until they are ready, a few frames after start-up.

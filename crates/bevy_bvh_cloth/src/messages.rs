@@ -25,7 +25,7 @@ pub enum ClothMessage {
     /// On both backends each particle whose substep goes non-finite is first held at its
     /// last finite state (so that it cannot spread through the springs). On the CPU backend
     /// the reset comes in the frame it happened; on the GPU backend once the count reaches the
-    /// main world, a frame or two later.
+    /// main world, two or three frames later.
     Diverged {
         /// The cloth entity.
         entity: Entity,

@@ -24,7 +24,7 @@ use crate::settings::ClothSettings;
 /// Particle positions are in world space. The entity's [`Mesh3d`] shows them in the entity's
 /// local frame, each vertex at its particle ([`ClothTopology::vertex_particle`]). On the CPU
 /// backend this is the live state. On the GPU backend the live state stays on the GPU: with
-/// [`ClothReadback`](crate::ClothReadback) on the entity this is read back one or two frames
+/// [`ClothReadback`](crate::ClothReadback) on the entity this is read back two or three frames
 /// late, without stalling; without it, this holds the state as of the last rebuild or reset.
 ///
 /// [`ClothTopology::vertex_particle`]: bvh_cloth_core::ClothTopology::vertex_particle

@@ -11,8 +11,8 @@ use crate::cloth::simulation::ClothSimulation;
 /// too.
 ///
 /// The read never stalls a frame: each frame's state is copied on the GPU and mapped after the
-/// submit, and it reaches the main world when the map completes, usually one or two frames
-/// later. [`ClothReadback::ticks_late`] says how late the state in [`ClothSimulation`] is. A
+/// submit, and it reaches the main world at the first extract after the map completes: with
+/// Bevy's pipelined rendering two or three frames after the frame that ran it. [`ClothReadback::ticks_late`] says how late the state in [`ClothSimulation`] is. A
 /// copy costs the cloth's particle buffer (32 bytes per particle) per frame, so read back only
 /// the cloths gameplay looks at. On the CPU backend the state is always live and this does
 /// nothing.
