@@ -177,6 +177,40 @@ impl ClothSim {
         }
     }
 
+    /// Changes which particles are pinned, keeping the state, so that a corner can be let go,
+    /// or caught, while the cloth moves. A particle let go starts from rest where it was held
+    /// and its springs take it along at once; a particle newly pinned stays where it is until
+    /// its pin moves it ([`Self::move_pins`], [`Self::pin_to`]). The tethers are found again
+    /// for the new pins. A particle without mass stays held. Returns an error, and keeps the
+    /// old pins, when an index is outside the cloth.
+    pub fn set_pins(&mut self, pins: &[u32]) -> Result<(), ClothError> {
+        let n = self.len();
+        if let Some(&index) = pins.iter().find(|&&i| i as usize >= n) {
+            return Err(ClothError::PinOutOfRange { index, particles: n as u32 });
+        }
+        let mut pins = pins.to_vec();
+        pins.sort_unstable();
+        pins.dedup();
+        if pins == self.pins {
+            return Ok(());
+        }
+        let topology = Arc::clone(&self.topology);
+        let released: Vec<usize> =
+            self.pins.iter().map(|&i| i as usize).filter(|&i| pins.binary_search(&(i as u32)).is_err()).collect();
+        for i in released {
+            if topology.mass_share()[i] > 0.0 {
+                self.free[i] = 1.0;
+                self.set_velocity(i, Vec3::ZERO);
+            }
+        }
+        for &i in &pins {
+            self.free[i as usize] = 0.0;
+        }
+        self.tethers = Arc::new(TetherSet::new(&topology, &pins));
+        self.pins = pins;
+        Ok(())
+    }
+
     /// Moves every pinned particle to its rest position under `pose`: this is how pins follow
     /// the object that holds the cloth.
     pub fn pin_to(&mut self, pose: &Affine3A) {

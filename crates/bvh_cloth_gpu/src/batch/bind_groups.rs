@@ -285,8 +285,13 @@ impl ClothBatch {
 
     pub(super) fn write_anchor_targets(&mut self, device: &Device, queue: &Queue) {
         let ticks = self.slots.iter().flatten().map(|slot| slot.targets.len()).max().unwrap_or(0) as u32;
-        let per_tick: u32 =
-            self.slots.iter().flatten().filter(|slot| !slot.targets.is_empty()).map(|slot| slot.pins).sum();
+        let per_tick: u32 = self
+            .slots
+            .iter()
+            .flatten()
+            .filter(|slot| !slot.targets.is_empty())
+            .map(|slot| slot.pins.len() as u32)
+            .sum();
         self.anchor_count = if ticks == 0 { 0 } else { per_tick };
         if self.anchor_count == 0 {
             return;
@@ -315,7 +320,7 @@ impl ClothBatch {
                         words[at + j] = [p.x, p.y, p.z, f32::from_bits(slot.particle_start + i)];
                     }
                 }
-                at += slot.pins as usize;
+                at += slot.pins.len();
             }
         }
         queue.write_buffer(&anchors.buffer, 0, bytemuck::cast_slice(&words));

@@ -12,7 +12,7 @@ use writeback::Writebacks;
 use std::sync::Arc;
 
 use crate::layout::{
-    GpuBatchCloth, GpuBatchFrame, GpuBatchStep, GpuMeshWriteback, GpuParticle, NO_CLOTH, gpu_particles,
+    GpuBatchCloth, GpuBatchFrame, GpuBatchStep, GpuMeshWriteback, GpuParticle, NO_CLOTH, gpu_particles, gpu_tether_ends,
 };
 use bvh_cloth_core::backend::AirSource;
 use bvh_cloth_core::backend::MAX_COLOURS;
@@ -43,8 +43,8 @@ struct Slot {
     ends_start: u32,
     surface_start: u32,
     constants: GpuBatchCloth,
-    /// Pinned particles: `apply_anchors` targets per tick at most.
-    pins: u32,
+    /// Pinned particles, sorted: `apply_anchors` takes as many targets per tick at most.
+    pins: Vec<u32>,
     /// This frame's anchor targets per tick, particle indices relative to the cloth.
     targets: Vec<Vec<(u32, Vec3)>>,
     /// The cloth's state, waiting for the next rebuild or first upload.
@@ -220,7 +220,7 @@ impl ClothBatch {
             ends_start: 0,
             surface_start: 0,
             constants: GpuBatchCloth::default(),
-            pins: sim.pins().len() as u32,
+            pins: sim.pins().to_vec(),
             targets: Vec::new(),
             pending_state: Some(gpu_particles(sim)),
             writeback: None,
@@ -383,8 +383,59 @@ impl ClothBatch {
     pub fn set_anchor_targets(&mut self, id: ClothId, ticks: &[Vec<(u32, Vec3)>]) {
         if let Some(slot) = self.slots.get_mut(id.0 as usize).and_then(Option::as_mut) {
             slot.targets.clear();
-            slot.targets.extend(ticks.iter().map(|tick| tick.iter().copied().take(slot.pins as usize).collect()));
+            slot.targets.extend(ticks.iter().map(|tick| tick.iter().copied().take(slot.pins.len()).collect()));
         }
+    }
+
+    /// Changes which of `id`'s particles are pinned, keeping its state on the GPU, as
+    /// [`ClothSim::set_pins`] does on the CPU: a particle let go starts from rest where it was
+    /// held, one newly pinned stays where it is until its targets move it. `tethers` are the
+    /// ones the core found for `pins` ([`ClothSim::tethers`]). A cloth that had no tethers and
+    /// now has them needs room in the spring-end buffer, so the buffers are rebuilt (the
+    /// states copied on the GPU), which can fail as [`Self::insert`] can; the cloth then
+    /// keeps its old pins.
+    pub fn set_pins(
+        &mut self,
+        device: &Device,
+        queue: &Queue,
+        id: ClothId,
+        pins: &[u32],
+        tethers: Arc<TetherSet>,
+    ) -> Result<(), KernelError> {
+        let Some(slot) = self.slots.get_mut(id.0 as usize).and_then(Option::as_mut) else { return Ok(()) };
+        let n = slot.topology.len();
+        let mut pins: Vec<u32> = pins.iter().copied().filter(|&i| (i as usize) < n).collect();
+        pins.sort_unstable();
+        pins.dedup();
+        if pins == slot.pins {
+            return Ok(());
+        }
+        let grows = tethers.pin.len() > slot.tethers.pin.len();
+        let old = (std::mem::replace(&mut slot.pins, pins), std::mem::replace(&mut slot.tethers, tethers));
+        if grows && let Err(error) = self.rebuild(device, queue) {
+            let slot = self.slots[id.0 as usize].as_mut().expect("the slot was just changed");
+            (slot.pins, slot.tethers) = old;
+            return Err(error);
+        }
+        let slot = self.slots[id.0 as usize].as_mut().expect("the slot is there");
+        let share = slot.topology.mass_share();
+        slot.free_body = slot.pins.iter().all(|&i| share[i as usize] == 0.0);
+        let particle = |i: u32| u64::from(slot.particle_start + i) * size_of::<GpuParticle>() as u64;
+        // `position.w` is the free flag; a particle let go also loses its velocity.
+        for &i in old.0.iter().filter(|&&i| slot.pins.binary_search(&i).is_err() && share[i as usize] > 0.0) {
+            queue.write_buffer(&self.buffers.base, particle(i) + 12, bytemuck::bytes_of(&[1.0f32, 0.0, 0.0, 0.0, 0.0]));
+        }
+        for &i in slot.pins.iter().filter(|&&i| old.0.binary_search(&i).is_err()) {
+            queue.write_buffer(&self.buffers.base, particle(i) + 12, bytemuck::bytes_of(&0.0f32));
+        }
+        if !grows {
+            queue.write_buffer(
+                &self.buffers.spring_ends,
+                u64::from(slot.tether_start()) * 16,
+                bytemuck::cast_slice(&gpu_tether_ends(&slot.tethers)),
+            );
+        }
+        Ok(())
     }
 
     /// Replaces `id`'s GPU state with `sim`'s (a reset, or pins moved by the caller), and
