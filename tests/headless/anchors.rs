@@ -220,3 +220,64 @@ fn painted_and_region_pins_on_an_authored_mesh_pick_the_pole_and_anchors_take_pr
         );
     }
 }
+
+/// Pins and anchors changed on a running cloth keep its state, with no rebuild at rest: a
+/// 12 x 12 cloth hanging from its two ends for 0.5 s lets one go, and the frame after, its state
+/// is the core's after `ClothSim::set_pins` and one tick (the core's own cloth cloned from the
+/// plugin's state before the change, to 1e-6 m); 0.5 s on the released corner has fallen. A
+/// pin out of range is refused with a message and changes nothing. Then an anchor on a hook
+/// catches the corner: it goes to its rest place under the cloth and rides the hook from there.
+#[test]
+fn a_corner_let_go_and_caught_again_while_the_cloth_moves() {
+    let mut app = app();
+    let cloth_pose = Transform::from_xyz(0.0, 2.0, 0.0);
+    let grid = Cloth { params: ClothParams { damping: 0.5, ..default() }, ..Cloth::grid(Vec2::ONE, UVec2::splat(12)) }
+        .with_pins(ClothPins::TwoEnds);
+    let cloth = app.world_mut().spawn((grid, cloth_pose)).id();
+    run(&mut app, 0.5);
+    let mut core = app.world().get::<ClothSimulation>(cloth).unwrap().sim().clone();
+    assert_eq!(core.pins(), &[0, 11]);
+    let held_at = core.position(11);
+
+    app.world_mut().get_mut::<Cloth>(cloth).unwrap().pins = ClothPins::Indices(vec![0]);
+    app.update();
+    core.set_pins(&[0]).unwrap();
+    core.tick(1.0 / 60.0, &[]);
+    let gap = max_distance(&positions(&app, cloth), &core.positions());
+    assert!(gap < 1e-6, "the plugin's cloth is not the core's after letting go ({gap} m): was it rebuilt?");
+    assert_eq!(app.world().get::<ClothSimulation>(cloth).unwrap().sim().pins(), &[0]);
+    run(&mut app, 0.5);
+    let fell = held_at.y - positions(&app, cloth)[11].y;
+    assert!(fell > 0.2, "the released corner fell only {fell} m in 0.5 s");
+
+    let mut core = app.world().get::<ClothSimulation>(cloth).unwrap().sim().clone();
+    app.world_mut().get_mut::<Cloth>(cloth).unwrap().pins = ClothPins::Indices(vec![0, 999]);
+    app.update();
+    assert!(
+        sent(&app).iter().any(|m| matches!(m, ClothMessage::Rejected { entity, error: ClothError::PinOutOfRange { .. } } if *entity == cloth)),
+        "a pin out of range is refused with a message: {:?}",
+        sent(&app)
+    );
+    let state = app.world().get::<ClothSimulation>(cloth).unwrap();
+    assert_eq!(state.sim().pins(), &[0], "a refused change keeps the pins");
+    core.tick(1.0 / 60.0, &[]);
+    let gap = max_distance(&positions(&app, cloth), &core.positions());
+    assert!(gap < 1e-6, "a refused change moved the cloth off its course ({gap} m)");
+
+    let hook = app.world_mut().spawn(Transform::from_xyz(0.5, 2.0, -0.5)).id();
+    app.update();
+    let mut component = app.world_mut().get_mut::<Cloth>(cloth).unwrap();
+    component.pins = ClothPins::Indices(vec![0]);
+    component.anchors.push(ClothAnchor::new(ClothPins::Indices(vec![11]), hook));
+    app.update();
+    let rest = cloth_pose
+        .transform_point(app.world().get::<ClothSimulation>(cloth).unwrap().sim().topology().rest_positions()[11]);
+    assert!(positions(&app, cloth)[11].distance(rest) < 1e-5, "the caught corner is not at its rest place");
+    for frame in 1..=30 {
+        app.world_mut().get_mut::<Transform>(hook).unwrap().translation.x = 0.5 + 0.01 * frame as f32;
+        app.update();
+    }
+    let rode = positions(&app, cloth)[11] - rest;
+    assert!(rode.distance(Vec3::new(0.3, 0.0, 0.0)) < 1e-5, "the caught corner did not ride its hook: moved {rode}");
+    assert_eq!(app.world().get::<ClothSimulation>(cloth).unwrap().sim().pins(), &[0, 11]);
+}

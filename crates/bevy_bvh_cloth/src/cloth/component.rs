@@ -27,9 +27,12 @@ use crate::colliders::hierarchy::ExcludeFromColliders;
 /// A cloth's own mesh is never made a collider by an [`AutoCollider`](crate::AutoCollider) on an
 /// ancestor (it requires [`ExcludeFromColliders`]).
 ///
-/// Editing `params` or an anchor's `offset` takes effect on the next tick and keeps the cloth's
-/// state. Editing `shape`, `pins` or which vertices or entity an anchor holds rebuilds the
-/// cloth at rest. Invalid values are refused with an error (see
+/// Editing `params`, `pins` or `anchors` takes effect on the next tick and keeps the cloth's
+/// state, so a corner can be let go, or caught, while the cloth moves: a particle let go
+/// starts from rest where it was held (its springs take it along at once); a particle newly
+/// held goes to its holder, an anchor's bound as when the cloth is built (its rest place under
+/// the cloth entity, carried from where the target is now). Editing `shape` rebuilds the cloth
+/// at rest. Invalid values are refused with an error (see
 /// [`ClothMessage::Rejected`](crate::ClothMessage)), and the cloth keeps running with its last
 /// valid parameters.
 ///
@@ -173,11 +176,15 @@ impl Cloth {
 
     /// Whether going from `self` to `other` needs a new topology (and a new mesh).
     pub(crate) fn shape_differs(&self, other: &Cloth) -> bool {
+        self.shape != other.shape
+    }
+
+    /// Whether going from `self` to `other` changes who holds which particles (the running
+    /// cloth keeps its state through it; an anchor's offset alone is not such a change).
+    pub(crate) fn holders_differ(&self, other: &Cloth) -> bool {
         fn holds(a: &ClothAnchor) -> (&ClothPins, Entity) {
             (&a.pins, a.target)
         }
-        self.shape != other.shape
-            || self.pins != other.pins
-            || !self.anchors.iter().map(holds).eq(other.anchors.iter().map(holds))
+        self.pins != other.pins || !self.anchors.iter().map(holds).eq(other.anchors.iter().map(holds))
     }
 }

@@ -60,6 +60,9 @@ pub struct ClothSimulation {
     /// Changes whenever the state is replaced (a new grid, a reset), so that the GPU backend
     /// knows to upload it. Unique across cloths.
     pub(crate) generation: u64,
+    /// Changes whenever the pins change on the running cloth, so that the GPU backend changes
+    /// them on its state too. Unique across cloths.
+    pub(crate) pins_generation: u64,
 }
 
 /// A [`ClothAnchor`](crate::ClothAnchor) as built: its particles in its target's frame.
@@ -111,6 +114,49 @@ impl ClothSimulation {
         }
         self.reset(pose);
         messages.write(ClothMessage::Diverged { entity, particles });
+    }
+
+    /// Gives the running cloth the pins and anchors `cloth` now asks for, keeping its state
+    /// ([`ClothSim::set_pins`]): a particle let go starts from rest where it was held, one
+    /// newly held goes where its holder puts it (its rest place under the entity's `pose`, or
+    /// an anchor's bound as when the cloth is built, to where `target_pose` puts its target
+    /// now; a skinned mesh's own pins ride on its skin). Refused, keeping the old holders, when
+    /// a selector fails.
+    fn repin(
+        &mut self,
+        cloth: &Cloth,
+        pose: Affine3A,
+        meshes: &Assets<Mesh>,
+        skin: Option<Skin<'_>>,
+        target_pose: impl Fn(Entity) -> Option<Affine3A>,
+    ) -> Result<(), ClothError> {
+        let topology = Arc::clone(self.sim.topology());
+        let authored = match &self.source {
+            Some(source) => Some(meshes.get(source).ok_or(ClothError::NoTriangleMesh)?),
+            None => None,
+        };
+        let rest: Vec<[f32; 3]>;
+        let vertices = match authored {
+            Some(mesh) => authored_vertices(mesh),
+            None => {
+                rest = topology.rest_positions().iter().map(|p| p.to_array()).collect();
+                MeshVertices { positions: &rest, colors: None }
+            }
+        };
+        let Holders { mut own_pins, anchors, pins } = holders(cloth, &topology, vertices, pose, target_pose)?;
+        let bound = match (skin, authored, &self.skin) {
+            (Some(skin), Some(mesh), Some(_)) => bind_skin(skin, mesh, &topology, &own_pins).0,
+            _ => None,
+        };
+        self.sim.set_pins(&pins)?;
+        if bound.is_some() {
+            own_pins.clear();
+        }
+        self.skin = bound;
+        self.own_pins = own_pins;
+        self.anchors = anchors;
+        self.pins_generation = next_generation();
+        Ok(())
     }
 
     /// Back to the rest pose under `pose`, or for a skinned cloth where its skin was last drawn.
@@ -194,52 +240,13 @@ fn build(
         Made::Grid(_, positions) => MeshVertices { positions, colors: None },
         Made::Authored(mesh, _) => authored_vertices(mesh),
     };
-    // Each particle goes to the last holder that claims it: the entity, then the anchors.
-    let mut holder = vec![None::<usize>; topology.len()];
-    let mut held = vec![false; topology.len()];
-    for &i in &cloth.pins.particles(&topology, vertices)? {
-        held[i as usize] = true;
-    }
-    for (a, anchor) in cloth.anchors.iter().enumerate() {
-        for i in anchor.pins.particles(&topology, vertices)? {
-            holder[i as usize] = Some(a);
-        }
-    }
-    let mut own_pins: Vec<u32> =
-        (0..topology.len() as u32).filter(|&i| held[i as usize] && holder[i as usize].is_none()).collect();
-    let anchors = cloth
-        .anchors
-        .iter()
-        .enumerate()
-        .map(|(a, anchor)| {
-            // A target that cannot be found holds its particles where the cloth starts (and
-            // `plan_anchors` reports it lost).
-            let target = target_pose(anchor.target).unwrap_or(pose);
-            let to_target = target.inverse() * pose;
-            let particles = (0..topology.len() as u32)
-                .filter(|&i| holder[i as usize] == Some(a))
-                .map(|i| (i, to_target.transform_point3(topology.rest_positions()[i as usize])))
-                .collect();
-            AnchorBinding { target: anchor.target, particles, offset: anchor.offset, pose: target, lost: false }
-        })
-        .collect::<Vec<_>>();
-    let pins: Vec<u32> =
-        (0..topology.len() as u32).filter(|&i| held[i as usize] || holder[i as usize].is_some()).collect();
+    let Holders { mut own_pins, anchors, pins } = holders(cloth, &topology, vertices, pose, target_pose)?;
     if let Some(dt) = tick_seconds {
         params.check_tick(dt, &topology)?;
     }
     // A skinned mesh's own pins ride on its skin.
     let (skin, skin_refused) = match (skin, &from) {
-        (Some((skinned, inverse, joint_pose)), Made::Authored(mesh, _)) => {
-            let binding = inverse
-                .ok_or_else(|| "its inverse bind poses are not loaded".to_string())
-                .and_then(|inverse| SkinBinding::new(skinned, inverse, mesh, &topology, own_pins.clone(), joint_pose));
-            match binding {
-                Ok(binding) => (Some(binding), None),
-                // Said only where it matters: the skin had pins to carry.
-                Err(reason) => (None, (!own_pins.is_empty()).then_some(reason)),
-            }
-        }
+        (Some(skin), Made::Authored(mesh, _)) => bind_skin(skin, mesh, &topology, &own_pins),
         _ => (None, None),
     };
     if skin.is_some() {
@@ -254,6 +261,74 @@ fn build(
         Made::Authored(authored, source) => (new_authored_mesh(authored, &sim, transform), Some(source)),
     };
     Ok(Some(Built { sim, mesh, source, own_pins, anchors, skin, skin_refused }))
+}
+
+/// Who holds which particles of a cloth: the entity its own pins, each anchor its group.
+struct Holders {
+    /// The particles the entity itself holds (those no anchor claims).
+    own_pins: Vec<u32>,
+    anchors: Vec<AnchorBinding>,
+    /// Every held particle, sorted.
+    pins: Vec<u32>,
+}
+
+/// Which particles `cloth`'s pins and anchors choose on `topology` (`vertices` are the mesh's,
+/// for selectors by position or colour), each anchor's bound where its target is now
+/// (`target_pose`) and the cloth's rest shape lies under `pose`. Each particle goes to the last
+/// holder that claims it: the entity, then the anchors.
+fn holders(
+    cloth: &Cloth,
+    topology: &ClothTopology,
+    vertices: MeshVertices<'_>,
+    pose: Affine3A,
+    target_pose: impl Fn(Entity) -> Option<Affine3A>,
+) -> Result<Holders, ClothError> {
+    let mut holder = vec![None::<usize>; topology.len()];
+    let mut held = vec![false; topology.len()];
+    for &i in &cloth.pins.particles(topology, vertices)? {
+        held[i as usize] = true;
+    }
+    for (a, anchor) in cloth.anchors.iter().enumerate() {
+        for i in anchor.pins.particles(topology, vertices)? {
+            holder[i as usize] = Some(a);
+        }
+    }
+    let own_pins = (0..topology.len() as u32).filter(|&i| held[i as usize] && holder[i as usize].is_none()).collect();
+    let anchors = cloth
+        .anchors
+        .iter()
+        .enumerate()
+        .map(|(a, anchor)| {
+            // A target that cannot be found holds its particles where the cloth's rest shape
+            // lies (and `plan_anchors` reports it lost).
+            let target = target_pose(anchor.target).unwrap_or(pose);
+            let to_target = target.inverse() * pose;
+            let particles = (0..topology.len() as u32)
+                .filter(|&i| holder[i as usize] == Some(a))
+                .map(|i| (i, to_target.transform_point3(topology.rest_positions()[i as usize])))
+                .collect();
+            AnchorBinding { target: anchor.target, particles, offset: anchor.offset, pose: target, lost: false }
+        })
+        .collect();
+    let pins = (0..topology.len() as u32).filter(|&i| held[i as usize] || holder[i as usize].is_some()).collect();
+    Ok(Holders { own_pins, anchors, pins })
+}
+
+/// The skin that carries a skinned mesh's own pins, or why it cannot (said only where it
+/// matters: when there are pins to carry).
+fn bind_skin(
+    (skinned, inverse, joint_pose): Skin<'_>,
+    mesh: &Mesh,
+    topology: &ClothTopology,
+    own_pins: &[u32],
+) -> (Option<SkinBinding>, Option<String>) {
+    let binding = inverse
+        .ok_or_else(|| "its inverse bind poses are not loaded".to_string())
+        .and_then(|inverse| SkinBinding::new(skinned, inverse, mesh, topology, own_pins.to_vec(), joint_pose));
+    match binding {
+        Ok(binding) => (Some(binding), None),
+        Err(reason) => (None, (!own_pins.is_empty()).then_some(reason)),
+    }
 }
 
 /// Creates, updates, rebuilds and resets the simulation of every [`Cloth`].
@@ -299,6 +374,22 @@ pub(crate) fn sync_cloths(
         };
         match state {
             Some(mut state) if !state.built_from.shape_differs(&cloth) => {
+                if cloth.is_changed() && state.built_from.holders_differ(&cloth) {
+                    // Pins and anchors change live: the cloth keeps moving.
+                    let skinned = skinned.or(kept_skin.map(|kept| &kept.0));
+                    let joint_pose = |joint| targets.get(joint).ok().map(GlobalTransform::affine);
+                    let skin = skinned.map(|s| {
+                        (s, bindposes.get(&s.inverse_bindposes), &joint_pose as &dyn Fn(Entity) -> Option<Affine3A>)
+                    });
+                    let target_pose = |target| targets.get(target).ok().map(rigid_pose);
+                    match state.repin(&cloth, pose, &meshes, skin, target_pose) {
+                        Ok(()) => {
+                            state.built_from.pins = cloth.pins.clone();
+                            state.built_from.anchors = cloth.anchors.clone();
+                        }
+                        Err(error) => reject(error),
+                    }
+                }
                 if cloth.is_changed() {
                     let checked = cloth.to_params().and_then(|params| {
                         if let Some(dt) = tick_seconds {
@@ -308,10 +399,15 @@ pub(crate) fn sync_cloths(
                     });
                     match checked {
                         Ok(()) => {
-                            state.built_from = Cloth::clone(&cloth);
+                            // The holders as they now are (the old ones if the change was refused).
+                            let (pins, anchors) =
+                                (state.built_from.pins.clone(), std::mem::take(&mut state.built_from.anchors));
+                            state.built_from = Cloth { pins, anchors, ..Cloth::clone(&cloth) };
                             state.divergence_warned = false;
-                            for (binding, anchor) in state.anchors.iter_mut().zip(&cloth.anchors) {
-                                binding.offset = anchor.offset;
+                            if !state.built_from.holders_differ(&cloth) {
+                                for (binding, anchor) in state.anchors.iter_mut().zip(&cloth.anchors) {
+                                    binding.offset = anchor.offset;
+                                }
                             }
                         }
                         Err(error) => reject(error),
@@ -388,6 +484,7 @@ pub(crate) fn sync_cloths(
                         guard_warned: None,
                         divergence_warned: false,
                         generation: next_generation(),
+                        pins_generation: next_generation(),
                     },
                     Mesh3d(mesh),
                     NoAutoAabb,

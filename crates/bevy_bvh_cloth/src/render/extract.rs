@@ -38,11 +38,14 @@ pub(super) fn extract_cloths(
         .iter()
         .map(|(entity, state, transform, mesh, read_back)| {
             let known = world.cloths.get(&entity).map(|c| c.generation).or(world.refused.get(&entity).copied());
+            let known_pins = world.cloths.get(&entity).map(|c| c.pins_generation);
             let sim = state.sim();
             ExtractedCloth {
                 entity,
                 generation: state.generation,
                 fresh: (known != Some(state.generation)).then(|| sim.clone()),
+                pins: (known_pins != Some(state.pins_generation)).then(|| (sim.pins().to_vec(), sim.tethers().clone())),
+                pins_generation: state.pins_generation,
                 params: sim.params().clone(),
                 wind: *sim.wind(),
                 anchor_targets: render_ticks.anchor_targets.get(&entity).cloned().unwrap_or_default(),

@@ -144,6 +144,7 @@ pub(super) fn prepare_cloths(
                 batch.upload_state(&queue, render.id, sim);
                 Some(RenderCloth {
                     generation: cloth.generation,
+                    pins_generation: render.pins_generation,
                     faults: FaultReadback::new(device),
                     ticks_run: 0,
                     state: None,
@@ -158,6 +159,7 @@ pub(super) fn prepare_cloths(
                     Ok(id) => Some(RenderCloth {
                         id,
                         generation: cloth.generation,
+                        pins_generation: cloth.pins_generation,
                         faults: FaultReadback::new(device),
                         ticks_run: 0,
                         state: None,
@@ -174,6 +176,13 @@ pub(super) fn prepare_cloths(
             (None, None) => None,
         };
         let Some(mut render) = render else { continue };
+        // Pins changed on the running cloth (a new cloth's slot has its pins already).
+        if let Some((pins, tethers)) = cloth.pins
+            && let Err(error) = batch.set_pins(device, &queue, render.id, &pins, tethers)
+        {
+            error!("Cloth on {}: its new pins cannot run on the GPU: {error}; it keeps its old ones", cloth.entity);
+        }
+        render.pins_generation = cloth.pins_generation;
         let particles = batch.topology(render.id).map_or(0, |t| t.len());
         if !cloth.read_back {
             render.state = None;

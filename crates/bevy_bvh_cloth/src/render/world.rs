@@ -6,6 +6,7 @@ use std::sync::atomic::AtomicU64;
 
 use bevy::ecs::entity::EntityHashMap;
 use bevy::prelude::*;
+use bvh_cloth_core::backend::TetherSet;
 use bvh_cloth_core::{Affine3A, ClothParams, ClothSim, Collider, Lbvh, SkinnedSpheres, Wind, WindSource};
 use bvh_cloth_gpu::{ClothBatch, ClothId, ClothKernels, FaultReadback, GpuColliders, ParticleReadback, SkinRefit};
 
@@ -17,6 +18,10 @@ pub(super) struct ExtractedCloth {
     pub(super) generation: u64,
     /// The whole state, when the render world does not have this generation yet.
     pub(super) fresh: Option<ClothSim>,
+    /// Its pinned particles and tethers, when the render world does not have this pin
+    /// generation yet ([`ClothSimulation::pins_generation`](crate::ClothSimulation)).
+    pub(super) pins: Option<(Vec<u32>, Arc<TetherSet>)>,
+    pub(super) pins_generation: u64,
     pub(super) params: ClothParams,
     /// Its ambient wind (the sources are the world's).
     pub(super) wind: Wind,
@@ -32,6 +37,8 @@ pub(super) struct ExtractedCloth {
 pub(super) struct RenderCloth {
     pub(super) id: ClothId,
     pub(super) generation: u64,
+    /// The pin generation its slot of the batch holds.
+    pub(super) pins_generation: u64,
     pub(super) faults: FaultReadback,
     /// Ticks run since the cloth was added or its state uploaded, this frame's included.
     pub(super) ticks_run: u64,
