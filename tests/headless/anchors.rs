@@ -281,3 +281,43 @@ fn a_corner_let_go_and_caught_again_while_the_cloth_moves() {
     assert!(rode.distance(Vec3::new(0.3, 0.0, 0.0)) < 1e-5, "the caught corner did not ride its hook: moved {rode}");
     assert_eq!(app.world().get::<ClothSimulation>(cloth).unwrap().sim().pins(), &[0, 11]);
 }
+
+/// The `grab` example's grip: a hand entity put at a moving particle, in its transform and its
+/// global transform, and an anchor whose offset takes the particle's rest place under the cloth
+/// to where the particle is. The particle stays where it was taken (1e-5 m), then follows the
+/// hand exactly as it moves, and drops when the anchor is removed.
+#[test]
+fn a_hand_takes_a_particle_where_it_is_and_drags_it() {
+    let mut app = app();
+    let grid = Cloth { params: ClothParams { damping: 0.5, ..default() }, ..Cloth::grid(Vec2::ONE, UVec2::splat(12)) }
+        .with_pins(ClothPins::TwoEnds);
+    let cloth_pose = Transform::from_xyz(0.0, 2.0, 0.0);
+    let cloth = app.world_mut().spawn((grid, cloth_pose)).id();
+    run(&mut app, 1.0);
+    let particle = 11 * 12 + 6;
+    let at = positions(&app, cloth)[particle];
+    let rest = cloth_pose.transform_point(
+        app.world().get::<ClothSimulation>(cloth).unwrap().sim().topology().rest_positions()[particle],
+    );
+    let hand = app.world_mut().spawn((Transform::from_translation(at), GlobalTransform::from_translation(at))).id();
+    app.world_mut()
+        .get_mut::<Cloth>(cloth)
+        .unwrap()
+        .anchors
+        .push(ClothAnchor::new(ClothPins::Indices(vec![particle as u32]), hand).with_offset(at - rest));
+    app.update();
+    let taken = positions(&app, cloth)[particle];
+    assert!(taken.distance(at) < 1e-5, "the particle jumped from {at} to {taken} when taken");
+    for frame in 1..=30 {
+        app.world_mut().get_mut::<Transform>(hand).unwrap().translation =
+            at + Vec3::new(0.01, 0.005, 0.0) * frame as f32;
+        app.update();
+    }
+    let dragged = positions(&app, cloth)[particle];
+    let hand_at = app.world().get::<GlobalTransform>(hand).unwrap().translation();
+    assert!(dragged.distance(hand_at) < 1e-5, "the particle at {dragged} is not in the hand at {hand_at}");
+    app.world_mut().get_mut::<Cloth>(cloth).unwrap().anchors.clear();
+    run(&mut app, 0.25);
+    let dropped = positions(&app, cloth)[particle];
+    assert!(dropped.y < dragged.y - 0.05, "let go at {dragged}, the particle is at {dropped}");
+}
