@@ -63,7 +63,7 @@ fn setup(mut commands: Commands, mut meshes: ResMut<Assets<Mesh>>, mut materials
 fn grab(
     buttons: Res<ButtonInput<MouseButton>>,
     window: Single<&Window, With<PrimaryWindow>>,
-    camera: Single<(&Camera, &GlobalTransform)>,
+    camera: Single<(&Camera, &GlobalTransform), Without<Hand>>,
     mut cloths: Query<(Entity, &mut Cloth, &ClothSimulation, &GlobalTransform)>,
     hand: Single<HandParts, (With<Hand>, Without<Cloth>)>,
     mut held: Local<Held>,
