@@ -1,7 +1,7 @@
 //! The CPU backend: every cloth stepped against every collider with the core's rayon stepper,
 //! and the results written into the cloths' meshes.
 
-use std::time::Instant;
+use bevy::platform::time::Instant;
 
 use bevy::camera::primitives::Aabb;
 use bevy::ecs::schedule::{InternedScheduleLabel, ScheduleLabel};

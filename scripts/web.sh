@@ -1,0 +1,44 @@
+#!/usr/bin/env bash
+# Builds an example for the browser and serves it locally: the WebGPU build where the browser
+# has WebGPU (the GPU backend runs the real kernels), the WebGL2 build elsewhere (no compute
+# shaders there, so the CPU backend runs, on one thread).
+#
+#   bash scripts/web.sh [example] [port]      # default: flag 8080; open http://localhost:8080
+#   WEB_BUILD_ONLY=1 bash scripts/web.sh      # build, do not serve
+#
+# Installs what is missing: the wasm32-unknown-unknown target and wasm-bindgen-cli at the
+# version Cargo.lock pins. Serves with python3. (Debian's binaryen 108 `wasm-opt -Oz` breaks the
+# page's function table, "WebAssembly.Table.set(): Argument 1 is invalid", so the .wasm is
+# left as wasm-bindgen writes it.) The page is written to $CARGO_TARGET_DIR/web/<example> (by default under
+# ~/.cache/bevy_bvh_cloth/target-web).
+set -euo pipefail
+cd "$(dirname "$0")/.."
+example=${1:-flag}
+port=${2:-8080}
+target=${CARGO_TARGET_DIR:-$HOME/.cache/bevy_bvh_cloth/target-web}
+out=$target/web/$example
+
+rustup target list --installed | grep -qx wasm32-unknown-unknown || rustup target add wasm32-unknown-unknown
+version=$(awk '/^name = "wasm-bindgen"$/ { getline; gsub(/version = |"/, ""); print; exit }' Cargo.lock)
+if [ "$(wasm-bindgen --version 2>/dev/null | cut -d' ' -f2)" != "$version" ]; then
+    # Its own lock file first; a registry that lacks one of its pinned versions gets the newest
+    # compatible ones instead.
+    cargo install wasm-bindgen-cli --version "$version" --locked || cargo install wasm-bindgen-cli --version "$version"
+fi
+
+rm -rf "$out"
+for api in webgpu webgl2; do
+    # Bevy's `webgpu` feature takes over from `webgl2`, so each API is a build of its own.
+    CARGO_TARGET_DIR=$target cargo build --release --locked -p bevy_bvh_cloth --example "$example" \
+        --target wasm32-unknown-unknown --features "egui,bevy/$api"
+    wasm-bindgen --target web --no-typescript --out-dir "$out/$api" --out-name "$example" \
+        "$target/wasm32-unknown-unknown/release/examples/$example.wasm"
+    wasm="$out/$api/${example}_bg.wasm"
+    echo "web.sh: $api build $(du -h "$wasm" | cut -f1) ($wasm)"
+done
+cp -r assets "$out/assets"
+sed "s/EXAMPLE/$example/g" scripts/web/index.html >"$out/index.html"
+
+[ -n "${WEB_BUILD_ONLY:-}" ] && exit 0
+echo "web.sh: serving $out on http://localhost:$port (Ctrl+C stops)"
+exec python3 -m http.server --directory "$out" "$port"
