@@ -409,7 +409,7 @@ fn the_gpu_backend_reads_a_cloth_back_when_asked() {
     // one frame of 16); with Bevy's pipelined rendering a state copied in one frame's render
     // reaches the main world two or three frames later: 3 to 5 ticks on an idle machine.
     // lavapipe shares the CPU with the other tests, so a frame can be later; a read that stops
-    // arriving, or a queue of copies that grows, passes both bounds within 30 frames.
+    // arriving, or a queue of copies that grows, goes past both bounds within 30 frames.
     let mut lates = Vec::new();
     for frame in 0..60 {
         app.update();
