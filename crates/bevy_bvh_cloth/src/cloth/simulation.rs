@@ -121,7 +121,8 @@ impl ClothSimulation {
     /// newly held goes where its holder puts it (its rest place under the entity's `pose`, or
     /// an anchor's bound as when the cloth is built, to where `target_pose` puts its target
     /// now; a skinned mesh's own pins ride on its skin). Refused, keeping the old holders, when
-    /// a selector fails.
+    /// a selector fails. Returns why the skin could not take the new pins, if it could not (the
+    /// entity holds them then).
     fn repin(
         &mut self,
         cloth: &Cloth,
@@ -129,7 +130,7 @@ impl ClothSimulation {
         meshes: &Assets<Mesh>,
         skin: Option<Skin<'_>>,
         target_pose: impl Fn(Entity) -> Option<Affine3A>,
-    ) -> Result<(), ClothError> {
+    ) -> Result<Option<String>, ClothError> {
         let topology = Arc::clone(self.sim.topology());
         let authored = match &self.source {
             Some(source) => Some(meshes.get(source).ok_or(ClothError::NoTriangleMesh)?),
@@ -144,9 +145,9 @@ impl ClothSimulation {
             }
         };
         let Holders { mut own_pins, anchors, pins } = holders(cloth, &topology, vertices, pose, target_pose)?;
-        let bound = match (skin, authored, &self.skin) {
-            (Some(skin), Some(mesh), Some(_)) => bind_skin(skin, mesh, &topology, &own_pins).0,
-            _ => None,
+        let (bound, refused) = match (skin, authored, &self.skin) {
+            (Some(skin), Some(mesh), Some(_)) => bind_skin(skin, mesh, &topology, &own_pins),
+            _ => (None, None),
         };
         self.sim.set_pins(&pins)?;
         if bound.is_some() {
@@ -156,7 +157,7 @@ impl ClothSimulation {
         self.own_pins = own_pins;
         self.anchors = anchors;
         self.pins_generation = next_generation();
-        Ok(())
+        Ok(refused)
     }
 
     /// Back to the rest pose under `pose`, or for a skinned cloth where its skin was last drawn.
@@ -383,7 +384,12 @@ pub(crate) fn sync_cloths(
                     });
                     let target_pose = |target| targets.get(target).ok().map(rigid_pose);
                     match state.repin(&cloth, pose, &meshes, skin, target_pose) {
-                        Ok(()) => {
+                        Ok(refused) => {
+                            if let Some(reason) = refused {
+                                warn!(
+                                    "Cloth on {entity}: its skin cannot carry its pins ({reason}); the entity holds them"
+                                );
+                            }
                             state.built_from.pins = cloth.pins.clone();
                             state.built_from.anchors = cloth.anchors.clone();
                         }
