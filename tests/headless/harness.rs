@@ -23,13 +23,13 @@ fn collect(mut reader: MessageReader<ClothMessage>, mut sent: ResMut<Sent>) {
 
 /// An app stepping `fps` frames per (simulated) second.
 pub fn app_at(fps: f64) -> App {
-    app_with(fps, |_| {})
+    app_with(fps, BvhClothPlugin::default(), |_| {})
 }
 
 /// An app stepping 60 frames per second that also loads glTF scenes and plays their
 /// animations.
 pub fn gltf_app() -> App {
-    app_with(60.0, |app| {
+    app_with(60.0, BvhClothPlugin::default(), |app| {
         app.add_plugins((WorldSerializationPlugin, GltfPlugin::default(), AnimationPlugin));
         // The glTF loader is registered when the plugins finish, as `App::run` would do.
         app.finish();
@@ -37,17 +37,11 @@ pub fn gltf_app() -> App {
     })
 }
 
-/// An app stepping `fps` frames per (simulated) second, with the plugins `more` adds.
-fn app_with(fps: f64, more: impl FnOnce(&mut App)) -> App {
+/// An app stepping `fps` frames per (simulated) second with the cloth `plugin` (in the schedule
+/// it names), and what `more` adds. Its first update, run here, starts the clock at zero.
+pub fn app_with(fps: f64, plugin: BvhClothPlugin, more: impl FnOnce(&mut App)) -> App {
     let mut app = App::new();
-    app.add_plugins((
-        MinimalPlugins,
-        TransformPlugin,
-        AssetPlugin::default(),
-        MeshPlugin,
-        ObjPlugin,
-        BvhClothPlugin::default(),
-    ));
+    app.add_plugins((MinimalPlugins, TransformPlugin, AssetPlugin::default(), MeshPlugin, ObjPlugin, plugin));
     more(&mut app);
     app.insert_resource(TimeUpdateStrategy::ManualDuration(Duration::from_secs_f64(1.0 / fps)))
         .init_resource::<Sent>()

@@ -3,12 +3,12 @@
 
 use core::time::Duration;
 
-use bevy::asset::AssetPlugin;
-use bevy::mesh::MeshPlugin;
 use bevy::prelude::*;
 use bevy::time::TimeUpdateStrategy;
 use bevy_bvh_cloth::bvh_cloth_core::{self, ClothGrid, ClothSim, ClothTopology};
 use bevy_bvh_cloth::prelude::*;
+
+use crate::headless::harness::app_with;
 
 /// The largest `ClothClock::ticks` seen by a system after the cloth's step in the fixed
 /// schedule, and how many ticks such systems saw in all.
@@ -33,7 +33,6 @@ fn watch(clock: Res<ClothClock>, mut seen: ResMut<SeenInFixed>) {
 #[test]
 fn the_cloth_runs_in_fixed_post_update() {
     let mut app = fixed_app(30.0, 30.0);
-    app.update();
     let params = ClothParams { damping: 0.5, ..default() };
     let cloth = app
         .world_mut()
@@ -76,21 +75,13 @@ fn the_cloth_runs_in_fixed_post_update() {
 }
 
 /// An app with the cloth systems in `FixedPostUpdate` at `fixed_hz`, `fps` frames per
-/// (simulated) second, and [`watch`] after the cloth's step.
+/// (simulated) second, and [`watch`] after the cloth's step; its first update has run.
 fn fixed_app(fps: f64, fixed_hz: f64) -> App {
-    let mut app = App::new();
-    app.add_plugins((
-        MinimalPlugins,
-        TransformPlugin,
-        AssetPlugin::default(),
-        MeshPlugin,
-        BvhClothPlugin::new(FixedPostUpdate),
-    ))
-    .insert_resource(TimeUpdateStrategy::ManualDuration(Duration::from_secs_f64(1.0 / fps)))
-    .insert_resource(Time::<Fixed>::from_hz(fixed_hz))
-    .init_resource::<SeenInFixed>()
-    .add_systems(FixedPostUpdate, watch.after(ClothSystems::Step));
-    app
+    app_with(fps, BvhClothPlugin::new(FixedPostUpdate), |app| {
+        app.insert_resource(Time::<Fixed>::from_hz(fixed_hz))
+            .init_resource::<SeenInFixed>()
+            .add_systems(FixedPostUpdate, watch.after(ClothSystems::Step));
+    })
 }
 
 /// The largest distance between `cloth` (a 1 m, 10 x 10 grid dropped from 10 m with `params`)
@@ -122,7 +113,6 @@ fn count_runs(mut runs: ResMut<FixedRuns>) {
 fn at_any_fixed_rate_cloth_and_physics_step_one_to_one() {
     let mut app = fixed_app(60.0, 64.0);
     app.init_resource::<FixedRuns>().add_systems(FixedPostUpdate, count_runs);
-    app.update();
     let params = ClothParams { damping: 0.5, ..default() };
     let cloth = app
         .world_mut()

@@ -121,12 +121,7 @@ fn wait_for_kernels(app: &mut App) {
     let ran = |app: &App| app.world().get::<ClothReadback>(probe).unwrap().ticks_run.is_some_and(|t| t > 0);
     // Compiling the kernels takes lavapipe tens of seconds, longer with other tests compiling
     // beside it: wait on the clock, not on a count of frames.
-    let start = std::time::Instant::now();
-    while !ran(app) && start.elapsed() < Duration::from_secs(300) {
-        app.update();
-        std::thread::sleep(Duration::from_millis(5));
-    }
-    assert!(ran(app), "the GPU kernels never became ready");
+    assert!(update_until(app, Duration::from_secs(300), ran), "the GPU kernels never became ready");
     app.world_mut().despawn(probe);
     app.update();
 }
@@ -168,6 +163,20 @@ fn image_target(world: &mut World) -> Handle<Image> {
     })
 }
 
+/// Updates `app` until `done` says so or `limit` of wall-clock time has passed; whether it did.
+/// What lavapipe compiles or reads back arrives after a time, not after a count of frames.
+fn update_until(app: &mut App, limit: Duration, done: impl Fn(&App) -> bool) -> bool {
+    let start = std::time::Instant::now();
+    while !done(app) {
+        if start.elapsed() > limit {
+            return false;
+        }
+        app.update();
+        std::thread::sleep(Duration::from_millis(5));
+    }
+    true
+}
+
 /// The picture in `target`. It arrives a few frames after it is asked for, once the render
 /// pipelines it draws with are compiled, which lavapipe does slowly beside other tests
 /// compiling theirs: wait on the clock (at most two minutes), not on a count of frames.
@@ -177,11 +186,7 @@ fn capture(app: &mut App, target: Handle<Image>) -> Image {
     app.world_mut().spawn(Screenshot::image(target)).observe(move |shot: On<ScreenshotCaptured>| {
         *slot.lock().unwrap() = Some(shot.image.clone());
     });
-    let start = std::time::Instant::now();
-    while captured.lock().unwrap().is_none() && start.elapsed() < Duration::from_secs(120) {
-        app.update();
-        std::thread::sleep(Duration::from_millis(5));
-    }
+    update_until(app, Duration::from_secs(120), |_| captured.lock().unwrap().is_some());
     captured.lock().unwrap().take().expect("a screenshot within two minutes")
 }
 
@@ -456,15 +461,15 @@ fn the_gpu_backend_lets_a_corner_go_without_a_rebuild() {
         let readback = app.world().get::<ClothReadback>(cloth).unwrap();
         (readback.ticks_run.unwrap_or(0), readback.ticks_late.unwrap_or(0))
     };
-    while read(&app).0 < 30 {
-        app.update();
-    }
+    let limit = Duration::from_secs(120);
+    assert!(update_until(&mut app, limit, |app| read(app).0 >= 30), "no state read back within two minutes");
     let (ran, late) = read(&app);
     let before = ran + late;
     app.world_mut().get_mut::<Cloth>(cloth).unwrap().pins = ClothPins::Indices(vec![0]);
-    while read(&app).0 < before + 40 {
-        app.update();
-    }
+    assert!(
+        update_until(&mut app, limit, |app| read(app).0 >= before + 40),
+        "the cloth did not run 40 ticks past the change within two minutes"
+    );
     let (ran, _) = read(&app);
     let got = app.world().get::<ClothSimulation>(cloth).unwrap().sim().positions();
     let tick = app.world().resource::<ClothClock>().tick_seconds;
