@@ -31,12 +31,6 @@ struct Hand;
 /// The hand as the grab moves it.
 type HandParts = (Entity, &'static mut Transform, &'static mut GlobalTransform, &'static mut Visibility);
 
-/// What the hand holds: the cloth, and how far along the cursor's ray it was taken.
-#[derive(Default)]
-struct Held {
-    cloth: Option<(Entity, f32)>,
-}
-
 fn setup(mut commands: Commands, mut meshes: ResMut<Assets<Mesh>>, mut materials: ResMut<Assets<StandardMaterial>>) {
     common::spawn_camera(&mut commands, Vec3::new(0.0, 1.0, 0.0), 2.8);
     // A 1 m sheet hanging from its top corners, upright, read back so that the cursor can find
@@ -66,13 +60,14 @@ fn grab(
     camera: Single<(&Camera, &GlobalTransform), Without<Hand>>,
     mut cloths: Query<(Entity, &mut Cloth, &ClothSimulation, &GlobalTransform)>,
     hand: Single<HandParts, (With<Hand>, Without<Cloth>)>,
-    mut held: Local<Held>,
+    // The cloth the hand holds, and how far along the cursor's ray it was taken.
+    mut held: Local<Option<(Entity, f32)>>,
 ) {
     let (hand, mut transform, mut global, mut visibility) = hand.into_inner();
     let (camera, view) = *camera;
     let ray = window.cursor_position().and_then(|cursor| camera.viewport_to_world(view, cursor).ok());
     if buttons.just_released(MouseButton::Right) {
-        if let Some((cloth, _)) = held.cloth.take()
+        if let Some((cloth, _)) = held.take()
             && let Ok((_, mut cloth, _, _)) = cloths.get_mut(cloth)
         {
             cloth.anchors.retain(|anchor| anchor.target != hand);
@@ -81,7 +76,7 @@ fn grab(
         return;
     }
     let Some(ray) = ray else { return };
-    if let Some((_, depth)) = held.cloth {
+    if let Some((_, depth)) = *held {
         if buttons.pressed(MouseButton::Right) {
             transform.translation = ray.origin + ray.direction * depth;
         }
@@ -112,7 +107,7 @@ fn grab(
     *global = GlobalTransform::from(*transform);
     *visibility = Visibility::Visible;
     cloth.anchors.push(ClothAnchor::new(ClothPins::Indices(vec![particle]), hand).with_offset(at - rest));
-    held.cloth = Some((entity, depth));
+    *held = Some((entity, depth));
 }
 
 /// Keys 1 and 2 let go of the top corners, or catch them again at their place under the cloth.

@@ -369,6 +369,14 @@ pub(crate) fn sync_cloths(
             (Some(part), None) => format!(" (of the ClothHierarchy on {})", part.root),
             _ => String::new(),
         };
+        // A skinned mesh's skin (loaded with its mesh, from the same file; the plugin keeps it
+        // as `ClothSkin` once the mesh is cloth), for a build or a change of pins. Joints are
+        // placed by their whole transform, anchors by its rigid part.
+        let skinned = skinned.or(kept_skin.map(|kept| &kept.0));
+        let joint_pose = |joint| targets.get(joint).ok().map(GlobalTransform::affine);
+        let skin = skinned
+            .map(|s| (s, bindposes.get(&s.inverse_bindposes), &joint_pose as &dyn Fn(Entity) -> Option<Affine3A>));
+        let target_pose = |target| targets.get(target).ok().map(rigid_pose);
         let mut reject = |error| {
             error!("Cloth on {entity}{from_scene}: {error}; keeping its last valid state");
             messages.write(ClothMessage::Rejected { entity, error });
@@ -377,12 +385,6 @@ pub(crate) fn sync_cloths(
             Some(mut state) if !state.built_from.shape_differs(&cloth) => {
                 if cloth.is_changed() && state.built_from.holders_differ(&cloth) {
                     // Pins and anchors change live: the cloth keeps moving.
-                    let skinned = skinned.or(kept_skin.map(|kept| &kept.0));
-                    let joint_pose = |joint| targets.get(joint).ok().map(GlobalTransform::affine);
-                    let skin = skinned.map(|s| {
-                        (s, bindposes.get(&s.inverse_bindposes), &joint_pose as &dyn Fn(Entity) -> Option<Affine3A>)
-                    });
-                    let target_pose = |target| targets.get(target).ok().map(rigid_pose);
                     match state.repin(&cloth, pose, &meshes, skin, target_pose) {
                         Ok(refused) => {
                             if let Some(reason) = refused {
@@ -436,14 +438,6 @@ pub(crate) fn sync_cloths(
                     Some(state) => state.source.clone(),
                     None => mesh3d.map(|m| m.0.clone()),
                 };
-                // A skinned mesh's skin (loaded with its mesh, from the same file). Joints are
-                // placed by their whole transform, anchors by its rigid part.
-                let skinned = skinned.or(kept_skin.map(|kept| &kept.0));
-                let joint_pose = |joint| targets.get(joint).ok().map(GlobalTransform::affine);
-                let skin = skinned.map(|s| {
-                    (s, bindposes.get(&s.inverse_bindposes), &joint_pose as &dyn Fn(Entity) -> Option<Affine3A>)
-                });
-                let target_pose = |target| targets.get(target).ok().map(rigid_pose);
                 let built = match build(&cloth, transform, source, &meshes, skin, target_pose, tick_seconds) {
                     Ok(Some(built)) => built,
                     Ok(None) => {
