@@ -132,3 +132,38 @@ fn a_cloth_observer_hears_its_rejection() {
     assert!(app.world().get::<ClothSimulation>(cloth).is_none());
     assert_eq!(app.world().resource::<Rejections>().0, 1, "heard once, not every frame");
 }
+
+/// Collision layers: over a table on its own layer, a cloth that filters for it rests on it and
+/// one that does not falls past; put on a layer no cloth filters for, the table lets the first
+/// go as well, at once (no rebuild).
+#[test]
+fn a_cloth_meets_only_the_colliders_its_layers_meet() {
+    const TABLE: u32 = 1 << 1;
+    let mut app = app();
+    let table = app
+        .world_mut()
+        .spawn((
+            PrimitiveCollider::cuboid(1.0, 0.2, 1.0).with_layers(CollisionLayers::new(TABLE, CollisionLayers::ALL)),
+            Transform::from_xyz(0.0, 0.5, 0.0),
+        ))
+        .id();
+    let cloth = |app: &mut App, filters: u32| {
+        let layers = CollisionLayers::new(CollisionLayers::DEFAULT.memberships, filters);
+        let cloth = Cloth::grid(Vec2::splat(0.6), UVec2::splat(12))
+            .with_params(ClothParams { damping: 1.0, ..default() })
+            .with_layers(layers);
+        app.world_mut().spawn((cloth, Transform::from_xyz(0.0, 1.0, 0.0))).id()
+    };
+    let meets = cloth(&mut app, TABLE);
+    let passes = cloth(&mut app, !TABLE);
+    let lowest = |app: &App, cloth: Entity| positions(app, cloth).iter().map(|p| p.y).fold(f32::INFINITY, f32::min);
+    run(&mut app, 1.0);
+    // The table's top is at 0.6 m and its margin 1 cm.
+    assert!((lowest(&app, meets) - 0.61).abs() < 2e-3, "the cloth that meets the table is at {}", lowest(&app, meets));
+    assert!(lowest(&app, passes) < 0.0, "the cloth that does not meet the table is at {}", lowest(&app, passes));
+    app.world_mut().get_mut::<PrimitiveCollider>(table).unwrap().layers =
+        CollisionLayers::new(1 << 5, CollisionLayers::ALL);
+    run(&mut app, 1.0);
+    assert!(lowest(&app, meets) < 0.0, "the table still holds the cloth at {}", lowest(&app, meets));
+    assert_eq!(app.world().get::<ClothCollider>(table).expect("built").collider().layers.memberships, 1 << 5);
+}

@@ -109,8 +109,8 @@ use bevy::prelude::*;
 pub use backend::{ActiveClothBackend, ClothBackend};
 pub use bvh_cloth_core;
 pub use bvh_cloth_core::{
-    Aerodynamics, ClothError, ClothParams, ClothPins, ColliderError, ColorChannel, Integrator, SelfContact,
-    SpringStiffness, Tethers, Wind,
+    Aerodynamics, ClothError, ClothParams, ClothPins, ColliderError, CollisionLayers, ColorChannel, Integrator,
+    SelfContact, SpringStiffness, Tethers, Wind,
 };
 pub use clock::ClothClock;
 pub use cloth::ClothPlugin;
@@ -146,9 +146,9 @@ pub mod prelude {
         ClothHierarchy, ClothHierarchyReady, ClothMessage, ClothParams, ClothPart, ClothPins, ClothReadback,
         ClothRejected, ClothSettings, ClothShape, ClothSimulation, ClothSkin, ClothStats, ClothSystems,
         ColliderContact, ColliderError, ColliderFailed, ColliderHierarchy, ColliderHierarchyReady, ColliderPart,
-        ColliderReady, ColliderStatus, ColorChannel, ExcludeFromColliders, Integrator, JointAnchor, LocalWind,
-        NameNotFound, PrimitiveCollider, PrimitiveShape, ResetCloth, SceneCloth, SceneNotSpawned, SelfContact,
-        SpringStiffness, Tethers, Wind, WindBlast, WindFan, WindNotFelt, WindSourceRejected,
+        ColliderReady, ColliderStatus, CollisionLayers, ColorChannel, ExcludeFromColliders, Integrator, JointAnchor,
+        LocalWind, NameNotFound, PrimitiveCollider, PrimitiveShape, ResetCloth, SceneCloth, SceneNotSpawned,
+        SelfContact, SpringStiffness, Tethers, Wind, WindBlast, WindFan, WindNotFelt, WindSourceRejected,
     };
 }
 

@@ -66,7 +66,8 @@ pub use cloth::{
     ClothError, ClothGrid, ClothPins, ClothTopology, ColorChannel, MAX_PARTICLES, MeshVertices, SpringEnd, Tethers,
 };
 pub use colliders::{
-    Collider, ColliderError, ColliderPose, ColliderShape, Primitive, SkinRef, SkinScratch, SkinnedSpheres, Voxels,
+    Collider, ColliderError, ColliderPose, ColliderShape, CollisionLayers, Primitive, SkinRef, SkinScratch,
+    SkinnedSpheres, Voxels,
 };
 pub use glam::{Affine3A, Quat, UVec2, UVec3, Vec2, Vec3, Vec3A};
 pub use mesh::MeshRef;

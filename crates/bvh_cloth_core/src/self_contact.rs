@@ -1,6 +1,6 @@
 //! Self-contact and contact between cloths: every particle is held a thickness away from every
 //! triangle of its own cloth it is not a corner of, and from every triangle of the other cloths
-//! stepped with it.
+//! stepped with it whose collision layers its own meet ([`ContactBody::layers`]).
 //!
 //! Point against triangle, not point against point: with a thickness below the particle
 //! spacing, a particle of one layer passes between the particles of another through the middle
@@ -70,6 +70,7 @@ use crate::cloth::error::ClothError;
 use crate::cloth::grid::SpringKind;
 use crate::cloth::topology::ClothTopology;
 use crate::colliders::collision::ColliderFrame;
+use crate::colliders::layers::CollisionLayers;
 use crate::mesh::triangles::{closest_point, face_normal};
 
 /// Most triangles one particle examines for contact in a substep.
@@ -168,6 +169,9 @@ pub struct ContactBody<'a> {
     pub topology: &'a ClothTopology,
     /// Its thickness and friction.
     pub contact: SelfContact,
+    /// Its collision layers: the colliders its particles are checked against after contact,
+    /// and the other bodies it keeps off (a body always keeps off itself).
+    pub layers: CollisionLayers,
     /// 1 for a free particle, 0 for a pinned one.
     pub free: &'a [f32],
     /// 1 for a particle a collider touched in this substep's collision response, else 0 (or
@@ -298,11 +302,11 @@ impl ContactSolver {
             stats.contacts += count as usize;
             let mean = 1.0 / count as f32;
             let (mut p, mut vel) = (self.x[k] + self.dx[k] * mean, self.v[k] + self.dv[k] * mean);
-            for frame in frames {
-                frame.resolve(self.x[k], &mut p, &mut vel);
-            }
             let (body, local) = self.owner[k];
             let body = &mut bodies[body as usize];
+            for frame in frames.iter().filter(|f| body.layers.interacts_with(f.layers)) {
+                frame.resolve(self.x[k], &mut p, &mut vel);
+            }
             body.x[local as usize] = p;
             body.v[local as usize] = vel;
         }
@@ -448,6 +452,9 @@ impl ContactSolver {
         let xp = self.x[p];
         let (pb, pl) = self.owner[p];
         let (point_body, tri_body) = (&bodies[pb as usize], &bodies[tb as usize]);
+        if pb != tb && !point_body.layers.interacts_with(tri_body.layers) {
+            return None;
+        }
         let h = 0.5 * (point_body.contact.thickness + tri_body.contact.thickness);
         if pb == tb {
             // Near it in the rest shape: the cloth's own neighbourhood, not another layer.

@@ -79,10 +79,12 @@ pub struct GpuBatchCloth {
     /// `1 + slack` of the cloth's [`bvh_cloth_core::Tethers`], or 0 when it has none (no pin, block
     /// descent not its integrator, or [`ClothParams::tethers`] `None`).
     pub tether_scale: f32,
+    /// The layers the cloth is a member of ([`ClothParams::layers`]).
+    pub memberships: u32,
+    /// The layers whose colliders and cloths it collides with ([`ClothParams::layers`]).
+    pub filters: u32,
     /// Particles quarantined since the host last cleared this word.
     pub faults: u32,
-    /// Unused: aligns `drift` to 16 bytes.
-    pub reserved: [u32; 2],
     /// Block descent's drift of the centre of mass in this substep (`xyz`, metres), which the
     /// kernels compute and read; the host never writes it.
     pub drift: [f32; 4],
@@ -90,7 +92,7 @@ pub struct GpuBatchCloth {
 
 impl GpuBatchCloth {
     /// Bytes of a [`GpuBatchCloth`] the host writes: everything but the fault count.
-    pub const HOST_BYTES: u64 = 84;
+    pub const HOST_BYTES: u64 = 92;
 
     /// The constants of a cloth with `params` on `topology`, whose particles and spring ends
     /// start at the given indices, for `substeps` substeps of `h` seconds per tick (as a held
@@ -128,8 +130,9 @@ impl GpuBatchCloth {
             free_body: 0,
             tether_start: 0,
             tether_scale: 0.0,
+            memberships: params.layers.memberships,
+            filters: params.layers.filters,
             faults: 0,
-            reserved: [0; 2],
             drift: [0.0; 4],
         }
     }
@@ -318,7 +321,7 @@ pub fn gpu_surface_words(topology: &ClothTopology) -> Vec<u32> {
 }
 
 /// One collider's frame, its shape, and (for a mesh collider) where its tree lies in the shared
-/// node and sphere arrays. 192 bytes.
+/// node and sphere arrays. 208 bytes.
 #[repr(C)]
 #[derive(Clone, Copy, Debug, Default, PartialEq, Pod, Zeroable)]
 pub struct GpuCollider {
@@ -349,6 +352,12 @@ pub struct GpuCollider {
     /// for exact contact ([`SHAPE_TRIANGLES`]) `x` is the surface's least thickness and `y` its
     /// [`sweep_slack`](bvh_cloth_core::backend::TriangleSurface::sweep_slack).
     pub size: [f32; 4],
+    /// The layers the collider is a member of ([`Collider::layers`]).
+    pub memberships: u32,
+    /// The layers whose cloths it collides with ([`Collider::layers`]).
+    pub filters: u32,
+    /// Padding.
+    pub pad: [u32; 2],
 }
 
 /// [`GpuCollider::shape`] of a mesh collider's sphere tree.
@@ -435,6 +444,9 @@ impl GpuCollider {
             contact_reach: frame.contact_reach,
             shape,
             size,
+            memberships: collider.layers.memberships,
+            filters: collider.layers.filters,
+            pad: [0; 2],
         })
     }
 }
@@ -552,7 +564,7 @@ mod tests {
         assert_eq!(size_of::<GpuBatchStep>(), 16);
         assert_eq!(size_of::<GpuBatchWriteback>(), 176);
         assert_eq!(size_of::<GpuWritebackGroup>(), 16);
-        assert_eq!(size_of::<GpuCollider>(), 192);
+        assert_eq!(size_of::<GpuCollider>(), 208);
         assert_eq!(size_of::<GpuMeshWriteback>(), 144);
     }
 }

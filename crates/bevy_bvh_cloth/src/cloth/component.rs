@@ -1,7 +1,7 @@
 //! The `Cloth` component: the paper's parameters (Table V) as a Bevy component.
 
 use bevy::prelude::*;
-use bvh_cloth_core::{ClothError, ClothParams, ClothPins};
+use bvh_cloth_core::{ClothError, ClothParams, ClothPins, CollisionLayers};
 
 use crate::colliders::hierarchy::ExcludeFromColliders;
 
@@ -146,6 +146,13 @@ impl Cloth {
     /// Sets the material and solver parameters.
     pub fn with_params(mut self, params: ClothParams) -> Self {
         self.params = params;
+        self
+    }
+
+    /// Sets the collision layers ([`ClothParams::layers`]): the cloth collides only with the
+    /// colliders, and keeps off only the cloths, whose layers meet these.
+    pub fn with_layers(mut self, layers: CollisionLayers) -> Self {
+        self.params.layers = layers;
         self
     }
 

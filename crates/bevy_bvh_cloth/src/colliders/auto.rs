@@ -18,7 +18,7 @@ use bevy::mesh::skinning::{SkinnedMesh, SkinnedMeshInverseBindposes};
 use bevy::prelude::*;
 use bevy::tasks::{AsyncComputeTaskPool, Task, block_on, poll_once};
 use bvh_cloth_core::backend::largest_scale;
-use bvh_cloth_core::{Affine3A, Collider, SkinScratch, Voxels};
+use bvh_cloth_core::{Affine3A, Collider, CollisionLayers, SkinScratch, Voxels};
 
 use crate::colliders::mesh::TriangleList;
 use crate::events::ColliderReady;
@@ -78,11 +78,22 @@ pub struct AutoCollider {
     /// What the cloth collides with: the mesh's own triangles (the default) or the paper's
     /// voxel spheres. See [`ColliderContact`].
     pub contact: ColliderContact,
+    /// Which cloths collide with it: those whose [`ClothParams::layers`](crate::ClothParams::layers)
+    /// and these meet ([`CollisionLayers::interacts_with`]). The default meets every cloth.
+    /// Changing it takes effect at once, without a rebuild.
+    pub layers: CollisionLayers,
 }
 
 impl Default for AutoCollider {
     fn default() -> Self {
-        Self { resolution: 5, voxel_size: None, margin: 0.01, friction: 1.0, contact: ColliderContact::default() }
+        Self {
+            resolution: 5,
+            voxel_size: None,
+            margin: 0.01,
+            friction: 1.0,
+            contact: ColliderContact::default(),
+            layers: CollisionLayers::DEFAULT,
+        }
     }
 }
 
@@ -136,6 +147,24 @@ impl AutoCollider {
     /// The same collider with Coulomb friction `friction` (0 slides freely, 1 holds on 45°).
     pub fn with_friction(mut self, friction: f32) -> Self {
         self.friction = friction;
+        self
+    }
+
+    /// The same collider on `layers`: only the cloths whose layers meet these collide with it.
+    ///
+    /// ```
+    /// # use bevy::prelude::*;
+    /// # use bevy_bvh_cloth::prelude::*;
+    /// const BODY: u32 = 1 << 1;
+    /// const CAPE: u32 = 1 << 2;
+    /// # fn setup(mut commands: Commands) {
+    /// // The body is on its own layer and meets every cloth but a cape that leaves it out.
+    /// commands.spawn(AutoCollider::new(8).with_layers(CollisionLayers::new(BODY, CollisionLayers::ALL)));
+    /// commands.spawn(Cloth::grid(Vec2::ONE, UVec2::splat(16)).with_layers(CollisionLayers::new(CAPE, !BODY)));
+    /// # }
+    /// ```
+    pub fn with_layers(mut self, layers: CollisionLayers) -> Self {
+        self.layers = layers;
         self
     }
 

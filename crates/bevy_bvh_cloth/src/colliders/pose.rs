@@ -1,5 +1,5 @@
 //! Every built collider, mesh or primitive, placed where its entity is each frame: moved by
-//! its [`GlobalTransform`], or by its joints when skinned, with its margin and friction applied
+//! its [`GlobalTransform`], or by its joints when skinned, with its margin, friction and collision layers applied
 //! (no rebuild); and taken off an entity whose collider component was removed.
 
 use bevy::mesh::skinning::SkinnedMesh;
@@ -13,7 +13,7 @@ use crate::messages::ColliderFailure;
 use crate::settings::ClothSettings;
 
 /// Places every collider (mesh or primitive) where its entity is, moves skinned colliders with
-/// their joints, and applies margin and friction changes (no rebuild).
+/// their joints, and applies margin, friction and layer changes (no rebuild).
 #[allow(clippy::type_complexity)]
 pub(crate) fn update_collider_poses(
     mut colliders: Query<(
@@ -33,9 +33,9 @@ pub(crate) fn update_collider_poses(
     // too only while the debug view draws it.
     let refit_here = *backend != ActiveClothBackend::Gpu || settings.debug_view;
     for (entity, source, transform, skinned, mut built, mut status) in &mut colliders {
-        let (margin, friction) = match source {
-            (Some(auto), _) => (auto.margin, auto.friction),
-            (None, Some(primitive)) => (primitive.margin, primitive.friction),
+        let (margin, friction, layers) = match source {
+            (Some(auto), _) => (auto.margin, auto.friction, auto.layers),
+            (None, Some(primitive)) => (primitive.margin, primitive.friction, primitive.layers),
             (None, None) => continue,
         };
         // A skinned collider follows its joints; until its first pose it is placed as a rigid one.
@@ -45,6 +45,7 @@ pub(crate) fn update_collider_poses(
             let built = built.bypass_change_detection();
             built.collider.margin = margin;
             built.collider.friction = friction;
+            built.collider.layers = layers;
             pose_skinned(entity, &pose, built, &mut matrices, refit_here);
             if built.skin_posed {
                 continue;
@@ -66,6 +67,7 @@ pub(crate) fn update_collider_poses(
         collider.pose = pose;
         collider.margin = margin;
         collider.friction = friction;
+        collider.layers = layers;
         if matches!(*status, ColliderStatus::Failed(_)) && pose.is_valid() {
             *status = ColliderStatus::ready(collider);
         }

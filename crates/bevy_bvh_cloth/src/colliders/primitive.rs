@@ -2,7 +2,7 @@
 
 use bevy::ecs::entity::EntityHashSet;
 use bevy::prelude::*;
-use bvh_cloth_core::{Collider, Primitive};
+use bvh_cloth_core::{Collider, CollisionLayers, Primitive};
 
 use crate::colliders::auto::{AutoCollider, ClothCollider, ColliderStatus, settle};
 use crate::messages::ClothMessage;
@@ -67,12 +67,14 @@ pub struct PrimitiveCollider {
     pub margin: f32,
     /// Coulomb friction coefficient of the surface (see [`AutoCollider::friction`](crate::AutoCollider::friction)).
     pub friction: f32,
+    /// Which cloths collide with it (see [`AutoCollider::layers`](crate::AutoCollider::layers)).
+    pub layers: CollisionLayers,
 }
 
 impl PrimitiveCollider {
     /// A collider of `shape` with the default margin (1 cm) and friction (1).
     pub fn new(shape: PrimitiveShape) -> Self {
-        Self { shape, margin: 0.01, friction: 1.0 }
+        Self { shape, margin: 0.01, friction: 1.0, layers: CollisionLayers::DEFAULT }
     }
 
     /// A ball of `radius` around the entity's origin.
@@ -105,6 +107,12 @@ impl PrimitiveCollider {
     /// Sets the friction coefficient.
     pub fn with_friction(mut self, friction: f32) -> Self {
         self.friction = friction;
+        self
+    }
+
+    /// Sets the collision layers: only the cloths whose layers meet these collide with it.
+    pub fn with_layers(mut self, layers: CollisionLayers) -> Self {
+        self.layers = layers;
         self
     }
 }

@@ -9,6 +9,7 @@ use glam::{Affine3A, UVec3, Vec3};
 use crate::bvh::lbvh::Lbvh;
 use crate::colliders::error::ColliderError;
 use crate::colliders::exact_contact::TriangleSurface;
+use crate::colliders::layers::CollisionLayers;
 pub use crate::colliders::pose::ColliderPose;
 use crate::colliders::primitives::Primitive;
 use crate::colliders::skinning::{SkinRef, SkinScratch, SkinnedSpheres};
@@ -49,6 +50,9 @@ pub struct Collider {
     pub friction: f32,
     /// Where the collider is.
     pub pose: ColliderPose,
+    /// Which cloths collide with it: those whose [`ClothParams::layers`](crate::ClothParams::layers)
+    /// and these meet ([`CollisionLayers::interacts_with`]). The default meets every cloth.
+    pub layers: CollisionLayers,
 }
 
 impl Collider {
@@ -139,7 +143,7 @@ impl Collider {
     }
 
     fn with_shape(shape: ColliderShape) -> Self {
-        Self { shape, margin: 0.0, friction: 0.0, pose: ColliderPose::default() }
+        Self { shape, margin: 0.0, friction: 0.0, pose: ColliderPose::default(), layers: CollisionLayers::DEFAULT }
     }
 
     /// The sphere tree of a mesh collider; `None` for a primitive.
@@ -205,6 +209,12 @@ impl Collider {
     /// Sets the friction coefficient.
     pub fn with_friction(mut self, friction: f32) -> Self {
         self.friction = friction;
+        self
+    }
+
+    /// Sets the collision layers.
+    pub fn with_layers(mut self, layers: CollisionLayers) -> Self {
+        self.layers = layers;
         self
     }
 

@@ -47,6 +47,7 @@ use crate::bvh::lbvh::{Lbvh, Sphere};
 use crate::bvh::traversal::sphere_contains;
 use crate::colliders::collider::{Collider, ColliderShape};
 use crate::colliders::exact_contact::TriangleSurface;
+use crate::colliders::layers::CollisionLayers;
 use crate::colliders::primitives::Primitive;
 
 pub use crate::colliders::response::{CONTACT_BAND, MAX_PASSES, Response};
@@ -79,6 +80,8 @@ pub struct ColliderFrame<'a> {
     /// How far beyond a node's box (grown by the margin) a contact can be: the contact band of
     /// the largest sphere (0 for a primitive).
     pub contact_reach: f32,
+    /// The collider's collision layers: the cloths it meets.
+    pub layers: CollisionLayers,
 }
 
 impl<'a> ColliderFrame<'a> {
@@ -110,6 +113,7 @@ impl<'a> ColliderFrame<'a> {
             margin_local,
             friction: usable(collider.friction),
             contact_reach,
+            layers: collider.layers,
         })
     }
 

@@ -14,6 +14,7 @@ pub(crate) mod collider;
 pub mod collision;
 pub(crate) mod error;
 pub mod exact_contact;
+pub(crate) mod layers;
 pub(crate) mod pose;
 pub(crate) mod primitive_shape;
 pub mod primitives;
@@ -24,6 +25,7 @@ pub mod voxel_spheres;
 
 pub use collider::{Collider, ColliderShape};
 pub use error::ColliderError;
+pub use layers::CollisionLayers;
 pub use pose::ColliderPose;
 pub use primitive_shape::Primitive;
 pub use response::Response;

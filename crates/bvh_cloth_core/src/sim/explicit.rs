@@ -55,7 +55,7 @@ impl ClothSim {
     /// stage.
     pub(super) fn integrate(&mut self, h: f32, colliders: &[Collider]) {
         self.kick_explicit(h);
-        let frames: Vec<ColliderFrame<'_>> = colliders.iter().filter_map(ColliderFrame::new).collect();
+        let frames = self.frames(colliders);
         let model = ForceModel::new(&self.params);
         match self.params.integrator {
             Integrator::Rk4 => {

@@ -18,6 +18,8 @@ use crate::air::{Air, AirModel, AirSource, Wind, WindSource};
 use crate::cloth::error::ClothError;
 use crate::cloth::tethers::TetherSet;
 use crate::cloth::topology::ClothTopology;
+use crate::colliders::collider::Collider;
+use crate::colliders::collision::ColliderFrame;
 use crate::self_contact::ContactSolver;
 use crate::solver::block_descent::BlockDescent;
 use crate::solver::forces::{ForceModel, LANES};
@@ -158,6 +160,13 @@ impl ClothSim {
         };
         sim.reset(pose);
         Ok(sim)
+    }
+
+    /// The frames of the colliders this cloth collides with: those whose layers meet its own
+    /// ([`ClothParams::layers`]) and whose pose is usable.
+    pub(crate) fn frames<'a>(&self, colliders: &'a [Collider]) -> Vec<ColliderFrame<'a>> {
+        let layers = self.params.layers;
+        colliders.iter().filter(|c| layers.interacts_with(c.layers)).filter_map(ColliderFrame::new).collect()
     }
 
     /// Whether nothing holds the cloth: no particle with mass is pinned, so only the uniform

@@ -45,7 +45,7 @@ impl ClothSim {
 
     /// Runs `substeps` block-descent substeps of `h` seconds on positions kept by particle.
     fn descend(&mut self, h: f32, substeps: u32, iterations: u32, colliders: &[Collider]) {
-        let frames: Vec<ColliderFrame<'_>> = colliders.iter().filter_map(ColliderFrame::new).collect();
+        let frames = self.frames(colliders);
         let model = ForceModel::new(&self.params);
         let n = self.len();
         let mut descent = core::mem::take(&mut self.descent);
@@ -128,7 +128,7 @@ impl ClothSim {
         self.integrate(h, colliders);
         self.read_state(&mut x, &mut v);
         (self.contact_prev, self.contact_x, self.contact_v) = (prev, x, v);
-        let frames: Vec<ColliderFrame<'_>> = colliders.iter().filter_map(ColliderFrame::new).collect();
+        let frames = self.frames(colliders);
         self.resolve_own_contact(contact, &frames);
         let (x, v) = (core::mem::take(&mut self.contact_x), core::mem::take(&mut self.contact_v));
         self.write_state(&x, &v);
@@ -142,6 +142,7 @@ impl ClothSim {
         let mut body = [ContactBody {
             topology: &self.topology,
             contact,
+            layers: self.params.layers,
             free: &self.free[..n],
             held: &self.held[..n],
             prev: &self.contact_prev,
@@ -171,6 +172,7 @@ impl ClothSim {
         }
         let substeps = shared_substeps(sims.iter().map(|s| s.substeps(dt))).unwrap_or(1);
         let h = dt / substeps as f32;
+        // Every usable collider: the contact pass checks each body's layers against them.
         let frames: Vec<ColliderFrame<'_>> = colliders.iter().filter_map(ColliderFrame::new).collect();
         let mut stats = ContactStats::default();
         let mut states: Vec<(Vec<Vec3>, Vec<Vec3>, Vec<Vec3>)> =
@@ -201,6 +203,7 @@ impl ClothSim {
                 bodies.push(ContactBody {
                     topology: &sim.topology,
                     contact,
+                    layers: sim.params.layers,
                     free,
                     held: &sim.held[..sim.len()],
                     prev,

@@ -8,6 +8,7 @@ use crate::air::Aerodynamics;
 use crate::cloth::error::ClothError;
 use crate::cloth::tethers::Tethers;
 use crate::cloth::topology::ClothTopology;
+use crate::colliders::layers::CollisionLayers;
 use crate::self_contact::SelfContact;
 
 /// Most block-descent iterations per substep. More buys less than more substeps do.
@@ -137,6 +138,10 @@ pub struct ClothParams {
     /// they keep a fine held cloth from stretching like rubber while it moves. `None` leaves
     /// the load to the springs alone. A cloth with no pin has no tethers.
     pub tethers: Option<Tethers>,
+    /// Which colliders the cloth collides with, and which other cloths it keeps off when both
+    /// have self-contact: those whose layers and these meet
+    /// ([`CollisionLayers::interacts_with`]). The default meets everything.
+    pub layers: CollisionLayers,
 }
 
 impl Default for ClothParams {
@@ -154,6 +159,7 @@ impl Default for ClothParams {
             self_contact: None,
             aerodynamics: Aerodynamics::NONE,
             tethers: Some(Tethers::default()),
+            layers: CollisionLayers::DEFAULT,
         }
     }
 }

@@ -13,6 +13,7 @@ mod exact_contact;
 mod free_fall;
 mod house;
 mod integrators;
+mod layers;
 mod lbvh;
 mod motion;
 mod self_contact;

@@ -191,7 +191,16 @@ fn everything_at_one_point_is_bounded() {
     let contact = SelfContact { thickness: THICKNESS, friction: 0.3 };
     let mut solver = ContactSolver::default();
     let stats = solver.resolve(
-        &mut [ContactBody { topology: &topology, contact, free: &free, held: &[], prev: &prev, x: &mut x, v: &mut v }],
+        &mut [ContactBody {
+            topology: &topology,
+            contact,
+            layers: Default::default(),
+            free: &free,
+            held: &[],
+            prev: &prev,
+            x: &mut x,
+            v: &mut v,
+        }],
         &[],
     );
     assert_eq!(stats.clamped, n, "every particle had more than {MAX_CANDIDATES} candidates");
@@ -228,6 +237,7 @@ fn a_point_that_went_through_goes_back_to_its_side() {
         solver.resolve(
             &mut [
                 ContactBody {
+                    layers: Default::default(),
                     topology: &floor,
                     contact,
                     free: &pinned,
@@ -237,6 +247,7 @@ fn a_point_that_went_through_goes_back_to_its_side() {
                     v: &mut floor_v,
                 },
                 ContactBody {
+                    layers: Default::default(),
                     topology: &sheet,
                     contact,
                     free: &free,
@@ -281,6 +292,7 @@ fn a_particle_a_collider_holds_does_not_yield() {
         let mut sheet_v = vec![Vec3::new(0.0, -1.0, 0.0); 4];
         let mut solver = ContactSolver::default();
         let floor_body = ContactBody {
+            layers: Default::default(),
             topology: &floor,
             contact,
             free: &free,
@@ -290,6 +302,7 @@ fn a_particle_a_collider_holds_does_not_yield() {
             v: &mut floor_v,
         };
         let sheet_body = ContactBody {
+            layers: Default::default(),
             topology: &sheet,
             contact,
             free: &free,

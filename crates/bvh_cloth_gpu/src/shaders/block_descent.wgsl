@@ -325,7 +325,7 @@ fn vbd_finish(@builtin(global_invocation_id) id: vec3<u32>) {
         out.velocity = vec4(0.0);
         atomicAdd(&cloths[c].faults, 1u);
     }
-    let done = collide(b.position.xyz, out);
+    let done = collide(b.position.xyz, out, vec2(cloths[c].memberships, cloths[c].filters));
     iterate[i] = done;
     // bvh_cloth_core::solver::block_descent::AccelAxis::estimate.
     let axis = accel_axis(c);

@@ -275,15 +275,24 @@ fn contact_velocity(velocity: vec3<f32>, n: vec3<f32>, friction: f32) -> vec3<f3
     return vec3<f32>(0.0);
 }
 
-// The response of a free particle that moved from `prev_world` to `moved` in this substep,
-// against every collider in turn. The velocity's w says whether any collider touched it (1) or
-// none did (0): self-contact weighs a touched particle as pinned.
-fn collide(prev_world: vec3<f32>, moved: GpuParticle) -> GpuParticle {
+// bvh_cloth_core::CollisionLayers::interacts_with, of two (memberships, filters) pairs.
+fn layers_meet(a: vec2<u32>, b: vec2<u32>) -> bool {
+    return (a.x & b.y) != 0u && (b.x & a.y) != 0u;
+}
+
+// The response of a free particle of a cloth whose collision layers are `layers` (memberships,
+// filters) that moved from `prev_world` to `moved` in this substep, against every collider it
+// meets in turn. The velocity's w says whether any collider touched it (1) or none did (0):
+// self-contact weighs a touched particle as pinned.
+fn collide(prev_world: vec3<f32>, moved: GpuParticle, layers: vec2<u32>) -> GpuParticle {
     var position = moved.position.xyz;
     var velocity = moved.velocity.xyz;
     var touched = false;
     for (var c = 0u; c < frame.collider_count; c++) {
         let col = colliders[c];
+        if (!layers_meet(layers, vec2(col.memberships, col.filters))) {
+            continue;
+        }
         let prev = (col.local_from_world * vec4(prev_world, 1.0)).xyz;
         let p = (col.local_from_world * vec4(position, 1.0)).xyz;
         if (col.shape == SHAPE_TRIANGLES) {

@@ -44,7 +44,7 @@ fn node_update_final(@builtin(global_invocation_id) id: vec3<u32>) {
         atomicAdd(&cloths[c].faults, 1u);
     }
     if (free != 0.0) {
-        out = collide(b.position.xyz, out);
+        out = collide(b.position.xyz, out, vec2(cloths[c].memberships, cloths[c].filters));
     }
     state[i] = out;
 }

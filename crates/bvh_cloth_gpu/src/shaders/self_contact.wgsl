@@ -26,7 +26,7 @@
 
 #import bvh_cloth::types::{GpuParticle, thread_index, all_finite}
 #import bvh_cloth::springs::{particle_info, cloths}
-#import bvh_cloth::collision::{collide, closest_on_triangle}
+#import bvh_cloth::collision::{collide, closest_on_triangle, layers_meet}
 #import bvh_cloth::constants::{NO_CLOTH, MAX_CANDIDATES, MAX_SPAN, MAX_HELD_SCALE, CONTACT_TRIANGLE_WORDS}
 
 struct ContactFrame {
@@ -368,6 +368,9 @@ fn touch(p: u32, pc: u32, me: GpuParticle, t: u32) {
         return;
     }
     let tc = corners.w;
+    if (pc != tc && !layers_meet(vec2(cloths[pc].memberships, cloths[pc].filters), vec2(cloths[tc].memberships, cloths[tc].filters))) {
+        return;
+    }
     let h = 0.5 * (cloths[pc].contact_thickness + cloths[tc].contact_thickness);
     if (pc == tc) {
         let rest_lo = bitcast<vec3<f32>>(contact_triangles[CONTACT_TRIANGLE_WORDS * t + 1u].xyz);
@@ -501,5 +504,6 @@ fn contact_apply(@builtin(global_invocation_id) id: vec3<u32>) {
     var moved: GpuParticle;
     moved.position = vec4(me.position.xyz + dx * mean, me.position.w);
     moved.velocity = vec4(me.velocity.xyz + dv * mean, 0.0);
-    contact_state[i] = collide(me.position.xyz, moved);
+    let c = contact_cloth(i);
+    contact_state[i] = collide(me.position.xyz, moved, vec2(cloths[c].memberships, cloths[c].filters));
 }

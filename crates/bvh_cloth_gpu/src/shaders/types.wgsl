@@ -54,8 +54,9 @@ struct BatchCloth {
     free_body: u32,
     tether_start: u32,
     tether_scale: f32,
+    memberships: u32,
+    filters: u32,
     faults: atomic<u32>,
-    reserved: vec2<u32>,
     drift: vec4<f32>,
 }
 
@@ -79,6 +80,9 @@ struct GpuCollider {
     contact_reach: f32,
     shape: u32,         // SHAPE_SPHERES, or a primitive (primitives.wgsl)
     size: vec4<f32>,
+    memberships: u32,
+    filters: u32,
+    pad: vec2<u32>,
 }
 
 struct GpuMeshWriteback {

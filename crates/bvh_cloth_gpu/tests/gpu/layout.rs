@@ -120,8 +120,9 @@ fn wgsl_structs_match_the_rust_layouts() {
             free_body,
             tether_start,
             tether_scale,
+            memberships,
+            filters,
             faults,
-            reserved,
             drift
         ]
     );
@@ -172,7 +173,10 @@ fn wgsl_structs_match_the_rust_layouts() {
             sphere_count,
             contact_reach,
             shape,
-            size
+            size,
+            memberships,
+            filters,
+            pad
         ]
     );
     assert_layout!(&module, "BvhNode", BvhNode, [aabb_min, left, aabb_max, right]);

@@ -65,7 +65,7 @@ pub fn sphere_collider(spheres: &[Sphere]) -> Collider {
         skin: None,
         surface: None,
     };
-    Collider { shape, margin: 0.0, friction: 0.0, pose: Default::default() }
+    Collider { shape, margin: 0.0, friction: 0.0, pose: Default::default(), layers: Default::default() }
 }
 
 /// A square grid `size` metres wide of `cols x rows` particles (square cells, as the paper's).
