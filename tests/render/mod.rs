@@ -441,6 +441,18 @@ fn the_gpu_backend_reads_a_cloth_back_when_asked() {
     assert!(got.iter().all(|p| p.y < 8.0), "the read-back cloth has fallen");
     let rest = app.world().get::<ClothSimulation>(unread).unwrap().sim().positions();
     assert!(rest.iter().all(|p| p.y == 10.0), "a cloth without ClothReadback keeps its built state");
+    // The ticks' GPU time reached ClothStats too, where the device has timestamp queries.
+    // The adapter the render app runs on, as a headless device asks for it.
+    let timestamps = bvh_cloth_gpu::headless::device()
+        .is_some_and(|gpu| gpu.device.features().contains(bvh_cloth_gpu::wgpu::Features::TIMESTAMP_QUERY));
+    let gpu_time = app.world().resource::<ClothStats>().gpu_time;
+    eprintln!("GPU step time: {gpu_time:?} (timestamp queries: {timestamps})");
+    if timestamps {
+        let (time, ticks) = gpu_time.expect("a step time arrived");
+        assert!(time > Duration::ZERO && (1..=2).contains(&ticks), "{time:?} for {ticks} ticks");
+    } else {
+        assert_eq!(gpu_time, None, "a step time without timestamp queries");
+    }
 }
 
 /// On the GPU backend pins change on the running cloth, keeping its state on the GPU: a

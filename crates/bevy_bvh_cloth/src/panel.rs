@@ -52,7 +52,9 @@ fn cloth_panel(
             "{} particles in {} cloth(s), {} spheres in {} collider(s)",
             stats.particles, stats.cloths, stats.spheres, stats.colliders
         ));
-        if stats.step_time.is_zero() {
+        if let Some((time, ticks)) = stats.gpu_time {
+            ui.label(format!("Simulation: {:.2} ms on the GPU for {ticks} ticks", time.as_secs_f64() * 1e3));
+        } else if stats.step_time.is_zero() {
             ui.label(format!("Simulation: {} ticks this frame", stats.ticks));
         } else {
             ui.label(format!(

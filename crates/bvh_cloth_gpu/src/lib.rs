@@ -26,6 +26,7 @@
 //! | [`ClothBatch`] | every cloth's particles, shapes and constants in shared buffers; encodes the ticks of all of them and each one's writeback |
 //! | [`FaultReadback`] | reads a cloth's count of quarantined particles without stalling |
 //! | [`ParticleReadback`] | reads a cloth's positions and velocities without stalling |
+//! | [`PassTimer`] | measures the GPU time of a batch's ticks with timestamp queries, without stalling |
 //! | [`headless`] | a device without a window, and blocking readback, for tests and benchmarks |
 
 //! ## Layout
@@ -58,5 +59,5 @@ pub use kernels::{
     ClothKernels, EntryPoint, Kernel, KernelDescriptor, KernelError, SHADER_FILES, STORAGE_BUFFERS_NEEDED,
     WORKGROUP_SIZE, shader_source,
 };
-pub use readback::{FaultReadback, ParticleReadback};
+pub use readback::{FaultReadback, ParticleReadback, PassTimer};
 pub use wgpu;

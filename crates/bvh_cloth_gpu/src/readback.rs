@@ -9,12 +9,14 @@
 //! |---|---|
 //! | [`FaultReadback`] | a cloth's count of quarantined particles (and clears it) |
 //! | [`ParticleReadback`] | a cloth's whole state: positions and velocities |
+//! | [`PassTimer`] | the GPU time of one compute pass, from two timestamp queries |
 
+use core::time::Duration;
 use std::sync::Arc;
 use std::sync::atomic::{AtomicU8, Ordering};
 
 use crate::layout::GpuParticle;
-use wgpu::{Buffer, BufferUsages, CommandEncoder, Device, MapMode};
+use wgpu::{Buffer, BufferUsages, CommandEncoder, ComputePassTimestampWrites, Device, MapMode, Queue};
 
 use crate::{ClothBatch, ClothId};
 
@@ -153,5 +155,79 @@ impl ParticleReadback {
     /// The particles copied by the last [`Self::record`], once the map has completed.
     pub fn take(&self) -> Option<Vec<GpuParticle>> {
         self.0.take(bytemuck::pod_collect_to_vec)
+    }
+}
+
+/// Bytes of two resolved timestamps.
+const TIMESTAMP_BYTES: u64 = 2 * size_of::<u64>() as u64;
+
+/// A non-blocking measure of one compute pass's GPU time, from timestamp queries written at its
+/// start and end: [`begin`](Self::begin) gives the pass its timestamp writes,
+/// [`record`](Self::record) after the pass resolves them into a staging copy,
+/// [`submitted`](Self::submitted) after the submit, [`take`](Self::take) on a later frame. One
+/// measure is in flight at a time: passes recorded in between run untimed.
+#[derive(Debug)]
+pub struct PassTimer {
+    queries: wgpu::QuerySet,
+    resolved: Buffer,
+    staged: Staged,
+    /// Nanoseconds per timestamp tick ([`Queue::get_timestamp_period`]).
+    period: f32,
+}
+
+impl PassTimer {
+    /// A timer, idle; `None` when `device` was not created with
+    /// [`wgpu::Features::TIMESTAMP_QUERY`] (a browser's WebGL2, some mobile GPUs).
+    pub fn new(device: &Device, queue: &Queue) -> Option<Self> {
+        if !device.features().contains(wgpu::Features::TIMESTAMP_QUERY) {
+            return None;
+        }
+        let queries = device.create_query_set(&wgpu::QuerySetDescriptor {
+            label: Some("bvh_cloth_pass_timer"),
+            ty: wgpu::QueryType::Timestamp,
+            count: 2,
+        });
+        let resolved = device.create_buffer(&wgpu::BufferDescriptor {
+            label: Some("bvh_cloth_pass_timer_resolved"),
+            size: TIMESTAMP_BYTES,
+            usage: BufferUsages::QUERY_RESOLVE | BufferUsages::COPY_SRC,
+            mapped_at_creation: false,
+        });
+        let staged = Staged::new(device, "bvh_cloth_pass_timer_readback", TIMESTAMP_BYTES);
+        Some(Self { queries, resolved, staged, period: queue.get_timestamp_period() })
+    }
+
+    /// Claims the timer for a pass recorded this frame: the timestamp writes to give it, or
+    /// `None` while a measure is in flight (the pass then runs untimed).
+    pub fn begin(&self) -> Option<ComputePassTimestampWrites<'_>> {
+        self.staged.begin().then_some(ComputePassTimestampWrites {
+            query_set: &self.queries,
+            beginning_of_pass_write_index: Some(0),
+            end_of_pass_write_index: Some(1),
+        })
+    }
+
+    /// Records into `encoder`, after the pass that [`Self::begin`] timed, the resolve of its
+    /// timestamps and their copy; does nothing when no pass was claimed this frame.
+    pub fn record(&self, encoder: &mut CommandEncoder) {
+        if self.staged.phase.load(Ordering::Acquire) != RECORDED {
+            return;
+        }
+        encoder.resolve_query_set(&self.queries, 0..2, &self.resolved, 0);
+        encoder.copy_buffer_to_buffer(&self.resolved, 0, &self.staged.buffer, 0, TIMESTAMP_BYTES);
+    }
+
+    /// Asks for the map of a recorded measure, as [`FaultReadback::submitted`].
+    pub fn submitted(&self) {
+        self.staged.submitted();
+    }
+
+    /// The timed pass's GPU time, once the map has completed.
+    pub fn take(&self) -> Option<Duration> {
+        let period = f64::from(self.period);
+        self.staged.take(|bytes| {
+            let [start, end]: [u64; 2] = bytemuck::pod_read_unaligned(bytes);
+            Duration::from_nanos((end.saturating_sub(start) as f64 * period) as u64)
+        })
     }
 }

@@ -23,9 +23,15 @@ pub struct ClothStats {
     pub spheres: usize,
     /// Ticks run in the last frame.
     pub ticks: u32,
-    /// Wall time the CPU backend took in the last frame. Zero on the GPU backend, which reads
-    /// nothing back and so cannot time a frame without stalling it.
+    /// Wall time the CPU backend took in the last frame. Zero on the GPU backend: see
+    /// [`Self::gpu_time`].
     pub step_time: Duration,
+    /// On the GPU backend, the GPU time of every cloth's ticks in one recent frame, and how many
+    /// ticks that frame ran: measured with timestamp queries around the batch's compute pass and
+    /// read back without stalling, so it arrives two or three frames late, and frames in
+    /// between are not measured. `None` on the CPU backend, until the first measure arrives, and
+    /// on a device without timestamp queries (WebGL2, some mobile GPUs).
+    pub gpu_time: Option<(Duration, u32)>,
     /// The backend that ran it.
     pub backend: &'static str,
 }
@@ -38,6 +44,7 @@ pub(crate) fn update_stats(
     mut stats: ResMut<ClothStats>,
 ) {
     let step_time = if *active == ActiveClothBackend::Cpu { stats.step_time } else { Duration::ZERO };
+    let gpu_time = if *active == ActiveClothBackend::Gpu { stats.gpu_time } else { None };
     *stats = ClothStats {
         cloths: cloths.iter().count(),
         particles: cloths.iter().map(|c| c.sim().len()).sum(),
@@ -45,6 +52,7 @@ pub(crate) fn update_stats(
         spheres: colliders.iter().map(|c| c.collider().sphere_count()).sum(),
         ticks: clock.ticks,
         step_time,
+        gpu_time,
         backend: active.name(),
     };
 }

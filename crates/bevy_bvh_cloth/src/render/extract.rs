@@ -1,6 +1,6 @@
 //! Extraction (`ExtractSchedule`): this frame's ticks, each cloth's parameters, pins, pose and
-//! mesh, and every collider's pose copied into [`GpuClothWorld`]; and the fault counts and
-//! states that have arrived sent back to the main world.
+//! mesh, and every collider's pose copied into [`GpuClothWorld`]; and the fault counts,
+//! states and step times that have arrived sent back to the main world.
 
 use std::sync::atomic::Ordering;
 
@@ -11,6 +11,7 @@ use super::world::{ExtractedCloth, GpuClothWorld};
 use super::{GpuClothDiverged, RenderTicks};
 use crate::clock::ClothClock;
 use crate::cloth::simulation::ClothSimulation;
+use crate::cloth::stats::ClothStats;
 use crate::colliders::auto::ClothCollider;
 use crate::render::readback::{ClothReadback, GpuClothState};
 use crate::wind::WindSources;
@@ -61,8 +62,14 @@ pub(super) fn extract_cloths(
 }
 
 /// Sends the fault counts that have arrived, where non-zero, and the read-back states to the
-/// main world.
+/// main world, and puts the step time that has arrived in its [`ClothStats`].
 pub(super) fn report_faults(mut main_world: ResMut<MainWorld>, world: Res<GpuClothWorld>) {
+    if let Some((timer, ticks)) = &world.step_timer
+        && let Some(time) = timer.take()
+        && let Some(mut stats) = main_world.get_resource_mut::<ClothStats>()
+    {
+        stats.gpu_time = Some((time, ticks.load(Ordering::Relaxed)));
+    }
     for (&entity, render) in &world.cloths {
         if let Some(particles @ 1..) = render.faults.take() {
             main_world.write_message(GpuClothDiverged { entity, generation: render.generation, particles });

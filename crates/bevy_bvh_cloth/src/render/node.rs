@@ -1,6 +1,6 @@
 //! The simulation's place in the render graph, before the camera driver: the skinned
-//! colliders' refits, every tick of the batch, the fault and state copies, the writeback; and
-//! the request to map the copies after the submit.
+//! colliders' refits, every tick of the batch (timed where the device can), the fault and
+//! state copies, the writeback; and the request to map the copies after the submit.
 
 use std::sync::atomic::Ordering;
 
@@ -23,7 +23,17 @@ pub(super) fn simulate_cloths(mut render_context: RenderContext, world: Res<GpuC
             skin.refit.encode(&mut pass, kernels);
         }
     }
-    batch.encode_ticks(encoder, kernels, world.ticks);
+    // A frame that runs ticks is timed when no measure is in flight.
+    let timer = world.step_timer.as_ref().filter(|_| world.ticks > 0);
+    let writes = timer.and_then(|(timer, ticks)| {
+        let writes = timer.begin()?;
+        ticks.store(world.ticks, Ordering::Relaxed);
+        Some(writes)
+    });
+    batch.encode_ticks_with(encoder, kernels, world.ticks, writes);
+    if let Some((timer, _)) = timer {
+        timer.record(encoder);
+    }
     for render in world.cloths.values() {
         render.faults.record(encoder, batch, render.id);
         if let Some((state, [ticks, ticks_run])) = &render.state
@@ -36,9 +46,12 @@ pub(super) fn simulate_cloths(mut render_context: RenderContext, world: Res<GpuC
     batch.encode_writebacks(encoder, kernels);
 }
 
-/// Asks for this frame's fault-count and state copies to be mapped, now that they are
-/// submitted.
+/// Asks for this frame's fault-count and state copies and its step time to be mapped, now that
+/// they are submitted.
 pub(super) fn request_fault_reads(world: Res<GpuClothWorld>) {
+    if let Some((timer, _)) = &world.step_timer {
+        timer.submitted();
+    }
     for render in world.cloths.values() {
         render.faults.submitted();
         if let Some((state, _)) = &render.state {

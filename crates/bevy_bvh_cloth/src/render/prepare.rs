@@ -3,7 +3,7 @@
 //! groups made.
 
 use std::sync::Arc;
-use std::sync::atomic::AtomicU64;
+use std::sync::atomic::{AtomicU32, AtomicU64};
 
 use bevy::mesh::VertexFormat;
 use bevy::prelude::*;
@@ -14,7 +14,9 @@ use bevy::render::render_resource::PipelineCache;
 use bevy::render::renderer::{RenderDevice, RenderQueue};
 use bvh_cloth_core::Lbvh;
 use bvh_cloth_gpu::layout::GpuMeshWriteback;
-use bvh_cloth_gpu::{ClothBatch, ClothKernels, FaultReadback, GpuColliders, ParticleReadback, SkinRefit, wgpu};
+use bvh_cloth_gpu::{
+    ClothBatch, ClothKernels, FaultReadback, GpuColliders, ParticleReadback, PassTimer, SkinRefit, wgpu,
+};
 
 use super::shaders::{ClothShaders, QueuedKernels};
 use super::world::{GpuClothWorld, GpuSkin, RenderCloth};
@@ -116,6 +118,9 @@ pub(super) fn prepare_cloths(
         }
     }
     prepare_skin_refits(world, device, &queue, !rewritten);
+    if world.batch.is_none() {
+        world.step_timer = PassTimer::new(device, &queue).map(|timer| (timer, AtomicU32::new(0)));
+    }
     let batch = world.batch.get_or_insert_with(|| ClothBatch::new(device, &queue));
     // The sources were checked in the main world (`gather_wind_sources`); the clock is the CPU
     // backend's: this frame's first tick starts at its index times the tick length.

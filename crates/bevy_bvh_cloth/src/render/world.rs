@@ -2,13 +2,15 @@
 //! the batch of every cloth, the colliders, and each cloth's place in its mesh's vertex slab.
 
 use std::sync::Arc;
-use std::sync::atomic::AtomicU64;
+use std::sync::atomic::{AtomicU32, AtomicU64};
 
 use bevy::ecs::entity::EntityHashMap;
 use bevy::prelude::*;
 use bvh_cloth_core::backend::TetherSet;
 use bvh_cloth_core::{Affine3A, ClothParams, ClothSim, Collider, Lbvh, SkinnedSpheres, Wind, WindSource};
-use bvh_cloth_gpu::{ClothBatch, ClothId, ClothKernels, FaultReadback, GpuColliders, ParticleReadback, SkinRefit};
+use bvh_cloth_gpu::{
+    ClothBatch, ClothId, ClothKernels, FaultReadback, GpuColliders, ParticleReadback, PassTimer, SkinRefit,
+};
 
 use super::shaders::QueuedKernels;
 
@@ -58,6 +60,9 @@ pub(crate) struct GpuClothWorld {
     pub(super) queued: Option<QueuedKernels>,
     /// Every cloth's GPU state.
     pub(super) batch: Option<ClothBatch>,
+    /// Times the batch's ticks on the GPU, where the device has timestamp queries, with the
+    /// ticks of the frame being measured.
+    pub(super) step_timer: Option<(PassTimer, AtomicU32)>,
     /// The kernels could not be built; said once.
     pub(super) failed: bool,
     /// The colliders, keyed by their (shared) trees. Holding the trees keeps them alive, so an

@@ -16,8 +16,20 @@ impl ClothBatch {
     /// integrator stages, the last fused with the collision response, all in one compute pass.
     /// Needs [`Self::prepare`] this frame.
     pub fn encode_ticks(&self, encoder: &mut CommandEncoder, kernels: &ClothKernels, ticks: u32) {
+        self.encode_ticks_with(encoder, kernels, ticks, None);
+    }
+
+    /// As [`Self::encode_ticks`], the pass writing `timestamp_writes` at its start and end (a
+    /// [`PassTimer`](crate::PassTimer)'s, to measure the ticks' GPU time).
+    pub fn encode_ticks_with(
+        &self,
+        encoder: &mut CommandEncoder,
+        kernels: &ClothKernels,
+        ticks: u32,
+        timestamp_writes: Option<wgpu::ComputePassTimestampWrites<'_>>,
+    ) {
         let mut pass = encoder
-            .begin_compute_pass(&wgpu::ComputePassDescriptor { label: Some("bvh_cloth_step"), timestamp_writes: None });
+            .begin_compute_pass(&wgpu::ComputePassDescriptor { label: Some("bvh_cloth_step"), timestamp_writes });
         self.dispatch_ticks(kernels, ticks, |_, run| run(&mut pass));
     }
 

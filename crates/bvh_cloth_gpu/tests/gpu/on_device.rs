@@ -19,7 +19,10 @@ use bvh_cloth_core::{
 };
 use bvh_cloth_gpu::wgpu::util::DeviceExt;
 use bvh_cloth_gpu::wgpu::{self, Device, Queue};
-use bvh_cloth_gpu::{ClothBatch, ClothId, ClothKernels, FaultReadback, GpuColliders, Kernel, SkinRefit, headless};
+use bvh_cloth_gpu::{
+    ClothBatch, ClothId, ClothKernels, FaultReadback, GpuColliders, Kernel, PassTimer, SkinRefit, headless,
+};
+use core::time::Duration;
 
 struct Rig {
     device: Device,
@@ -1064,6 +1067,45 @@ fn timed_ticks_step_as_untimed_ones_and_name_each_dispatch() {
     let substep = [Kernel::NodeUpdate, Kernel::NodeUpdate, Kernel::NodeUpdate, Kernel::NodeUpdateFinal];
     assert_eq!(kernels, substep.repeat(6), "2 ticks of 3 substeps");
     assert_eq!(rig.particles(&timed), rig.particles(&plain));
+}
+
+/// A `PassTimer` around a batch's ticks: the ticks step as untimed ones, bit for bit; a second
+/// claim while a measure is in flight runs untimed; the measure arrives once the device is
+/// polled, and 16 ticks take longer than one (on lavapipe, about 16 times as long).
+#[test]
+fn a_pass_timer_measures_the_ticks_without_changing_them() {
+    let Some(rig) = rig() else { return };
+    let Some(timer) = PassTimer::new(&rig.device, &rig.queue) else {
+        assert!(
+            rig.device.features().contains(wgpu::Features::TIMESTAMP_QUERY),
+            "the device has timestamp queries and no timer was made"
+        );
+        eprintln!("the adapter has no timestamp queries: no timer");
+        return;
+    };
+    let sim = grid_cloth(square(1.0, 32), ClothParams::default(), Affine3A::from_translation(Vec3::Y), &[0, 31]);
+    let none = GpuColliders::new(&rig.device, &[]);
+    let (mut plain, mut timed) = (rig.cloth(&sim, 1.0 / 60.0), rig.cloth(&sim, 1.0 / 60.0));
+    rig.ticks(&mut plain, &none, 1);
+    timed.batch.prepare(&rig.device, &rig.queue, &rig.kernels, &none);
+    let measure = |ticks: u32| {
+        let mut encoder = rig.device.create_command_encoder(&Default::default());
+        let writes = timer.begin();
+        assert!(writes.is_some(), "the timer is idle");
+        timed.batch.encode_ticks_with(&mut encoder, &rig.kernels, ticks, writes);
+        timer.record(&mut encoder);
+        assert!(timer.begin().is_none(), "a second claim while the first is in flight");
+        rig.queue.submit([encoder.finish()]);
+        timer.submitted();
+        assert_eq!(timer.take(), None, "the measure is there before the device was polled");
+        let _ = rig.particles(&timed);
+        timer.take().expect("the measure after a poll")
+    };
+    let one = measure(1);
+    assert_eq!(rig.particles(&timed), rig.particles(&plain), "the timed tick stepped otherwise");
+    let sixteen = measure(16);
+    eprintln!("pass timer: one tick {one:?}, sixteen ticks {sixteen:?}");
+    assert!(one > Duration::ZERO && sixteen > 2 * one, "one tick {one:?}, sixteen {sixteen:?}");
 }
 
 /// `normal_shader` writes every cloth of a vertex buffer in one dispatch: two cloths of
