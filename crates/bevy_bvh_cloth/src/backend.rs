@@ -5,6 +5,16 @@ use bevy::prelude::*;
 
 /// The backend a game asks for. Read once, when the app starts (insert it before
 /// `App::run`); later changes have no effect.
+///
+/// ```no_run
+/// # use bevy::prelude::*;
+/// # use bevy_bvh_cloth::prelude::*;
+/// // The CPU stepper whatever the device: every cloth's state is live in the main world.
+/// App::new()
+///     .insert_resource(ClothBackend::Cpu)
+///     .add_plugins((DefaultPlugins, BvhClothPlugins::default()))
+///     .run();
+/// ```
 #[derive(Resource, Clone, Copy, Debug, Default, PartialEq, Eq, Reflect)]
 #[reflect(Resource, Default, Debug)]
 pub enum ClothBackend {

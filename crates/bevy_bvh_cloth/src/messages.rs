@@ -9,6 +9,18 @@ use bvh_cloth_core::{ClothError, ColliderError};
 
 /// Something went wrong with one cloth or collider. Every message is also logged; read them to
 /// show the problem in a game's own UI. The rest of the scene keeps running in every case.
+///
+/// ```
+/// # use bevy::prelude::*;
+/// # use bevy_bvh_cloth::prelude::*;
+/// fn show_cloth_problems(mut messages: MessageReader<ClothMessage>) {
+///     for message in messages.read() {
+///         if let ClothMessage::Rejected { entity, error } = message {
+///             warn!("the cloth on {entity} was refused: {error}");
+///         }
+///     }
+/// }
+/// ```
 #[derive(Message, Clone, Debug, PartialEq)]
 pub enum ClothMessage {
     /// A [`Cloth`](crate::Cloth)'s parameters were refused. A cloth that was already running
@@ -91,6 +103,16 @@ pub enum ClothMessage {
 }
 
 /// Ask for cloths to go back to their rest pose under their entity's current transform.
+///
+/// ```
+/// # use bevy::prelude::*;
+/// # use bevy_bvh_cloth::prelude::*;
+/// fn reset_on_r(keys: Res<ButtonInput<KeyCode>>, mut resets: MessageWriter<ResetCloth>) {
+///     if keys.just_pressed(KeyCode::KeyR) {
+///         resets.write(ResetCloth::All);
+///     }
+/// }
+/// ```
 #[derive(Message, Clone, Copy, Debug, PartialEq, Eq)]
 pub enum ResetCloth {
     /// Every cloth.

@@ -20,6 +20,17 @@ use crate::settings::ClothSettings;
 /// The system sets of the plugin, chained in this order in the schedule the plugin runs in
 /// ([`PostUpdate`] by default, after [`TransformSystems::Propagate`]). Order your own systems
 /// against them.
+///
+/// ```
+/// # use bevy::prelude::*;
+/// # use bevy_bvh_cloth::prelude::*;
+/// // Reads where the cloths are once this frame's ticks are done.
+/// fn lowest_particle(cloths: Query<&ClothSimulation>) {
+///     let lowest = cloths.iter().flat_map(|c| c.sim().positions()).map(|p| p.y).fold(f32::INFINITY, f32::min);
+///     info!("lowest particle at {lowest} m");
+/// }
+/// App::new().add_systems(PostUpdate, lowest_particle.after(ClothSystems::Step));
+/// ```
 #[derive(SystemSet, Clone, Copy, Debug, PartialEq, Eq, Hash)]
 pub enum ClothSystems {
     /// [`AutoCollider`](crate::AutoCollider)s are built (or their async builds polled) and placed at their

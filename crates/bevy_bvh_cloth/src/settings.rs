@@ -3,6 +3,20 @@
 use bevy::prelude::*;
 
 /// Settings shared by every cloth. Edit the resource at any time; changes apply next frame.
+///
+/// ```
+/// # use bevy::prelude::*;
+/// # use bevy_bvh_cloth::prelude::*;
+/// // A game that steps its cloth at 120 Hz, and pauses it with the game.
+/// let settings = ClothSettings { tick_rate: 120.0, ..default() };
+/// App::new().insert_resource(settings);
+///
+/// fn pause(mut settings: ResMut<ClothSettings>, keys: Res<ButtonInput<KeyCode>>) {
+///     if keys.just_pressed(KeyCode::Escape) {
+///         settings.paused = !settings.paused;
+///     }
+/// }
+/// ```
 #[derive(Resource, Clone, Debug, PartialEq, Reflect)]
 #[reflect(Resource, Default, Debug)]
 pub struct ClothSettings {

@@ -27,6 +27,19 @@ use crate::settings::ClothSettings;
 /// [`ClothReadback`](crate::ClothReadback) on the entity this is read back two or three frames
 /// late, without stalling; without it, this holds the state as of the last rebuild or reset.
 ///
+/// ```
+/// # use bevy::prelude::*;
+/// # use bevy_bvh_cloth::prelude::*;
+/// // How fast each cloth's centre of mass moves, for gameplay (a flag's flapping, a sail's pull).
+/// fn report(cloths: Query<(Entity, &ClothSimulation)>) {
+///     for (entity, cloth) in &cloths {
+///         let sim = cloth.sim();
+///         let mean = sim.velocities().iter().sum::<Vec3>() / sim.len().max(1) as f32;
+///         info!("{entity}: {} particles, centre of mass moving at {mean}", sim.len());
+///     }
+/// }
+/// ```
+///
 /// [`ClothTopology::vertex_particle`]: bvh_cloth_core::ClothTopology::vertex_particle
 #[derive(Component, Debug)]
 pub struct ClothSimulation {

@@ -10,6 +10,19 @@ use crate::cloth::simulation::ClothSimulation;
 use crate::colliders::auto::ClothCollider;
 
 /// What the simulation did in the last frame.
+///
+/// ```
+/// # use bevy::prelude::*;
+/// # use bevy_bvh_cloth::prelude::*;
+/// // The cloth's cost per tick, for a game's performance overlay.
+/// fn cloth_cost(stats: Res<ClothStats>) -> Option<f64> {
+///     match stats.gpu_time {
+///         Some((time, ticks)) => Some(time.as_secs_f64() * 1e3 / f64::from(ticks.max(1))),
+///         None if stats.ticks > 0 => Some(stats.step_time.as_secs_f64() * 1e3 / f64::from(stats.ticks)),
+///         None => None,
+///     }
+/// }
+/// ```
 #[derive(Resource, Clone, Debug, Default, Reflect)]
 #[reflect(Resource, Default, Debug)]
 pub struct ClothStats {

@@ -16,6 +16,18 @@ use crate::cloth::simulation::ClothSimulation;
 /// copy costs the cloth's particle buffer (32 bytes per particle) per frame, so read back only
 /// the cloths gameplay looks at. On the CPU backend the state is always live and this does
 /// nothing.
+///
+/// ```
+/// # use bevy::prelude::*;
+/// # use bevy_bvh_cloth::prelude::*;
+/// # fn setup(mut commands: Commands) {
+/// // A flag whose tip gameplay follows, on either backend.
+/// commands.spawn((
+///     Cloth::grid(Vec2::new(1.0, 0.6), UVec2::new(24, 16)).with_pins(ClothPins::FirstRow),
+///     ClothReadback::default(),
+/// ));
+/// # }
+/// ```
 #[derive(Component, Clone, Debug, Default, PartialEq, Reflect)]
 #[reflect(Component, Default, Debug)]
 pub struct ClothReadback {
