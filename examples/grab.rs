@@ -21,7 +21,59 @@ const CORNERS: [u32; 2] = [0, SIDE - 1];
 const REACH: f32 = 0.08;
 
 fn main() {
-    common::example_app("bevy_bvh_cloth: grab").add_systems(Startup, setup).add_systems(Update, (grab, corners)).run();
+    common::example_app("bevy_bvh_cloth: grab")
+        .add_systems(Startup, setup)
+        .add_systems(Update, (point.pipe(grab), corners))
+        .run();
+}
+
+/// What the hand is asked to do this frame: the ray it reaches along, and whether it takes,
+/// holds or lets go.
+#[derive(Default)]
+struct Pointer {
+    ray: Option<Ray3d>,
+    take: bool,
+    hold: bool,
+    release: bool,
+}
+
+/// The right mouse button and the cursor; when the example runs for its screenshot
+/// (`CLOTH_EXAMPLE_SCREENSHOT`), a scripted hand instead: after 2 s it takes the middle of the
+/// sheet's bottom edge and draws it up and aside over the next 2 s.
+fn point(
+    buttons: Res<ButtonInput<MouseButton>>,
+    window: Single<&Window, With<PrimaryWindow>>,
+    camera: Single<(&Camera, &GlobalTransform), Without<Hand>>,
+    clock: Res<ClothClock>,
+    cloths: Query<&ClothSimulation>,
+    mut scripted: Local<Option<Vec3>>,
+) -> Pointer {
+    let (camera, view) = *camera;
+    if !common::taking_screenshot() {
+        let ray = window.cursor_position().and_then(|cursor| camera.viewport_to_world(view, cursor).ok());
+        return Pointer {
+            ray,
+            take: buttons.just_pressed(MouseButton::Right),
+            hold: buttons.pressed(MouseButton::Right),
+            release: buttons.just_released(MouseButton::Right),
+        };
+    }
+    const TAKE: u64 = 120;
+    let ticks = clock.total_ticks;
+    let towards = |target: Vec3| Some(Ray3d::new(view.translation(), Dir3::new(target - view.translation()).ok()?));
+    match *scripted {
+        None if ticks >= TAKE => {
+            let Some(cloth) = cloths.iter().next() else { return Pointer::default() };
+            let bottom_middle = cloth.sim().position((SIDE * (SIDE - 1) + SIDE / 2) as usize);
+            *scripted = Some(bottom_middle);
+            Pointer { ray: towards(bottom_middle), take: true, hold: true, release: false }
+        }
+        Some(start) => {
+            let t = ((ticks - TAKE) as f32 / 120.0).min(1.0);
+            Pointer { ray: towards(start + t * Vec3::new(0.4, 0.4, 0.15)), take: false, hold: true, release: false }
+        }
+        None => Pointer::default(),
+    }
 }
 
 /// The entity that holds a grabbed particle: it follows the cursor.
@@ -52,21 +104,17 @@ fn setup(mut commands: Commands, mut meshes: ResMut<Assets<Mesh>>, mut materials
     ));
 }
 
-/// Takes the particle nearest the cursor's ray on a right click, moves the hand with the cursor
-/// while the button is held, and lets go on release.
+/// Takes the particle nearest the pointer's ray when it takes, moves the hand along the ray
+/// while it holds, and lets go on release.
 fn grab(
-    buttons: Res<ButtonInput<MouseButton>>,
-    window: Single<&Window, With<PrimaryWindow>>,
-    camera: Single<(&Camera, &GlobalTransform), Without<Hand>>,
+    pointer: In<Pointer>,
     mut cloths: Query<(Entity, &mut Cloth, &ClothSimulation, &GlobalTransform)>,
     hand: Single<HandParts, (With<Hand>, Without<Cloth>)>,
     // The cloth the hand holds, and how far along the cursor's ray it was taken.
     mut held: Local<Option<(Entity, f32)>>,
 ) {
     let (hand, mut transform, mut global, mut visibility) = hand.into_inner();
-    let (camera, view) = *camera;
-    let ray = window.cursor_position().and_then(|cursor| camera.viewport_to_world(view, cursor).ok());
-    if buttons.just_released(MouseButton::Right) {
+    if pointer.release {
         if let Some((cloth, _)) = held.take()
             && let Ok((_, mut cloth, _, _)) = cloths.get_mut(cloth)
         {
@@ -75,14 +123,14 @@ fn grab(
         *visibility = Visibility::Hidden;
         return;
     }
-    let Some(ray) = ray else { return };
+    let Some(ray) = pointer.ray else { return };
     if let Some((_, depth)) = *held {
-        if buttons.pressed(MouseButton::Right) {
+        if pointer.hold {
             transform.translation = ray.origin + ray.direction * depth;
         }
         return;
     }
-    if !buttons.just_pressed(MouseButton::Right) {
+    if !pointer.take {
         return;
     }
     // The particle nearest the ray, within reach, over every cloth.

@@ -11,7 +11,7 @@ set -euo pipefail
 cd "$(dirname "$0")/.."
 
 examples=("$@")
-[ ${#examples[@]} -gt 0 ] || examples=(bunny flag cape character gltf_character tablecloth towel many_cloths)
+[ ${#examples[@]} -gt 0 ] || examples=(bunny flag cape character gltf_character tablecloth towel grab many_cloths)
 
 need=()
 command -v xvfb-run >/dev/null || need+=(xvfb xauth)

@@ -18,13 +18,8 @@ port=${2:-8080}
 target=${CARGO_TARGET_DIR:-$HOME/.cache/bevy_bvh_cloth/target-web}
 out=$target/web/$example
 
-rustup target list --installed | grep -qx wasm32-unknown-unknown || rustup target add wasm32-unknown-unknown
-version=$(awk '/^name = "wasm-bindgen"$/ { getline; gsub(/version = |"/, ""); print; exit }' Cargo.lock)
-if [ "$(wasm-bindgen --version 2>/dev/null | cut -d' ' -f2)" != "$version" ]; then
-    # Its own lock file first; a registry that lacks one of its pinned versions gets the newest
-    # compatible ones instead.
-    cargo install wasm-bindgen-cli --version "$version" --locked || cargo install wasm-bindgen-cli --version "$version"
-fi
+source scripts/web/tools.sh
+web_tools
 
 rm -rf "$out"
 for api in webgpu webgl2; do

@@ -35,6 +35,13 @@ pub fn example_app(title: &str) -> App {
     app
 }
 
+/// Whether the example runs to take its screenshot (`CLOTH_EXAMPLE_SCREENSHOT` is set): an
+/// example that waits on the user acts on its own then.
+#[allow(dead_code)] // used by `grab`
+pub fn taking_screenshot() -> bool {
+    std::env::var_os(SCREENSHOT_ENV).is_some()
+}
+
 /// The orbiting camera's state: drag with the left mouse button, scroll to zoom.
 #[derive(Component)]
 pub struct Orbit {

@@ -1,0 +1,13 @@
+# Sourced by the web scripts: `web_tools` installs what building for the browser needs and is
+# missing, the wasm32-unknown-unknown target and wasm-bindgen-cli at the version Cargo.lock pins.
+web_tools() {
+    rustup target list --installed | grep -qx wasm32-unknown-unknown || rustup target add wasm32-unknown-unknown
+    local version
+    version=$(awk '/^name = "wasm-bindgen"$/ { getline; gsub(/version = |"/, ""); print; exit }' Cargo.lock)
+    if [ "$(wasm-bindgen --version 2>/dev/null | cut -d' ' -f2)" != "$version" ]; then
+        # Its own lock file first; a registry that lacks one of its pinned versions gets the
+        # newest compatible ones instead.
+        cargo install wasm-bindgen-cli --version "$version" --locked ||
+            cargo install wasm-bindgen-cli --version "$version"
+    fi
+}

@@ -1,0 +1,43 @@
+#!/usr/bin/env bash
+# The browser test: builds examples/web_check for WebGPU, serves it, and runs it in headless
+# Chromium (its WebGPU adapter is SwiftShader where there is no GPU) twice, once asking for the
+# GPU backend and once for the CPU backend. Each run must end in the app's
+# `web_check: PASS` on the backend asked for: every particle finite, the cloth resting on its
+# ball collider, and the free-falling cloth within 1e-4 m of the core's stepper. The page's
+# screenshots are left beside it. `.ci/run` runs it.
+#
+#   bash scripts/web_check.sh
+#
+# Installs what is missing: Chromium, python3 and its websocket module (Debian packages), the
+# wasm32 target and wasm-bindgen-cli (scripts/web/tools.sh).
+set -euo pipefail
+cd "$(dirname "$0")/.."
+source scripts/web/tools.sh
+
+need=()
+command -v chromium >/dev/null || need+=(chromium)
+command -v python3 >/dev/null || need+=(python3)
+python3 -c 'import websocket' 2>/dev/null || need+=(python3-websocket)
+if [ ${#need[@]} -gt 0 ]; then
+    apt-get update -qq && apt-get install -y -qq --no-install-recommends "${need[@]}" >/dev/null
+fi
+web_tools
+
+target=${CARGO_TARGET_DIR:-$HOME/.cache/bevy_bvh_cloth/target}
+out=$target/web/web_check
+# The dev profile (dependencies at opt-level 1): a quick build that runs fast enough. The
+# `egui` feature builds the panel for the web too, though the check does not show it.
+CARGO_TARGET_DIR=$target cargo build --locked -p bevy_bvh_cloth --example web_check \
+    --target wasm32-unknown-unknown --features egui,bevy/webgpu
+rm -rf "$out"
+wasm-bindgen --target web --no-typescript --out-dir "$out" --out-name web_check \
+    "$target/wasm32-unknown-unknown/debug/examples/web_check.wasm"
+cp scripts/web/check.html "$out/index.html"
+
+port=8765
+python3 -m http.server --directory "$out" --bind 127.0.0.1 "$port" >/dev/null 2>&1 &
+server=$!
+trap 'kill $server 2>/dev/null' EXIT
+for backend in gpu cpu; do
+    python3 scripts/web/check.py "http://127.0.0.1:$port/?backend=$backend" "${backend^^}" "$out/web_check_$backend.png"
+done
