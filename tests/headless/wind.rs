@@ -59,7 +59,7 @@ fn fans_and_blasts_blow_what_they_reach() {
     let fan = app
         .world_mut()
         .spawn((
-            WindFan { speed: 10.0, range: 4.0, spread: 0.8 },
+            WindFan::new(10.0).with_range(4.0).with_spread(0.8),
             Transform::from_xyz(0.0, 1.5, -1.0).looking_at(Vec3::new(0.0, 1.5, 0.0), Vec3::Y),
         ))
         .id();

@@ -81,6 +81,26 @@ impl Default for WindFan {
     }
 }
 
+impl WindFan {
+    /// A fan blowing `speed` m/s along its entity's forward, with the default reach (5 m) and
+    /// cone (a half-angle of 0.5 rad).
+    pub fn new(speed: f32) -> Self {
+        Self { speed, ..default() }
+    }
+
+    /// The same fan reaching `range` metres.
+    pub fn with_range(mut self, range: f32) -> Self {
+        self.range = range;
+        self
+    }
+
+    /// The same fan blowing in a cone of half-angle `spread` radians.
+    pub fn with_spread(mut self, spread: f32) -> Self {
+        self.spread = spread;
+        self
+    }
+}
+
 /// A blast at its entity's position: air pushed out in every direction at `speed`, weakening
 /// linearly to nothing at `radius`, and over `duration` seconds of cloth time to nothing. Spawn
 /// one for an explosion; it stops blowing once it has run its course, and the entity is left to

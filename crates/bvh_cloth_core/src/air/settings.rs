@@ -116,6 +116,31 @@ impl Wind {
         Self { velocity, gust_strength: 0.4, gust_period: 3.0, turbulence: 0.2 * velocity.length(), ..Self::STILL }
     }
 
+    /// The same wind with gusts that raise and lower it by `strength` (a fraction of the mean, 0
+    /// to 1) every `period` seconds or so.
+    pub fn with_gusts(mut self, strength: f32, period: f32) -> Self {
+        (self.gust_strength, self.gust_period) = (strength, period);
+        self
+    }
+
+    /// The same wind with turbulence of `speed` m/s in eddies of `scale` metres.
+    pub fn with_turbulence(mut self, speed: f32, scale: f32) -> Self {
+        (self.turbulence, self.turbulence_scale) = (speed, scale);
+        self
+    }
+
+    /// The same wind in air of `density` kg/m³ (sea level: 1.225).
+    pub fn with_density(mut self, density: f32) -> Self {
+        self.density = density;
+        self
+    }
+
+    /// The same wind with another noise: `seed` picks it.
+    pub fn with_seed(mut self, seed: u32) -> Self {
+        self.seed = seed;
+        self
+    }
+
     /// Checks every field.
     pub fn validate(&self) -> Result<(), ClothError> {
         if !self.velocity.is_finite() {
@@ -217,4 +242,18 @@ impl WindSource {
 
 pub(super) fn in_range(field: &'static str, value: f32, min: f32, max: f32) -> Result<(), ClothError> {
     if value >= min && value <= max { Ok(()) } else { Err(ClothError::OutOfRange { field, value, min, max }) }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn the_builders_set_what_they_name() {
+        let v = Vec3::new(8.0, 0.0, 0.0);
+        assert_eq!(Wind::steady(v).with_gusts(0.4, 3.0).with_turbulence(1.6, 2.0), Wind::gusty(v));
+        let wind = Wind::STILL.with_density(1.0).with_seed(7);
+        assert_eq!((wind.density, wind.seed), (1.0, 7));
+        assert!(Wind::steady(v).with_gusts(2.0, 3.0).validate().is_err(), "a gust strength above 1 is refused");
+    }
 }
