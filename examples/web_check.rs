@@ -19,7 +19,7 @@ use bevy_bvh_cloth::bvh_cloth_core::{ClothSim, ClothTopology};
 use bevy_bvh_cloth::prelude::*;
 
 /// Ticks of simulation before the verdict (2 s at the default 60 Hz: the draped cloth has
-/// landed and settled; SwiftShader takes about 0.4 s a tick).
+/// landed and settled; SwiftShader takes about half a second a tick).
 const TICKS: u64 = 120;
 /// The ball's radius, at the origin; the collider's margin.
 const RADIUS: f32 = 0.3;
