@@ -34,10 +34,13 @@ wasm-bindgen --target web --no-typescript --out-dir "$out" --out-name web_check 
     "$target/wasm32-unknown-unknown/debug/examples/web_check.wasm"
 cp scripts/web/check.html "$out/index.html"
 
-port=8765
+# A free port, so that a server left on a fixed one cannot answer with another build.
+port=$(python3 -c 'import socket; s = socket.socket(); s.bind(("127.0.0.1", 0)); print(s.getsockname()[1])')
 python3 -m http.server --directory "$out" --bind 127.0.0.1 "$port" >/dev/null 2>&1 &
 server=$!
 trap 'kill $server 2>/dev/null' EXIT
+sleep 1
+kill -0 "$server" 2>/dev/null || { echo "web check: the page's server did not start on port $port" >&2; exit 1; }
 for backend in gpu cpu; do
     python3 scripts/web/check.py "http://127.0.0.1:$port/?backend=$backend" "${backend^^}" "$out/web_check_$backend.png"
 done
