@@ -8,6 +8,7 @@ backend expected.
 BACKEND is GPU or CPU (the backend the verdict must name); SECONDS bounds the wait (180)."""
 import base64
 import json
+import socket
 import subprocess
 import sys
 import time
@@ -17,7 +18,10 @@ import websocket
 
 url, backend, screenshot = sys.argv[1], sys.argv[2], sys.argv[3]
 seconds = float(sys.argv[4]) if len(sys.argv) > 4 else 180.0
-port = 9333
+# A free port for the DevTools protocol, so that no other Chromium answers.
+with socket.socket() as probe:
+    probe.bind(("127.0.0.1", 0))
+    port = probe.getsockname()[1]
 chrome = subprocess.Popen(
     [
         "chromium", "--headless=new", "--no-sandbox", "--enable-unsafe-webgpu", "--enable-unsafe-swiftshader",
