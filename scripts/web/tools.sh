@@ -6,8 +6,9 @@ web_tools() {
     version=$(awk '/^name = "wasm-bindgen"$/ { getline; gsub(/version = |"/, ""); print; exit }' Cargo.lock)
     if [ "$(wasm-bindgen --version 2>/dev/null | cut -d' ' -f2)" != "$version" ]; then
         # Its own lock file first; a registry that lacks one of its pinned versions gets the
-        # newest compatible ones instead.
-        cargo install wasm-bindgen-cli --version "$version" --locked ||
-            cargo install wasm-bindgen-cli --version "$version"
+        # newest compatible ones instead. Forced: cargo skips a version it has on record even
+        # when the binary is gone.
+        cargo install wasm-bindgen-cli --version "$version" --locked --force ||
+            cargo install wasm-bindgen-cli --version "$version" --force
     fi
 }
