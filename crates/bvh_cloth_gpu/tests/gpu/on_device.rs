@@ -125,6 +125,11 @@ impl Rig {
         all[first..first + (size / size_of::<GpuParticle>() as u64) as usize].to_vec()
     }
 
+    /// The positions of each of `ids`'s cloths in `batch`, in order.
+    fn batch_positions(&self, batch: &ClothBatch, ids: &[ClothId]) -> Vec<Vec<Vec3>> {
+        ids.iter().map(|&id| self.batch_particles(batch, id).iter().map(position).collect()).collect()
+    }
+
     /// One tick of `tick` seconds of every cloth of `batch` on the GPU and of each of `cloths`
     /// (named, with its id in `ids`) on the CPU, the GPU starting from the CPU's state when
     /// `resync`; against `colliders` (CPU and GPU). Returns each cloth's largest CPU–GPU gap.
@@ -1551,6 +1556,18 @@ fn self_contact_agrees_with_the_cpu() {
     assert!(cpu_contacts > 0 && gpu_contacts > 0, "the cloths never touched: the scene tests nothing");
 }
 
+/// The contact scene `cloths` on the GPU alone for 3 s (180 ticks): every cloth's positions,
+/// and how many triangles of the first two cloths cross each other's.
+fn contact_scene_for_3_s(rig: &Rig, cloths: &[(&str, ClothSim)], colliders: &[Collider]) -> (Vec<Vec<Vec3>>, usize) {
+    let gpu_colliders = GpuColliders::new(&rig.device, colliders);
+    let (mut batch, ids) = rig.batch(cloths, 1.0 / 60.0);
+    rig.run(&mut batch, &gpu_colliders, 180);
+    let x = rig.batch_positions(&batch, &ids);
+    let tris = cloths[0].1.topology().triangles();
+    let crossing = crossing_pairs(tris, &x[0], Some((tris, &x[1])));
+    (x, crossing)
+}
+
 /// The contact scene on the GPU alone for 3 s: the upper cloth rests on the lower, no triangle of
 /// one crosses the other's and no particle is closer than half the thickness to one of the
 /// other cloth. The control, the same scene without self-contact, crosses.
@@ -1560,16 +1577,10 @@ fn self_contact_on_the_gpu_keeps_two_cloths_apart() {
     let mut results = Vec::new();
     for contact in [true, false] {
         let (mut cloths, colliders) = contact_scene();
-        let gpu_colliders = GpuColliders::new(&rig.device, &colliders);
         for (_, sim) in cloths.iter_mut().filter(|_| !contact) {
             sim.set_params(ClothParams { self_contact: None, ..sim.params().clone() }).unwrap();
         }
-        let (mut batch, ids) = rig.batch(&cloths, 1.0 / 60.0);
-        rig.run(&mut batch, &gpu_colliders, 180);
-        let x: Vec<Vec<Vec3>> =
-            ids.iter().map(|&id| rig.batch_particles(&batch, id).iter().map(position).collect()).collect();
-        let tris = cloths[0].1.topology().triangles();
-        let crossing = crossing_pairs(tris, &x[0], Some((tris, &x[1])));
+        let (x, crossing) = contact_scene_for_3_s(&rig, &cloths, &colliders);
         let close: usize = x[0].iter().map(|p| x[1].iter().filter(|q| p.distance(**q) < 0.004).count()).sum();
         assert!(x.iter().flatten().all(|p| p.is_finite()));
         eprintln!("GPU, contact {contact}: {crossing} crossing triangles, {close} close pairs between the cloths");
@@ -1616,8 +1627,7 @@ fn collision_layers_choose_each_cloths_colliders_on_the_gpu_as_on_the_cpu() {
             *worst = worst.max(gap);
         }
     }
-    let on_gpu: Vec<Vec<Vec3>> =
-        ids.iter().map(|&id| rig.batch_particles(&batch, id).iter().map(position).collect()).collect();
+    let on_gpu = rig.batch_positions(&batch, &ids);
     eprintln!(
         "layers: largest CPU-GPU gap after one tick {worst:?}; lowest on the GPU {} and {}",
         lowest(&on_gpu[0]),
@@ -1642,13 +1652,7 @@ fn cloths_whose_layers_do_not_meet_pass_through_each_other_on_the_gpu() {
         let layers = CollisionLayers::new(own, own | CollisionLayers::DEFAULT.memberships);
         sim.set_params(ClothParams { layers, ..sim.params().clone() }).unwrap();
     }
-    let gpu_colliders = GpuColliders::new(&rig.device, &colliders);
-    let (mut batch, ids) = rig.batch(&cloths, 1.0 / 60.0);
-    rig.run(&mut batch, &gpu_colliders, 180);
-    let x: Vec<Vec<Vec3>> =
-        ids.iter().map(|&id| rig.batch_particles(&batch, id).iter().map(position).collect()).collect();
-    let tris = cloths[0].1.topology().triangles();
-    let crossing = crossing_pairs(tris, &x[0], Some((tris, &x[1])));
+    let (x, crossing) = contact_scene_for_3_s(&rig, &cloths, &colliders);
     let inside = x.iter().take(2).flatten().filter(|&&p| colliders[0].contains(p)).count();
     eprintln!("GPU, contact cloths on layers apart: {crossing} crossing triangles, {inside} particles in the ball");
     assert!(crossing > 100, "only {crossing} triangles cross: the cloths kept off each other");
