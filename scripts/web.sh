@@ -33,6 +33,7 @@ for api in webgpu webgl2; do
 done
 cp -r assets "$out/assets"
 sed "s/EXAMPLE/$example/g" scripts/web/index.html >"$out/index.html"
+cp scripts/web/start.js "$out/"
 
 [ -n "${WEB_BUILD_ONLY:-}" ] && exit 0
 echo "web.sh: serving $out on http://localhost:$port (Ctrl+C stops)"

@@ -33,6 +33,7 @@ rm -rf "$out"
 wasm-bindgen --target web --no-typescript --out-dir "$out" --out-name web_check \
     "$target/wasm32-unknown-unknown/debug/examples/web_check.wasm"
 cp scripts/web/check.html "$out/index.html"
+cp scripts/web/start.js "$out/"
 
 # A free port, so that a server left on a fixed one cannot answer with another build.
 port=$(python3 -c 'import socket; s = socket.socket(); s.bind(("127.0.0.1", 0)); print(s.getsockname()[1])')
