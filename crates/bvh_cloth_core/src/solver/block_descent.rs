@@ -67,6 +67,20 @@
 //! system is of order one (`H = (1 + c h) I + h² Σ κ H_spring`, `κ` the spring's stiffness over
 //! the particle's mass, as in the spring forces) and stays well inside `f32`.
 //!
+//! ## Displacements, so that `f32` holds a substep wherever the cloth is
+//! The sweeps solve for each particle's displacement over the substep, `d = x - x⁰`, not for its
+//! position: the first iterate, the inertial target (`y - x⁰`) and the Newton steps are
+//! displacements, a spring's vector is `(x⁰_j - x⁰_i) + (d_j - d_i)`, and the substep ends
+//! with `x = x⁰ + d` and `v = d / h`. A displacement is a few millimetres, which `f32` keeps to
+//! a fraction of a nanometre, while a position 1 km from the origin is kept to 61 µm, more than
+//! gravity moves a particle at rest in a substep (`h² g` = 11 µm at Looper 16): solving for
+//! positions, a cloth hanging 1 km from the origin never moved (its first iterate and its
+//! target rounded back to its start), 100 m up it sagged 25 % less than near the origin at
+//! 0.25 s and 54 % more at 1 s, and near the origin at Looper 64 it fell 10 % faster than
+//! gravity. Solving for displacements, 1 km out it sags within 0.7 % of the same cloth near the
+//! origin (the core's `motion` tests); what remains is the positions' own rounding, which RK4
+//! shares (1.9 %).
+//!
 //! ## Why block descent, and not XPBD
 //! Both are unconditionally stable and both turn stiffness into a fixed cost. What decided it
 //! is the layout the other kernels already have: each particle gathers its springs from its
@@ -111,10 +125,11 @@ use crate::solver::forces::ForceModel;
 /// and join costs more than the updates it would share (a 64x64 cloth's colours are not split).
 const MIN_TASK: usize = 4096;
 
-/// The new position of one particle: one Newton step on its block of the incremental potential
-/// (see the [module docs](self)). `x` is its current position, `start` its position at the
-/// start of the substep, `target` its inertial target, `springs` its springs (their other ends
-/// read through `position`) and `inv_share` its inverse mass share. The GPU's `vbd_solve`
+/// The new displacement of one particle over the substep: one Newton step on its block of the
+/// incremental potential (see the [module docs](self)). `d` is its current displacement from
+/// `start`, its position at the start of the substep, `target` its inertial target less
+/// `start`, `springs` its springs (their other ends' starts and displacements read through
+/// `other`) and `inv_share` its inverse mass share. The GPU's `vbd_solve`
 /// repeats this arithmetic in the same order; the solver runs it four lanes at a time
 /// (`descend_lanes`), and the tests hold the lanes to this one bit for bit.
 #[cfg(test)]
@@ -124,10 +139,10 @@ fn descend(
     h: f32,
     inv_share: f32,
     springs: &[SpringEnd],
-    x: Vec3A,
+    d: Vec3A,
     start: Vec3A,
     target: Vec3A,
-    position: impl Fn(u32) -> Vec3A,
+    other: impl Fn(u32) -> (Vec3A, Vec3A),
 ) -> Vec3A {
     use glam::Vec3Swizzles;
 
@@ -135,7 +150,7 @@ fn descend(
     let ch = model.damping * h;
     // h² f / m, and h² H / m: H is symmetric, kept as its diagonal (xx, yy, zz) and its
     // off-diagonal (xy, xz, yz).
-    let mut g = (x - target) + ch * (x - start);
+    let mut g = (d - target) + ch * d;
     let mut diag = Vec3A::splat(1.0 + ch);
     let mut off = Vec3A::ZERO;
     for end in springs {
@@ -143,7 +158,8 @@ fn descend(
         if k == 0.0 {
             continue;
         }
-        let delta = position(end.other) - x;
+        let (other_start, other_d) = other(end.other);
+        let delta = (other_start - start) + (other_d - d);
         let len = delta.dot(delta).sqrt();
         let inv_l = 1.0 / len.max(1.0e-6 * end.rest);
         let stretch = 1.0 - end.rest * inv_l;
@@ -155,7 +171,7 @@ fn descend(
         diag += k * s + t * (u * u);
         off += t * (u.xxy() * u.yzz());
     }
-    newton_step(x, g, diag, off)
+    newton_step(d, g, diag, off)
 }
 
 /// `x - H⁻¹ g` for the symmetric 3x3 `H` of diagonal `diag` (xx, yy, zz) and off-diagonal `off`
@@ -193,10 +209,11 @@ fn descend_lanes(
     h: f32,
     inv_share: [f32; WIDTH],
     springs: [&[SpringEnd]; WIDTH],
-    x: [Vec3A; WIDTH],
+    d: [Vec3A; WIDTH],
     start: [Vec3A; WIDTH],
     target: [Vec3A; WIDTH],
-    positions: &[Vec3A],
+    starts: &[Vec3A],
+    displacements: &[Vec3A],
 ) -> [Vec3A; WIDTH] {
     let h2 = h * h;
     let ch = model.damping * h;
@@ -204,7 +221,7 @@ fn descend_lanes(
     let mut diag = [[1.0 + ch; WIDTH]; 3];
     let mut off = [[0.0f32; WIDTH]; 3];
     for l in 0..WIDTH {
-        let gl = (x[l] - target[l]) + ch * (x[l] - start[l]);
+        let gl = (d[l] - target[l]) + ch * d[l];
         for axis in 0..3 {
             g[axis][l] = gl[axis];
         }
@@ -216,8 +233,9 @@ fn descend_lanes(
         let mut rest = [1.0f32; WIDTH];
         for l in 0..WIDTH {
             if let Some(end) = springs[l].get(s) {
-                let d = positions[end.other as usize] - x[l];
-                (delta[0][l], delta[1][l], delta[2][l]) = (d.x, d.y, d.z);
+                let o = end.other as usize;
+                let e = (starts[o] - start[l]) + (displacements[o] - d[l]);
+                (delta[0][l], delta[1][l], delta[2][l]) = (e.x, e.y, e.z);
                 k[l] = model.k_over_mass[end.kind as usize] * end.weight * inv_share[l] * h2;
                 rest[l] = end.rest;
             }
@@ -242,19 +260,22 @@ fn descend_lanes(
         }
     }
     let lane = |v: &[[f32; WIDTH]; 3], l: usize| Vec3A::new(v[0][l], v[1][l], v[2][l]);
-    core::array::from_fn(|l| newton_step(x[l], lane(&g, l), lane(&diag, l), lane(&off, l)))
+    core::array::from_fn(|l| newton_step(d[l], lane(&g, l), lane(&diag, l), lane(&off, l)))
 }
 
 /// The block-descent stepper's working state for one cloth: positions and velocities by
 /// particle, and the substep's start and inertial target.
 #[derive(Clone, Debug, Default)]
 pub(crate) struct BlockDescent {
+    /// Positions between substeps; within one, during the sweeps, each particle's displacement
+    /// from `start` (see the module docs on precision).
     pub(crate) x: Vec<Vec3A>,
     pub(crate) v: Vec<Vec3A>,
     /// Each particle's estimate of the uniform acceleration it follows, along the uniform
     /// acceleration, in m/s² (see [`AccelAxis::estimate`]).
     pub(crate) accel: Vec<f32>,
     start: Vec<Vec3A>,
+    /// The inertial target less the substep's start.
     target: Vec<Vec3A>,
     moved: Vec<Vec3A>,
 }
@@ -300,10 +321,10 @@ impl BlockDescent {
             .with_min_len(MIN_TASK)
             .for_each(|((((x, target), &v), &estimate), &free)| {
                 if free != 0.0 {
-                    *target = *x + h * v + (h * h) * uniform;
-                    *x = first_iterate(*x, v, h, inv_damp, axis.dir * estimate);
+                    *target = h * v + (h * h) * uniform;
+                    *x = first_iterate(v, h, inv_damp, axis.dir * estimate);
                 } else {
-                    *target = *x;
+                    (*target, *x) = (Vec3A::ZERO, Vec3A::ZERO);
                 }
             });
         let inv_share = topology.inv_mass_share();
@@ -324,6 +345,7 @@ impl BlockDescent {
                             ids.map(|i| current[i]),
                             ids.map(|i| start[i]),
                             ids.map(|i| target[i]),
+                            start,
                             current,
                         );
                         for (l, out) in out.iter_mut().enumerate() {
@@ -340,7 +362,7 @@ impl BlockDescent {
         // nothing holds keeps the centre of mass that inertia, damping and the uniform
         // acceleration give it (the exact minimiser of `G` does).
         let drift = if free_body {
-            centre_of_mass_drift(x, start, v, topology.mass_share(), free, h, uniform, inv_damp)
+            centre_of_mass_drift(x, v, topology.mass_share(), free, h, uniform, inv_damp)
         } else {
             Vec3A::ZERO
         };
@@ -358,11 +380,13 @@ impl BlockDescent {
             .for_each(|(i, (((((x, v), estimate), &start), &free), held))| {
                 *held = 0.0;
                 if free == 0.0 {
+                    *x = start;
                     return;
                 }
                 let v0 = *v;
-                *x -= drift;
-                *v = (*x - start) * inv_h;
+                let d = *x - drift;
+                *x = start + d;
+                *v = d * inv_h;
                 // The pins are held, so their positions are the substep's start.
                 if let Some((tethers, scale)) = tethers {
                     tethers.hold(i, *x, v, scale, |pin| starts[pin as usize]);
@@ -419,9 +443,9 @@ impl AccelAxis {
     }
 }
 
-/// The first iterate of a free particle at `x` moving at `v`: where inertia, damping and the
-/// acceleration it is estimated to follow, `accel`, take it in `h` seconds,
-/// `x + (h v + h² accel) / (1 + c h)`.
+/// The first iterate of a free particle moving at `v`, as a displacement from where it is: where
+/// inertia, damping and the acceleration it is estimated to follow, `accel`, take it in `h`
+/// seconds, `(h v + h² accel) / (1 + c h)`.
 ///
 /// This is the adaptive initial guess of Chen et al. (2024): a falling particle
 /// starts where gravity takes it, so that a sweep never has to carry the fall against stiff
@@ -431,8 +455,8 @@ impl AccelAxis {
 /// and falls `g/c (t - (1 - e^{-ct}) / c)` up to implicit Euler's `O(h)` whatever its shape,
 /// orientation or resolution.
 #[inline]
-pub(crate) fn first_iterate(x: Vec3A, v: Vec3A, h: f32, inv_damp: f32, accel: Vec3A) -> Vec3A {
-    x + (h * v + (h * h) * accel) * inv_damp
+pub(crate) fn first_iterate(v: Vec3A, h: f32, inv_damp: f32, accel: Vec3A) -> Vec3A {
+    (h * v + (h * h) * accel) * inv_damp
 }
 
 /// Particles one partial sum of [`centre_of_mass_drift`] takes: fixed, so the sum does not
@@ -440,16 +464,15 @@ pub(crate) fn first_iterate(x: Vec3A, v: Vec3A, h: f32, inv_damp: f32, accel: Ve
 const DRIFT_CHUNK: usize = 4096;
 
 /// How far the sweeps moved the centre of mass of the free particles from where inertia,
-/// damping and the uniform acceleration `uniform` take it, in a substep of `h` seconds from
-/// `start` at velocities `v`: `Σ m_i (x_i - x*_i) / Σ m_i` with
-/// `x*_i = start_i + (h v_i + h² uniform) / (1 + c h)`. The exact minimiser of `G` moves it by
+/// damping and the uniform acceleration `uniform` take it, in a substep of `h` seconds at
+/// velocities `v`, from the particles' displacements `d`: `Σ m_i (d_i - d*_i) / Σ m_i` with
+/// `d*_i = (h v_i + h² uniform) / (1 + c h)`. The exact minimiser of `G` moves it by
 /// nothing (the springs' forces cancel in pairs); an unconverged Gauss–Seidel sweep does not,
 /// and shifting the free particles back by this much restores the cloth's momentum without
 /// changing any spring's length.
 #[allow(clippy::too_many_arguments)]
 pub(crate) fn centre_of_mass_drift(
-    x: &[Vec3A],
-    start: &[Vec3A],
+    d: &[Vec3A],
     v: &[Vec3A],
     share: &[f32],
     free: &[f32],
@@ -458,13 +481,13 @@ pub(crate) fn centre_of_mass_drift(
     inv_damp: f32,
 ) -> Vec3A {
     let fall = (h * h) * uniform;
-    let partial: Vec<(glam::DVec3, f64)> = (0..x.len().div_ceil(DRIFT_CHUNK))
+    let partial: Vec<(glam::DVec3, f64)> = (0..d.len().div_ceil(DRIFT_CHUNK))
         .into_par_iter()
         .map(|chunk| {
-            let range = chunk * DRIFT_CHUNK..((chunk + 1) * DRIFT_CHUNK).min(x.len());
+            let range = chunk * DRIFT_CHUNK..((chunk + 1) * DRIFT_CHUNK).min(d.len());
             let mut sum = (glam::DVec3::ZERO, 0.0f64);
             for i in range {
-                let off = x[i] - (start[i] + (h * v[i] + fall) * inv_damp);
+                let off = d[i] - (h * v[i] + fall) * inv_damp;
                 // A particle that went non-finite is quarantined after the sums; it must not
                 // carry the rest of the cloth with it.
                 if free[i] != 0.0 && off.is_finite() {
@@ -528,13 +551,16 @@ mod tests {
         let ids: [usize; WIDTH] = core::array::from_fn(|l| l);
         let inv_share: [f32; WIDTH] = core::array::from_fn(|l| [40.0, 20.0, 0.0, 33.0][l % 4] + l as f32);
         let h = 1.0 / 240.0;
-        let x = ids.map(|i| positions[i]);
-        let start = ids.map(|i| positions[i] + Vec3A::splat(0.01));
-        let target = ids.map(|i| positions[i] - Vec3A::new(0.0, 0.002, 0.0));
-        let lanes = descend_lanes(&model, h, inv_share, springs, x, start, target, &positions);
+        let displacements: Vec<Vec3A> =
+            (0..40).map(|i| Vec3A::new(jiggle(i, 2), jiggle(i, 0), jiggle(i, 1)) * 0.01).collect();
+        let d = ids.map(|i| displacements[i]);
+        let start = ids.map(|i| positions[i]);
+        let target = ids.map(|i| displacements[i] - Vec3A::new(0.0, 0.002, 0.0));
+        let lanes = descend_lanes(&model, h, inv_share, springs, d, start, target, &positions, &displacements);
         for l in 0..WIDTH {
-            let one =
-                descend(&model, h, inv_share[l], springs[l], x[l], start[l], target[l], |j| positions[j as usize]);
+            let one = descend(&model, h, inv_share[l], springs[l], d[l], start[l], target[l], |j| {
+                (positions[j as usize], displacements[j as usize])
+            });
             assert_eq!(lanes[l].to_array().map(f32::to_bits), one.to_array().map(f32::to_bits), "lane {l}");
         }
     }
@@ -550,7 +576,10 @@ mod tests {
                 let mut x = target;
                 let mut before = block_potential(&model, h, &springs, &others, x, start, target);
                 for _ in 0..4 {
-                    x = descend(&model, h, 1.0, &springs, x, start, target, |j| others[j as usize].into());
+                    let d = descend(&model, h, 1.0, &springs, x - start, start, target - start, |j| {
+                        (others[j as usize].into(), Vec3A::ZERO)
+                    });
+                    x = start + d;
                     assert!(x.is_finite(), "k {spring_k}, h {h}");
                     let after = block_potential(&model, h, &springs, &others, x, start, target);
                     assert!(after <= before * (1.0 + 1e-5) + 1e-12, "k {spring_k}, h {h}: {before} -> {after}");

@@ -1,17 +1,19 @@
 // Vertex block descent (bvh_cloth_core::solver::block_descent), per substep for every block-descent
 // cloth of the batch:
 // - vbd_predict, one thread per particle slot: keeps the substep's start state, the inertial
-//   target y = x + h v + h^2 g, and the first iterate x + (h v + h^2 a) / (1 + c h), with a the
-//   particle's estimate of the acceleration it follows; in a batch with aerodynamics,
+//   target less the start, h v + h^2 g, and the first iterate as a displacement from the start,
+//   (h v + h^2 a) / (1 + c h), with a the particle's estimate of the acceleration it follows
+//   (the sweeps solve for displacements, so that f32 keeps them whatever the coordinates'
+//   magnitude); in a batch with aerodynamics,
 //   vbd_predict_air instead, which first gives a cloth in the wind its kick (air.wgsl);
 // - vbd_solve, one dispatch per iteration and colour, one thread per particle of that colour in
 //   the batch's colour list: one Newton step on the particle's block of the incremental
-//   potential, against its neighbours' current positions (no neighbour shares its colour, so no
-//   thread reads what another writes);
+//   potential, against its neighbours' current displacements (no neighbour shares its colour, so
+//   no thread reads what another writes);
 // - for a batch with a cloth that nothing holds, vbd_drift_blocks (one workgroup per 64 particle
 //   slots) and vbd_drift (one workgroup per cloth): the drift of each such cloth's centre of
 //   mass, summed in two levels;
-// - vbd_finish, one thread per particle slot: the drift taken back, v = (x - x0) / h,
+// - vbd_finish, one thread per particle slot: the drift taken back, x = x0 + d, v = d / h,
 //   quarantine, the collision response from x0 to x, as node_update_final does, and the
 //   particle's acceleration estimate for the next substep.
 // Cloths of other integrators, and cloths past their own substeps or iterations, sit out.
@@ -22,10 +24,10 @@
 #import bvh_cloth::air::{air_cloth, air_kick_of}
 #import bvh_cloth::constants::{NO_CLOTH, UNTETHERED, INTEGRATOR_BLOCK_DESCENT}
 
-@group(0) @binding(19) var<storage, read_write> iterate: array<GpuParticle>;       // the state, solved in place
+@group(0) @binding(19) var<storage, read_write> iterate: array<GpuParticle>;       // the state; during the sweeps, d = x - x0 in position.xyz
 @group(0) @binding(20) var<storage, read_write> substep_start: array<GpuParticle>; // x0, v0
-@group(0) @binding(21) var<storage, read_write> inertial: array<GpuParticle>;      // y in position.xyz, the estimate in velocity.x
-@group(0) @binding(48) var<storage, read_write> drift_blocks: array<vec4<f32>>;   // per 64 slots: sum of m (x - x*), sum of m
+@group(0) @binding(21) var<storage, read_write> inertial: array<GpuParticle>;      // y - x0 in position.xyz, the estimate in velocity.x
+@group(0) @binding(48) var<storage, read_write> drift_blocks: array<vec4<f32>>;   // per 64 slots: sum of m (d - d*), sum of m
 @group(0) @binding(22) var<storage, read> colour_list: array<u32>;                 // particles, colour by colour
 @group(0) @binding(25) var<uniform> colour_pass: ColourPass;
 
@@ -67,12 +69,12 @@ fn predict(i: u32, c: u32, me: GpuParticle) {
     let h = cloths[c].h;
     // bvh_cloth_core::solver::block_descent::first_iterate: a falling particle starts where gravity
     // takes it, one at rest where it was.
-    var x = me.position.xyz;
-    var y = x;
+    var x = vec3(0.0);
+    var y = vec3(0.0);
     if (free != 0.0) {
-        y = x + h * me.velocity.xyz + (h * h) * cloths[c].uniform_accel.xyz;
+        y = h * me.velocity.xyz + (h * h) * cloths[c].uniform_accel.xyz;
         let accel = accel_axis(c).xyz * estimate;
-        x = x + (h * me.velocity.xyz + (h * h) * accel) * inverse_damping(c);
+        x = (h * me.velocity.xyz + (h * h) * accel) * inverse_damping(c);
     }
     var goal: GpuParticle;
     goal.position = vec4(y, free);
@@ -107,8 +109,8 @@ fn vbd_predict_air(@builtin(global_invocation_id) id: vec3<u32>) {
     predict(i, c, me);
 }
 
-// bvh_cloth_core::solver::block_descent::descend: the new position of particle i (of cloth c) at x,
-// with the same arithmetic in the same order.
+// bvh_cloth_core::solver::block_descent::descend: the new displacement of particle i (of cloth c)
+// from its start, at displacement x, with the same arithmetic in the same order.
 fn descend(i: u32, c: u32, x: vec3<f32>, start: vec3<f32>, goal: vec3<f32>) -> vec3<f32> {
     let info = particle_info[i];
     let first = cloths[c].particle_start;
@@ -116,7 +118,7 @@ fn descend(i: u32, c: u32, x: vec3<f32>, start: vec3<f32>, goal: vec3<f32>) -> v
     let h = cloths[c].h;
     let h2 = h * h;
     let ch = cloths[c].damping * h;
-    var g = (x - goal) + ch * (x - start);
+    var g = (x - goal) + ch * x;
     var diag = vec3(1.0 + ch);
     var off = vec3(0.0);
     let inv_share = bitcast<f32>(info.z);
@@ -127,7 +129,8 @@ fn descend(i: u32, c: u32, x: vec3<f32>, start: vec3<f32>, goal: vec3<f32>) -> v
             continue;
         }
         let rest = bitcast<f32>(spring.z);
-        let delta = iterate[first + spring.x].position.xyz - x;
+        let other = first + spring.x;
+        let delta = (substep_start[other].position.xyz - start) + (iterate[other].position.xyz - x);
         let len = sqrt(dot(delta, delta));
         let inv_l = 1.0 / max(len, 1.0e-6 * rest);
         let stretch = 1.0 - rest * inv_l;
@@ -194,8 +197,9 @@ fn sum_lanes(lane: u32) -> vec4<f32> {
     return drift_sums[0];
 }
 
-// Particle i's term of cloth c's centre-of-mass drift, m (x - x*) and m, with m its mass share
-// and x* = x0 + (h v0 + h^2 g) / (1 + c h) (bvh_cloth_core::solver::block_descent::centre_of_mass_drift);
+// Particle i's term of cloth c's centre-of-mass drift, m (d - d*) and m, with m its mass share, d
+// its displacement and d* = (h v0 + h^2 g) / (1 + c h)
+// (bvh_cloth_core::solver::block_descent::centre_of_mass_drift);
 // zero for a held particle.
 fn drift_term(i: u32, c: u32) -> vec4<f32> {
     let me = iterate[i];
@@ -205,7 +209,7 @@ fn drift_term(i: u32, c: u32) -> vec4<f32> {
     let b = substep_start[i];
     let h = cloths[c].h;
     let fall = (h * h) * cloths[c].uniform_accel.xyz;
-    let off = me.position.xyz - (b.position.xyz + (h * b.velocity.xyz + fall) * inverse_damping(c));
+    let off = me.position.xyz - (h * b.velocity.xyz + fall) * inverse_damping(c);
     // A particle that went non-finite is quarantined after the sums (vbd_finish); it must not
     // carry the rest of the cloth with it.
     if (!all_finite(off)) {
@@ -292,16 +296,19 @@ fn vbd_finish(@builtin(global_invocation_id) id: vec3<u32>) {
     let free = b.position.w;
     var out = iterate[i];
     if (free == 0.0) {
+        iterate[i] = b;
         return;
     }
     // The springs are internal forces: a cloth that nothing holds keeps the centre of mass
     // that inertia, damping and the uniform acceleration give it.
+    var d = out.position.xyz;
     if (cloths[c].free_body != 0u) {
-        out.position = vec4(out.position.xyz - cloths[c].drift.xyz, out.position.w);
+        d = d - cloths[c].drift.xyz;
     }
     let h = cloths[c].h;
     let inv_h = 1.0 / h;
-    out.velocity = vec4((out.position.xyz - b.position.xyz) * inv_h, 0.0);
+    out.position = vec4(b.position.xyz + d, out.position.w);
+    out.velocity = vec4(d * inv_h, 0.0);
     // bvh_cloth_core::cloth::tethers: beyond its tether's reach of its pin (held, so at the substep's
     // start), a particle loses its velocity away from the pin.
     let scale = cloths[c].tether_scale;
