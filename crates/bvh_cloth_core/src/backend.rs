@@ -21,7 +21,8 @@ pub use crate::colliders::skinning::{SkinPoint, SkinnedVertices, largest_scale};
 pub use crate::colliders::voxel_spheres::{MAX_RESOLUTION, SURFACE_CLEARANCE, voxel_spheres};
 pub use crate::mesh::triangles::{EDGE_SLACK, PLANE_ROUNDING, closest_point, crossing_pairs, face_normal, segment_hit};
 pub use crate::self_contact::{
-    ContactBody, ContactSolver, MAX_CANDIDATES, MAX_HELD_SCALE, MAX_SPAN, particle_spacing, shared_substeps,
+    ContactBody, ContactSolver, MAX_CANDIDATES, MAX_HELD_SCALE, MAX_PATH_SPAN, MAX_SPAN, particle_spacing,
+    shared_substeps,
 };
 pub use crate::solver::forces::ForceModel;
 pub use crate::solver::params::{MAX_ITERATIONS, MAX_SUBSTEPS_PER_TICK};

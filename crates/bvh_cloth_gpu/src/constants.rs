@@ -46,6 +46,7 @@ fn values() -> Vec<(&'static str, Value)> {
         ("SOURCE_FAN", F32(core::SOURCE_FAN as f32)),
         ("MAX_CANDIDATES", U32(core::MAX_CANDIDATES as u32)),
         ("MAX_SPAN", I32(core::MAX_SPAN)),
+        ("MAX_PATH_SPAN", I32(core::MAX_PATH_SPAN)),
         ("MAX_HELD_SCALE", F32(core::MAX_HELD_SCALE)),
         ("CONTACT_TRIANGLE_WORDS", U32(layout::CONTACT_TRIANGLE_WORDS as u32)),
     ]

@@ -320,11 +320,17 @@ pub(super) fn descriptors() -> [KernelDescriptor; EntryPoint::ALL.len()] {
                 storage(40, false),
             ],
         ),
-        contact(EntryPoint::ContactCount, vec![storage(37, false), storage(38, false), storage(40, false)]),
+        contact(
+            EntryPoint::ContactCount,
+            vec![storage(36, false), storage(37, false), storage(38, false), storage(40, false)],
+        ),
         contact(EntryPoint::ContactScanBlocks, vec![storage(38, false)]),
         contact(EntryPoint::ContactScanTop, vec![storage(38, false)]),
         contact(EntryPoint::ContactScanAdd, vec![storage(38, false)]),
-        contact(EntryPoint::ContactScatter, vec![storage(37, false), storage(38, false), storage(40, false)]),
+        contact(
+            EntryPoint::ContactScatter,
+            vec![storage(36, false), storage(37, false), storage(38, false), storage(40, false)],
+        ),
         contact(
             EntryPoint::ContactFind,
             vec![

@@ -5,16 +5,18 @@
 //   each contact particle's position at the start of the substep, clears its sums, and empties
 //   the grid's bucket counts;
 // then, after the integrator's last kernel (collision response included):
-// - contact_count, one thread per triangle: its box, grown by the largest thickness, and one
-//   count in the bucket of each cell the box overlaps (at most MAX_SPAN cells along an axis,
-//   each bucket once);
+// - contact_count, one thread per triangle: its box over the substep (where its corners were at
+//   the start and are now), grown by the largest thickness, and one count in the bucket of each
+//   cell the box overlaps (at most MAX_SPAN cells along an axis, each bucket once);
 // - contact_scan_blocks, contact_scan_top and contact_scan_add: the exclusive prefix sum of the
 //   counts, in blocks of 256 buckets (one workgroup of 64 threads each), then the blocks' sums
 //   (one workgroup), then the blocks' offsets added back: each bucket's first entry;
 // - contact_scatter, one thread per triangle: the triangle entered in each of its buckets;
-// - contact_find, one thread per particle: its cell's bucket, at most MAX_CANDIDATES
-//   triangles of it, and for each contact the corrections of the point and of the triangle's
-//   free corners, added to their sums;
+// - contact_find, one thread per particle: the buckets of the cells its path over the substep
+//   overlaps (at most MAX_PATH_SPAN along an axis), at most MAX_CANDIDATES triangles of each,
+//   each triangle once, and for each contact (within the thickness at the end, or gone through
+//   the triangle during the substep) the corrections of the point and of the triangle's free
+//   corners, added to their sums;
 // - contact_apply, one thread per particle: the mean of its corrections, then the response
 //   against every collider from where it was.
 //
@@ -27,7 +29,7 @@
 #import bvh_cloth::types::{GpuParticle, thread_index, all_finite}
 #import bvh_cloth::springs::{particle_info, cloths}
 #import bvh_cloth::collision::{collide, closest_on_triangle, layers_meet}
-#import bvh_cloth::constants::{NO_CLOTH, MAX_CANDIDATES, MAX_SPAN, MAX_HELD_SCALE, CONTACT_TRIANGLE_WORDS}
+#import bvh_cloth::constants::{NO_CLOTH, MAX_CANDIDATES, MAX_SPAN, MAX_PATH_SPAN, MAX_HELD_SCALE, CONTACT_TRIANGLE_WORDS}
 
 struct ContactFrame {
     triangle_count: u32,
@@ -125,40 +127,53 @@ fn contact_begin(@builtin(global_invocation_id) id: vec3<u32>) {
     }
 }
 
-// Triangle t's cells: the range of its grown box (written into the triangle's box words),
-// capped at MAX_SPAN cells along each axis. `valid` is false for a box that is not finite.
+// The cells of a box (bvh_cloth_core::self_contact::cells_of_box), capped at `span` cells along
+// each axis; `valid` is false for a box that is not finite, `capped` true where the cap cut it.
 struct CellRange {
     lo: vec3<i32>,
     hi: vec3<i32>,
     valid: bool,
+    capped: bool,
 }
 
-fn triangle_cells(t: u32, record: bool) -> CellRange {
-    let corners = contact_triangles[CONTACT_TRIANGLE_WORDS * t];
-    let a = corner_position(corners.x);
-    let b = corner_position(corners.y);
-    let c = corner_position(corners.z);
-    let lo = min(min(a, b), c) - contact.grow;
-    let hi = max(max(a, b), c) + contact.grow;
+fn cells_of_box(lo: vec3<f32>, hi: vec3<f32>, span: i32) -> CellRange {
     var range: CellRange;
     range.valid = all_finite(lo) && all_finite(hi);
-    if (record) {
-        // A box that is not finite is stored empty, so that no point is inside it.
-        let box_lo = select(vec3(1.0), lo, range.valid);
-        let box_hi = select(vec3(-1.0), hi, range.valid);
-        contact_triangles[CONTACT_TRIANGLE_WORDS * t + 3u] = vec4(bitcast<vec3<u32>>(box_lo), 0u);
-        contact_triangles[CONTACT_TRIANGLE_WORDS * t + 4u] = vec4(bitcast<vec3<u32>>(box_hi), 0u);
-    }
     if (!range.valid) {
         return range;
     }
     range.lo = cell_of(lo);
     let full = cell_of(hi);
-    range.hi = min(range.lo + vec3(MAX_SPAN - 1), full);
-    if (record && any(range.hi != full)) {
+    range.hi = min(range.lo + vec3(span - 1), full);
+    range.capped = any(range.hi != full);
+    range.valid = all(range.hi >= range.lo);
+    return range;
+}
+
+// Triangle t's cells: the range of its box over the substep, grown (written into the
+// triangle's box words), capped at MAX_SPAN cells along each axis.
+fn triangle_cells(t: u32, record: bool) -> CellRange {
+    let corners = contact_triangles[CONTACT_TRIANGLE_WORDS * t];
+    let a = corner_position(corners.x);
+    let b = corner_position(corners.y);
+    let c = corner_position(corners.z);
+    let d = contact_points[2u * corners.x].xyz;
+    let e = contact_points[2u * corners.y].xyz;
+    let f = contact_points[2u * corners.z].xyz;
+    let lo = min(min(min(a, b), c), min(min(d, e), f)) - contact.grow;
+    let hi = max(max(max(a, b), c), max(max(d, e), f)) + contact.grow;
+    let valid = all_finite(lo) && all_finite(hi);
+    if (record) {
+        // A box that is not finite is stored empty, so that no point is inside it.
+        let box_lo = select(vec3(1.0), lo, valid);
+        let box_hi = select(vec3(-1.0), hi, valid);
+        contact_triangles[CONTACT_TRIANGLE_WORDS * t + 3u] = vec4(bitcast<vec3<u32>>(box_lo), 0u);
+        contact_triangles[CONTACT_TRIANGLE_WORDS * t + 4u] = vec4(bitcast<vec3<u32>>(box_hi), 0u);
+    }
+    let range = cells_of_box(lo, hi, MAX_SPAN);
+    if (record && range.valid && range.capped) {
         atomicAdd(&contact_grid[STAT_CLAMPED], 1u);
     }
-    range.valid = all(range.hi >= range.lo);
     return range;
 }
 
@@ -355,8 +370,31 @@ fn add_correction(k: u32, dx: vec3<f32>, dv: vec3<f32>) {
     atomicAdd(&contact_sums[at + 6u], 1);
 }
 
-// bvh_cloth_core::self_contact::ContactSolver::contact, its corrections added to the sums.
-fn touch(p: u32, pc: u32, me: GpuParticle, t: u32) {
+// bvh_cloth_core::self_contact::crossed: whether the point that went from p0 to p1 went through
+// the triangle that went from (d, e, f) to (a, b, c), given its sides of the plane before and
+// now; in w the point of the triangle as it stands now at the crossing's barycentric weights.
+fn crossed(p0: vec3<f32>, p1: vec3<f32>, d: vec3<f32>, e: vec3<f32>, f: vec3<f32>, a: vec3<f32>, b: vec3<f32>, c: vec3<f32>, side_before: f32, side_now: f32, h: f32) -> vec4<f32> {
+    if (!(side_before * side_now < 0.0)) {
+        return vec4(0.0);
+    }
+    let s = side_before / (side_before - side_now);
+    let ta = mix(d, a, s);
+    let tb = mix(e, b, s);
+    let tc = mix(f, c, s);
+    let at = mix(p0, p1, s);
+    let q = closest_on_triangle(at, ta, tb, tc);
+    let off = q - at;
+    if (!(dot(off, off) < h * h)) {
+        return vec4(0.0);
+    }
+    let w = barycentric(q, ta, tb, tc);
+    return vec4(w.x * a + w.y * b + w.z * c, 1.0);
+}
+
+// bvh_cloth_core::self_contact::ContactSolver::contact, its corrections added to the sums; the
+// triangle is skipped unless its box over the substep meets the point's path's, from path_lo
+// to path_hi.
+fn touch(p: u32, pc: u32, me: GpuParticle, t: u32, path_lo: vec3<f32>, path_hi: vec3<f32>) {
     let corners = contact_triangles[CONTACT_TRIANGLE_WORDS * t];
     if (corners.x == p || corners.y == p || corners.z == p) {
         return;
@@ -364,7 +402,7 @@ fn touch(p: u32, pc: u32, me: GpuParticle, t: u32) {
     let xp = me.position.xyz;
     let lo = bitcast<vec3<f32>>(contact_triangles[CONTACT_TRIANGLE_WORDS * t + 3u].xyz);
     let hi = bitcast<vec3<f32>>(contact_triangles[CONTACT_TRIANGLE_WORDS * t + 4u].xyz);
-    if (!(all(xp >= lo) && all(xp <= hi))) {
+    if (!(all(path_lo <= hi) && all(path_hi >= lo))) {
         return;
     }
     let tc = corners.w;
@@ -386,10 +424,10 @@ fn touch(p: u32, pc: u32, me: GpuParticle, t: u32) {
     let a = ca.position.xyz;
     let b = cb.position.xyz;
     let c = cc.position.xyz;
-    let q = closest_on_triangle(xp, a, b, c);
+    var q = closest_on_triangle(xp, a, b, c);
     let away = xp - q;
     let d2 = dot(away, away);
-    if (!(d2 < h * h)) {
+    if (!all_finite(vec3(d2))) {
         return;
     }
     let d = sqrt(d2);
@@ -403,7 +441,17 @@ fn touch(p: u32, pc: u32, me: GpuParticle, t: u32) {
     let through = side_before * side_now < 0.0;
     var n: vec3<f32>;
     var gap: f32;
-    if (has_face && through) {
+    if (!(d2 < h * h)) {
+        // Farther than the thickness now: a contact only if the point's path went through the
+        // triangle during the substep.
+        let hit = crossed(contact_points[2u * p].xyz, xp, pa, pb, pcorner, a, b, c, side_before, side_now, h);
+        if (!has_face || hit.w == 0.0) {
+            return;
+        }
+        n = face * sign(side_before);
+        gap = -abs(side_now);
+        q = hit.xyz;
+    } else if (has_face && through) {
         n = face * sign(side_before);
         gap = -abs(side_now);
     } else if (d > 1.0e-6 * h) {
@@ -469,15 +517,41 @@ fn contact_find(@builtin(global_invocation_id) id: vec3<u32>) {
     if (!all_finite(me.position.xyz)) {
         return;
     }
-    let b = bucket_of(cell_of(me.position.xyz));
-    let end = min(atomicLoad(&contact_grid[start_at(b + 1u)]), contact.entry_capacity);
-    let start = min(atomicLoad(&contact_grid[start_at(b)]), end);
-    if (end - start > MAX_CANDIDATES) {
-        atomicAdd(&contact_grid[STAT_CLAMPED], 1u);
+    // bvh_cloth_core::self_contact::ContactSolver::contacts_of: the cells of the point's path.
+    let prev = contact_points[2u * p].xyz;
+    let path_lo = min(prev, me.position.xyz);
+    let path_hi = max(prev, me.position.xyz);
+    let path = cells_of_box(path_lo, path_hi, MAX_PATH_SPAN);
+    if (!path.valid) {
+        return;
     }
-    let last = min(end, start + MAX_CANDIDATES);
-    for (var e = start; e < last; e++) {
-        touch(p, c, me, atomicLoad(&contact_grid[entry_at(e)]));
+    var clamped = path.capped;
+    let span = path.hi - path.lo;
+    for (var z = 0; z <= span.z; z++) {
+        for (var y = 0; y <= span.y; y++) {
+            for (var x = 0; x <= span.x; x++) {
+                let at = path.lo + vec3(x, y, z);
+                let b = bucket_of(at);
+                let end = min(atomicLoad(&contact_grid[start_at(b + 1u)]), contact.entry_capacity);
+                let start = min(atomicLoad(&contact_grid[start_at(b)]), end);
+                clamped = clamped || end - start > MAX_CANDIDATES;
+                let last = min(end, start + MAX_CANDIDATES);
+                for (var e = start; e < last; e++) {
+                    let t = atomicLoad(&contact_grid[entry_at(e)]);
+                    // Once per triangle: in the first cell both it and the path cover.
+                    let lo = bitcast<vec3<f32>>(contact_triangles[CONTACT_TRIANGLE_WORDS * t + 3u].xyz);
+                    let hi = bitcast<vec3<f32>>(contact_triangles[CONTACT_TRIANGLE_WORDS * t + 4u].xyz);
+                    let cells = cells_of_box(lo, hi, MAX_SPAN);
+                    if (!cells.valid || any(max(cells.lo, path.lo) != at)) {
+                        continue;
+                    }
+                    touch(p, c, me, t, path_lo, path_hi);
+                }
+            }
+        }
+    }
+    if (clamped) {
+        atomicAdd(&contact_grid[STAT_CLAMPED], 1u);
     }
 }
 

@@ -1517,7 +1517,7 @@ fn contact_tick_on_the_cpu(
 /// the lower from about tick 10). The contact cloths take one substep count on both.
 ///
 /// Tolerances, per tick: at most a quarter of each cloth's particles more than 1e-5 m from the
-/// CPU's, and none more than 2 mm (on lavapipe at worst 12.5% and 0.53 mm). Without contact the
+/// CPU's, and none more than 2 mm (on lavapipe at worst 12.8% and 1.2 mm). Without contact the
 /// scene agrees to 4e-6 m per tick. Contact's response is not continuous: a point that comes
 /// within the thickness of a triangle loses its approach speed at once, and a particle a
 /// collider touches weighs as pinned, so a point a few ulps from either threshold, on one side
