@@ -379,10 +379,7 @@ impl ContactSolver {
         self.boxes.clear();
         self.boxes.extend(self.triangles.iter().map(|(_, corners)| {
             // Where the triangle was at the start of the substep, and is now.
-            let [a, b, c, d, e, f] = [corners.map(|k| x[k as usize]), corners.map(|k| prev[k as usize])].concat()[..]
-            else {
-                unreachable!()
-            };
+            let ([a, b, c], [d, e, f]) = (corners.map(|k| x[k as usize]), corners.map(|k| prev[k as usize]));
             let (lo, hi) = (a.min(b).min(c).min(d.min(e).min(f)), a.max(b).max(c).max(d.max(e).max(f)));
             [(lo - grow).into(), (hi + grow).into()]
         }));
