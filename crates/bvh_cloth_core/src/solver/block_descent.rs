@@ -105,14 +105,16 @@
 //! finer. A held cloth's tethers ([`crate::cloth::tethers`], on by default) carry that load to the pins
 //! in every substep; the figures with and without them are in that module's docs. A cloth that
 //! nothing holds has no tethers, and there the stretch of a fine cloth in motion remains.
-//! Implicit Euler also damps fast motion more than RK4. Converged (as many sweeps as it takes,
-//! no tethers), the hanging cloth of the core's `motion` tests sags more than RK4's at 1 s,
-//! having given up some of the springs' energy that swings RK4's cloth back up:
+//! Implicit Euler also damps fast motion more than RK4. Converged (no tethers, and sweeps
+//! beyond the [`MAX_ITERATIONS`](crate::solver::params::MAX_ITERATIONS) a cloth may ask for,
+//! 64 and 256 a substep giving the same sag), the hanging cloth of the core's `motion` tests
+//! sags more than RK4's at 1 s, having given up some of the springs' energy that swings RK4's
+//! cloth back up:
 //!
 //! | substeps a 60 Hz tick | 32 x 32 | 64 x 64 | 128 x 128 |
 //! |---|---|---|---|
-//! | 16 (the default) | +9 % | +16 % | +10 % |
-//! | 32 | +6 % | +11 % | |
+//! | 16 (the default) | +7 % | +11 % | +9 % |
+//! | 32 | +3 % | +8 % | |
 //! | 64 | +2 % | +4 % | |
 //!
 //! For a given number of sweeps a tick, substeps buy more than sweeps: at 64 x 64 without
