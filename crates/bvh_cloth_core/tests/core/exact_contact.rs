@@ -259,9 +259,7 @@ fn the_binary_tree_built_again_is_the_one_the_wide_tree_came_from() {
     use bvh_cloth_core::backend::WideBvh;
     let mut surfaces = vec![("torus".to_string(), torus_surface())];
     for name in ["bunny", "dragon"] {
-        let path =
-            format!("{}/../../assets/models/{name}.obj", std::env::var("CARGO_MANIFEST_DIR").expect("run by cargo"));
-        let model = bvh_cloth_core::parse_obj(&std::fs::read_to_string(path).unwrap()).unwrap();
+        let model = common::bundled_model(name);
         surfaces.push((name.to_string(), TriangleSurface::build(model.as_mesh_ref()).unwrap()));
     }
     for (name, surface) in surfaces {
@@ -479,9 +477,7 @@ fn exact_contact_takes_the_mesh_the_spheres_were_built_from() {
     }
     // The bundled models are accepted with their own meshes at coarse and fine voxels.
     for name in ["bunny", "dragon"] {
-        let path =
-            format!("{}/../../assets/models/{name}.obj", std::env::var("CARGO_MANIFEST_DIR").expect("run by cargo"));
-        let model = bvh_cloth_core::parse_obj(&std::fs::read_to_string(path).unwrap()).unwrap();
+        let model = common::bundled_model(name);
         for n in [1, 5, 16] {
             let spheres = Collider::from_mesh(model.as_mesh_ref(), n).unwrap();
             assert!(spheres.with_exact_contact(model.as_mesh_ref()).is_ok(), "{name} at n = {n}");

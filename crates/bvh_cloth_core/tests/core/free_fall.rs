@@ -7,7 +7,6 @@ use crate::common;
 
 use std::sync::Arc;
 
-use bvh_cloth_core::parse_obj;
 use bvh_cloth_core::{Affine3A, ClothParams, ClothSim, ClothTopology, Collider, Integrator, MeshRef, Primitive, Vec3};
 use common::{grid_topology, sliver_sheet};
 
@@ -21,8 +20,7 @@ fn analytic_drop(g: f64, c: f64, t: f64) -> f64 {
 
 /// A bundled model as authored cloth, half a metre across, centred on the origin.
 fn model_cloth(name: &str) -> Arc<ClothTopology> {
-    let path = format!("{}/../../assets/models/{name}.obj", std::env::var("CARGO_MANIFEST_DIR").expect("run by cargo"));
-    let mesh = parse_obj(&std::fs::read_to_string(&path).unwrap_or_else(|e| panic!("{path}: {e}"))).unwrap();
+    let mesh = common::bundled_model(name);
     let mesh = mesh.as_mesh_ref();
     let (lo, hi) = mesh
         .positions

@@ -17,7 +17,6 @@ use crate::common;
 
 use std::sync::Arc;
 
-use bvh_cloth_core::parse_obj;
 use bvh_cloth_core::{Affine3A, ClothParams, ClothSim, Collider, Integrator, Vec3};
 use common::grid_topology;
 
@@ -96,8 +95,7 @@ fn a_held_cloth_swings_like_rk4s_without_stretching_like_rubber() {
 /// 2.7 %, 1.25x; at 0.5 s, landing, 6.7 % against 4.8 %).
 #[test]
 fn a_free_cloth_landing_on_the_bunny_stretches_at_most_half_again_rk4s() {
-    let path = format!("{}/../../assets/models/bunny.obj", std::env::var("CARGO_MANIFEST_DIR").expect("run by cargo"));
-    let mesh = parse_obj(&std::fs::read_to_string(path).unwrap()).unwrap();
+    let mesh = common::bundled_model("bunny");
     let bunny = Collider::from_mesh(mesh.as_mesh_ref(), 5).unwrap().with_margin(0.01).with_friction(1.0);
     let top = mesh.positions.iter().map(|p| p[1]).fold(f32::MIN, f32::max);
     let strain_at_1_s = |integrator| {

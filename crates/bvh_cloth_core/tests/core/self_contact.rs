@@ -56,6 +56,14 @@ fn close_between(a: &[Vec3], b: &[Vec3], limit: f32) -> usize {
     a.iter().map(|p| b.iter().filter(|q| p.distance(**q) < limit).count()).sum()
 }
 
+/// A bar of radius 3 cm along Z through the origin (a capsule 2 m long), friction 0.5.
+fn thin_bar() -> Collider {
+    Collider::primitive(Primitive::Capsule { radius: 0.03, half_length: 1.0 })
+        .unwrap()
+        .with_pose(ColliderPose { rotation: Quat::from_rotation_x(core::f32::consts::FRAC_PI_2), ..Default::default() })
+        .with_friction(0.5)
+}
+
 /// A 48 x 48 cloth of 1 m dropped from 0.8 m onto a bar of radius 3 cm (a capsule along Z), off
 /// its centre line so that one side is longer: it folds over the bar and its two sides whip
 /// down and into each other under it. After 3 s: no close pair, no crossing triangle; without
@@ -64,10 +72,7 @@ fn close_between(a: &[Vec3], b: &[Vec3], limit: f32) -> usize {
 /// thinner bar than the particle spacing would let the cloth slip through between particles.
 #[test]
 fn a_cloth_folding_over_a_thin_bar_keeps_off_itself() {
-    let bar = Collider::primitive(Primitive::Capsule { radius: 0.03, half_length: 1.0 })
-        .unwrap()
-        .with_pose(ColliderPose { rotation: Quat::from_rotation_x(core::f32::consts::FRAC_PI_2), ..Default::default() })
-        .with_friction(0.5);
+    let bar = thin_bar();
     let colliders = [bar];
     let mut results = Vec::new();
     for (contact, integrator) in [(true, Integrator::BLOCK_DESCENT), (false, Integrator::BLOCK_DESCENT)] {
@@ -361,12 +366,8 @@ fn fast_fold(collider: &Collider, top: f32, speed: f32, contact: bool) -> (usize
 /// edges, which nothing tests, are one candidate).
 #[test]
 fn fast_folds_keep_off_themselves() {
-    let bar = Collider::primitive(Primitive::Capsule { radius: 0.03, half_length: 1.0 })
-        .unwrap()
-        .with_pose(ColliderPose { rotation: Quat::from_rotation_x(core::f32::consts::FRAC_PI_2), ..Default::default() })
-        .with_friction(0.5);
-    let path = format!("{}/../../assets/models/bunny.obj", std::env::var("CARGO_MANIFEST_DIR").expect("run by cargo"));
-    let mesh = bvh_cloth_core::parse_obj(&std::fs::read_to_string(path).unwrap()).unwrap();
+    let bar = thin_bar();
+    let mesh = common::bundled_model("bunny");
     let bunny = Collider::from_mesh_exact(mesh.as_mesh_ref(), 5).unwrap().with_margin(0.005).with_friction(1.0);
     let bunny_top = mesh.positions.iter().map(|p| p[1]).fold(f32::MIN, f32::max);
     for (scene, collider, top) in [("bar", &bar, 0.03), ("bunny", &bunny, bunny_top)] {

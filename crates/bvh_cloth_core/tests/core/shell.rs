@@ -11,7 +11,6 @@
 use crate::common;
 
 use bvh_cloth_core::backend::SURFACE_TOLERANCE;
-use bvh_cloth_core::parse_obj;
 use bvh_cloth_core::{Affine3A, ClothParams, ClothSim, Collider, MeshRef, Vec3};
 use rayon::prelude::*;
 
@@ -94,11 +93,6 @@ fn drop_on(collider: &Collider, seconds: f32, solid: Option<&(dyn Fn(Vec3) -> bo
     Drop { violations, substeps: steps, inside_solid }
 }
 
-fn model(name: &str) -> bvh_cloth_core::ObjMesh {
-    let path = format!("{}/../../assets/models/{name}.obj", std::env::var("CARGO_MANIFEST_DIR").expect("run by cargo"));
-    parse_obj(&std::fs::read_to_string(&path).unwrap_or_else(|e| panic!("{path}: {e}"))).expect("a bundled model")
-}
-
 fn assert_holds(name: &str, drop: &Drop) {
     assert!(drop.violations.is_empty(), "{name}: {}", drop.violations.join("\n"));
     assert!(drop.substeps > 0);
@@ -107,7 +101,7 @@ fn assert_holds(name: &str, drop: &Drop) {
 
 /// The bundled model `name` at n = 32, 64 and 128.
 fn assert_model_shell_holds(name: &str) {
-    let mesh = model(name);
+    let mesh = common::bundled_model(name);
     for n in [32, 64, 128] {
         let collider = Collider::from_mesh(mesh.as_mesh_ref(), n).expect("a bundled model voxelises");
         assert_holds(&format!("{name} n = {n}"), &drop_on(&collider, 4.0, None));

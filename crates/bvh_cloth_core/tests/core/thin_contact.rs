@@ -15,7 +15,6 @@ use std::collections::HashMap;
 
 use bvh_cloth_core::backend::TriangleSurface;
 use bvh_cloth_core::backend::face_normal;
-use bvh_cloth_core::parse_obj;
 use bvh_cloth_core::{Affine3A, ClothParams, ClothSim, Collider, MeshRef, Quat, Vec3};
 use glam::DVec3;
 use rayon::prelude::*;
@@ -86,8 +85,7 @@ fn fit(positions: &[[f32; 3]]) -> Vec<[f32; 3]> {
 }
 
 fn model(name: &str) -> (Vec<[f32; 3]>, Vec<u32>) {
-    let path = format!("{}/../../assets/models/{name}.obj", std::env::var("CARGO_MANIFEST_DIR").expect("run by cargo"));
-    let model = parse_obj(&std::fs::read_to_string(path).expect("a bundled model")).expect("a valid model");
+    let model = common::bundled_model(name);
     (fit(&model.positions), model.indices)
 }
 

@@ -4,7 +4,7 @@
 
 use std::sync::Arc;
 
-use bvh_cloth_core::{ClothGrid, ClothTopology, Collider, Lbvh, Sphere, UVec2, Vec2, Vec3};
+use bvh_cloth_core::{ClothGrid, ClothTopology, Collider, Lbvh, ObjMesh, Sphere, UVec2, Vec2, Vec3, parse_obj};
 
 /// A small deterministic xorshift generator, so tests need no RNG crate and never flake.
 pub struct Rng(u64);
@@ -145,4 +145,10 @@ pub fn sliver_sheet(side: u32, offset: f32) -> ClothTopology {
         indices.extend_from_slice(&[c, c + 1, ear]);
     }
     ClothTopology::from_mesh(bvh_cloth_core::MeshRef { positions: &positions, indices: Some(&indices) }).unwrap()
+}
+
+/// A model bundled in `assets/models`, by file name without `.obj`.
+pub fn bundled_model(name: &str) -> ObjMesh {
+    let path = format!("{}/../../assets/models/{name}.obj", std::env::var("CARGO_MANIFEST_DIR").expect("run by cargo"));
+    parse_obj(&std::fs::read_to_string(&path).unwrap_or_else(|e| panic!("{path}: {e}"))).expect("a bundled model")
 }
