@@ -362,8 +362,8 @@ fn fast_fold(collider: &Collider, top: f32, speed: f32, contact: bool) -> (usize
 /// close pair and, but on the bunny at 15 m/s, no crossing triangle pair, where without contact
 /// its layers cross. A point is tested against the triangles its path over the substep met, not
 /// only those it ends near: tested at the end alone, the bar at 15 m/s ended with 20 crossing
-/// pairs and the bunny at 15 m/s with 138 (now 16, not yet explained: edges passing through
-/// edges, which nothing tests, are one candidate).
+/// pairs and the bunny at 15 m/s with 138 (with it, 16, not yet explained: edges passing
+/// through edges, which nothing tests, are one candidate).
 #[test]
 fn fast_folds_keep_off_themselves() {
     let bar = thin_bar();
