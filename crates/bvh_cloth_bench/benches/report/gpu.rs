@@ -121,11 +121,35 @@ pub(crate) fn print_kernel_share(gpu: &Gpu, c: &Collider, cloth: &ClothSim, kern
 }
 
 /// GPU ms of one 60 Hz tick of `cloths` (one batch, colliding with `c`) by kernel, in
-/// [`kernel_column`] order, and in all: medians of 9 ticks timed with timestamp queries, each
-/// dispatch in a compute pass of its own, after a second of falling (10 ticks on a software
-/// adapter). `None` without timestamp queries, or when a tick has more dispatches than a query
-/// set holds.
+/// [`kernel_column`] order, and in all ([`ms_by_kernel`], grouped by column).
 pub(crate) fn kernel_ms(gpu: &Gpu, c: &Collider, cloths: &[ClothSim]) -> Option<([f64; 8], f64)> {
+    let samples: Vec<[f64; 8]> = timed_ticks(gpu, c, cloths)?
+        .iter()
+        .map(|tick| {
+            let mut ms = [0.0f64; 8];
+            for &(kernel, t) in tick {
+                ms[kernel_column(kernel)] += t;
+            }
+            ms
+        })
+        .collect();
+    let total = median(samples.iter().map(|s| s.iter().sum()).collect());
+    Some((core::array::from_fn(|k| median(samples.iter().map(|s| s[k]).collect())), total))
+}
+
+/// GPU ms of one 60 Hz tick of `cloths` spent in each of `kernels`, all its dispatches
+/// together: medians of the ticks of [`timed_ticks`].
+pub(crate) fn ms_by_kernel(gpu: &Gpu, c: &Collider, cloths: &[ClothSim], kernels: &[Kernel]) -> Option<Vec<f64>> {
+    let ticks = timed_ticks(gpu, c, cloths)?;
+    let of = |kernel: Kernel| median(ticks.iter().map(|t| t.iter().filter(|d| d.0 == kernel).map(|d| d.1).sum()).collect());
+    Some(kernels.iter().map(|&k| of(k)).collect())
+}
+
+/// Each dispatch's kernel and GPU ms in 9 ticks of `cloths` (one batch, colliding with `c`),
+/// timed with timestamp queries, each dispatch in a compute pass of its own, after a second of
+/// falling (10 ticks on a software adapter). `None` without timestamp queries, or when a tick has more dispatches than a query
+/// set holds.
+fn timed_ticks(gpu: &Gpu, c: &Collider, cloths: &[ClothSim]) -> Option<Vec<Vec<(Kernel, f64)>>> {
     if !gpu.device.features().contains(wgpu::Features::TIMESTAMP_QUERY) {
         return None;
     }
@@ -154,7 +178,7 @@ pub(crate) fn kernel_ms(gpu: &Gpu, c: &Collider, cloths: &[ClothSim]) -> Option<
         mapped_at_creation: false,
     });
     let period_ns = f64::from(gpu.queue.get_timestamp_period());
-    let mut samples: Vec<[f64; 8]> = Vec::new();
+    let mut ticks = Vec::new();
     for _ in 0..9 {
         let mut encoder = gpu.device.create_command_encoder(&Default::default());
         let kernels = batch.encode_ticks_timed(&mut encoder, &gpu.kernels, 1, &queries, capacity)?;
@@ -162,12 +186,8 @@ pub(crate) fn kernel_ms(gpu: &Gpu, c: &Collider, cloths: &[ClothSim]) -> Option<
         encoder.resolve_query_set(&queries, 0..used, &resolved, 0);
         gpu.queue.submit([encoder.finish()]);
         let stamps: Vec<u64> = headless::read(&gpu.device, &gpu.queue, &resolved);
-        let mut ms = [0.0f64; 8];
-        for (k, &kernel) in kernels.iter().enumerate() {
-            ms[kernel_column(kernel)] += stamps[2 * k + 1].saturating_sub(stamps[2 * k]) as f64 * period_ns * 1e-6;
-        }
-        samples.push(ms);
+        let ms = |k: usize| stamps[2 * k + 1].saturating_sub(stamps[2 * k]) as f64 * period_ns * 1e-6;
+        ticks.push(kernels.iter().enumerate().map(|(k, &kernel)| (kernel, ms(k))).collect());
     }
-    let total = median(samples.iter().map(|s| s.iter().sum()).collect());
-    Some((core::array::from_fn(|k| median(samples.iter().map(|s| s[k]).collect())), total))
+    Some(ticks)
 }
