@@ -141,7 +141,8 @@ pub(crate) fn kernel_ms(gpu: &Gpu, c: &Collider, cloths: &[ClothSim]) -> Option<
 /// together: medians of the ticks of [`timed_ticks`].
 pub(crate) fn ms_by_kernel(gpu: &Gpu, c: &Collider, cloths: &[ClothSim], kernels: &[Kernel]) -> Option<Vec<f64>> {
     let ticks = timed_ticks(gpu, c, cloths)?;
-    let of = |kernel: Kernel| median(ticks.iter().map(|t| t.iter().filter(|d| d.0 == kernel).map(|d| d.1).sum()).collect());
+    let of =
+        |kernel: Kernel| median(ticks.iter().map(|t| t.iter().filter(|d| d.0 == kernel).map(|d| d.1).sum()).collect());
     Some(kernels.iter().map(|&k| of(k)).collect())
 }
 
