@@ -67,6 +67,9 @@ impl WideNode {
         let mut node = Self::EMPTY;
         let lo = boxes.iter().fold(Vec3::INFINITY, |m, b| m.min(b.0));
         let hi = boxes.iter().fold(Vec3::NEG_INFINITY, |m, b| m.max(b.1));
+        // The children's boxes one lane each; an unused lane repeats the first child and is not
+        // written.
+        let lane_box = |lane: usize| boxes.get(lane).unwrap_or(&boxes[0]);
         for axis in 0..3 {
             let origin = lo[axis];
             // The least step whose 255th reaches the top.
@@ -76,23 +79,34 @@ impl WideNode {
             }
             node.origin[axis] = origin;
             node.step[axis] = step;
-            // The same arithmetic as `bound`, one lane at a time.
-            let at = |q: u32| origin + q as f32 * step;
-            let inverse = if step > 0.0 { 1.0 / step } else { 0.0 };
-            // A first guess (truncation is the floor of a non-negative number), then rounded
-            // outwards exactly: down for the minimum, up for the maximum.
-            let guess = |x: f32| (((x - origin) * inverse).max(0.0) as u32).min(255);
-            for (lane, &(l, h)) in boxes.iter().enumerate() {
-                let mut q = guess(l[axis]);
-                while q > 0 && at(q) > l[axis] {
-                    q -= 1;
+            let (origin4, step4) = (Vec4::splat(origin), Vec4::splat(step));
+            let inverse = Vec4::splat(if step > 0.0 { 1.0 / step } else { 0.0 });
+            let (one, top) = (Vec4::ONE, Vec4::splat(255.0));
+            let mins = Vec4::from_array(std::array::from_fn(|lane| lane_box(lane).0[axis]));
+            let maxs = Vec4::from_array(std::array::from_fn(|lane| lane_box(lane).1[axis]));
+            // A first guess in whole steps, then rounded outwards exactly with the queries'
+            // arithmetic (`bound`): down for the minima, up for the maxima. The guess is off by
+            // a step at most, so each loop runs once or twice.
+            let guess = |x: Vec4| ((x - origin4) * inverse).max(Vec4::ZERO).floor().min(top);
+            let mut q_lo = guess(mins);
+            loop {
+                let over = bound(origin4, q_lo, step4).cmpgt(mins) & q_lo.cmpgt(Vec4::ZERO);
+                if !over.any() {
+                    break;
                 }
-                node.lo[axis][lane] = q as u8;
-                let mut q = guess(h[axis]);
-                while q < 255 && at(q) < h[axis] {
-                    q += 1;
+                q_lo = Vec4::select(over, q_lo - one, q_lo);
+            }
+            let mut q_hi = guess(maxs);
+            loop {
+                let under = bound(origin4, q_hi, step4).cmplt(maxs) & q_hi.cmplt(top);
+                if !under.any() {
+                    break;
                 }
-                node.hi[axis][lane] = q as u8;
+                q_hi = Vec4::select(under, q_hi + one, q_hi);
+            }
+            for lane in 0..boxes.len() {
+                node.lo[axis][lane] = q_lo[lane] as u8;
+                node.hi[axis][lane] = q_hi[lane] as u8;
             }
         }
         node.child[..children.len()].copy_from_slice(children);
@@ -176,31 +190,27 @@ impl WideBvh {
             return Self { nodes: vec![WideNode::new(&[LEAF_BIT], &[leaf_box(0)])] };
         }
         let fold = Fold { tree, leaf_box: &leaf_box };
+        let mut nodes = Vec::new();
         if tree.nodes.len() < PARALLEL_FOLD_MIN_NODES {
-            let mut nodes = vec![WideNode::EMPTY; fold.count(0)];
-            fold.fill(0, &mut nodes, 0);
+            fold.fill(0, &mut nodes);
             return Self { nodes };
         }
-        // The root, then each of its inner children's subtrees in turn, each folded on its own
-        // into its own slice of the nodes.
-        let (children, count) = wide_children(tree, 0);
-        let inner: Vec<(usize, u32)> =
-            children[..count].iter().enumerate().filter(|&(_, &c)| c & LEAF_BIT == 0).map(|(l, &c)| (l, c)).collect();
-        let sizes: Vec<usize> = inner.par_iter().map(|&(_, c)| fold.count(c)).collect();
-        let total = 1 + sizes.iter().sum::<usize>();
-        let mut nodes: Vec<WideNode> = (0..total).into_par_iter().map(|_| WideNode::EMPTY).collect();
-        let (root, mut rest) = nodes.split_at_mut(1);
-        fold.node(0, &mut root[0]);
-        let mut parts = Vec::with_capacity(inner.len());
-        let mut base = 1;
-        for (&(lane, child), &size) in inner.iter().zip(&sizes) {
-            root[0].child[lane] = base as u32;
-            let (part, after) = std::mem::take(&mut rest).split_at_mut(size);
-            parts.push((child, part, base as u32));
-            rest = after;
-            base += size;
-        }
-        parts.into_par_iter().for_each(|(child, part, base)| fold.fill(child, part, base));
+        // The subtrees under the top `PART_DEPTH` levels are folded in parallel, each into its
+        // own nodes; the top is folded here, each part copied in after the node that points to
+        // it, so the whole stays in depth-first order.
+        let mut roots = Vec::new();
+        fold.part_roots(0, 0, &mut roots);
+        let parts: Vec<Vec<WideNode>> = roots
+            .par_iter()
+            .map(|&root| {
+                let mut part = Vec::new();
+                fold.fill(root, &mut part);
+                part
+            })
+            .collect();
+        nodes.reserve(parts.iter().map(Vec::len).sum::<usize>() + PART_DEPTH_NODES);
+        let mut parts = parts.into_iter();
+        fold.top(0, 0, &mut nodes, &mut parts);
         Self { nodes }
     }
 
@@ -293,6 +303,13 @@ impl WideBvh {
 /// Below this many binary nodes a tree is folded on one thread.
 const PARALLEL_FOLD_MIN_NODES: usize = 16_384;
 
+/// The wide levels above the parts a large tree is folded in: up to 4^3 = 64 parts, enough to
+/// share among the threads however unevenly the tree splits.
+const PART_DEPTH: usize = 3;
+
+/// The most wide nodes above the parts: 1 + 4 + 16.
+const PART_DEPTH_NODES: usize = 21;
+
 /// Folding a binary tree whose leaf `k` has the box `leaf_box(k)`.
 struct Fold<'a, F> {
     tree: &'a Lbvh,
@@ -300,17 +317,46 @@ struct Fold<'a, F> {
 }
 
 impl<F: Fn(u32) -> (Vec3, Vec3) + Sync> Fold<'_, F> {
-    /// The number of wide nodes under (and with) binary node `binary`, a wide node's.
-    fn count(&self, binary: u32) -> usize {
-        let mut count = 0;
-        let mut stack = Vec::with_capacity(WIDE_STACK);
-        stack.push(binary);
-        while let Some(binary) = stack.pop() {
-            count += 1;
-            let (children, n) = wide_children(self.tree, binary);
-            stack.extend(children[..n].iter().filter(|&&c| c & LEAF_BIT == 0));
+    /// Pushes, in depth-first order, the binary nodes whose wide nodes lie `PART_DEPTH` wide
+    /// levels under binary node `binary` (at wide level `level`): the roots of the parts.
+    fn part_roots(&self, binary: u32, level: usize, roots: &mut Vec<u32>) {
+        let (children, count) = wide_children(self.tree, binary);
+        for &child in children[..count].iter().filter(|&&c| c & LEAF_BIT == 0) {
+            if level + 1 == PART_DEPTH {
+                roots.push(child);
+            } else {
+                self.part_roots(child, level + 1, roots);
+            }
         }
-        count
+    }
+
+    /// Folds the wide nodes above the parts under binary node `binary` (at wide level
+    /// `level`) onto `out`, depth first, each part from `parts` (in [`Self::part_roots`]'
+    /// order) copied in where its root belongs, its references moved by its place.
+    fn top(&self, binary: u32, level: usize, out: &mut Vec<WideNode>, parts: &mut impl Iterator<Item = Vec<WideNode>>) {
+        let at = out.len();
+        let mut node = WideNode::EMPTY;
+        self.node(binary, &mut node);
+        out.push(node);
+        for lane in 0..4 {
+            let child = out[at].child[lane];
+            if child == u32::MAX || child & LEAF_BIT != 0 {
+                continue;
+            }
+            let base = out.len() as u32;
+            out[at].child[lane] = base;
+            if level + 1 == PART_DEPTH {
+                let part = parts.next().expect("a part for every root");
+                out.extend(part.into_iter().map(|mut node| {
+                    for c in node.child.iter_mut().filter(|c| **c != u32::MAX && **c & LEAF_BIT == 0) {
+                        *c += base;
+                    }
+                    node
+                }));
+            } else {
+                self.top(child, level + 1, out, parts);
+            }
+        }
     }
 
     /// Writes the wide node of binary node `binary` into `node`, its inner children's
@@ -328,21 +374,20 @@ impl<F: Fn(u32) -> (Vec3, Vec3) + Sync> Fold<'_, F> {
         *node = WideNode::new(&children[..count], &boxes[..count]);
     }
 
-    /// Folds the subtree under binary node `binary` into `out` (exactly its size), depth first,
-    /// `out[0]` being wide node `base`.
-    fn fill(&self, binary: u32, out: &mut [WideNode], base: u32) {
-        let mut next = 0;
+    /// Folds the subtree under binary node `binary` onto `out` (empty), depth first, `out[0]`
+    /// being its root.
+    fn fill(&self, binary: u32, out: &mut Vec<WideNode>) {
         // Binary nodes still to fold, each with the wide node and lane that will point to it.
         let mut stack: Vec<(u32, Option<(usize, usize)>)> = Vec::with_capacity(WIDE_STACK);
         stack.push((binary, None));
         while let Some((binary, parent)) = stack.pop() {
-            let at = next;
-            next += 1;
+            let at = out.len();
             if let Some((parent, lane)) = parent {
-                out[parent].child[lane] = base + at as u32;
+                out[parent].child[lane] = at as u32;
             }
-            let node = &mut out[at];
-            self.node(binary, node);
+            let mut node = WideNode::EMPTY;
+            self.node(binary, &mut node);
+            out.push(node);
             // The first inner child is popped first.
             for (lane, &child) in node.child.iter().enumerate().rev() {
                 if child != u32::MAX && child & LEAF_BIT == 0 {
@@ -350,7 +395,6 @@ impl<F: Fn(u32) -> (Vec3, Vec3) + Sync> Fold<'_, F> {
                 }
             }
         }
-        debug_assert_eq!(next, out.len());
     }
 }
 
