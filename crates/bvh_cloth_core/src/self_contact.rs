@@ -22,6 +22,11 @@
 //! lays the entries out bucket by bucket: one pass to count, a prefix sum, one pass to place.
 //! The same layout is what a GPU builds with atomics; it needs no pointers and no allocation
 //! per cell. Two cells that hash to one bucket only add candidates, which the box test drops.
+//! On the CPU the sort takes the triangles in four runs (`SORT_CHUNKS`), counted and placed in
+//! parallel, each run after the earlier ones in every bucket, so the buckets are the same
+//! whatever the threads; each entry's box is copied beside it, so that a point's scan of a
+//! bucket, most of the cost, reads the boxes in a row; and each triangle's first cell is kept
+//! from the sort for the scan's once-per-triangle test.
 //!
 //! Within a cloth a point and a triangle are skipped when the point is a corner of the
 //! triangle, or lies within the thickness of the triangle's box in the rest shape (the
@@ -70,6 +75,8 @@
 //! other between the particles of both layers. Nothing undoes an intersection that exists:
 //! the same cloth thrown onto the bunny at 15 m/s ends with 16 crossing pairs.
 
+use core::sync::atomic::{AtomicU32, Ordering};
+
 #[cfg(feature = "bevy_reflect")]
 use bevy_reflect::std_traits::ReflectDefault;
 use glam::{IVec3, Vec3, Vec3A};
@@ -102,6 +109,10 @@ pub const MAX_HELD_SCALE: f32 = 16.0;
 
 /// Above this many particles the contacts are found on the rayon pool.
 const PARALLEL_MIN: usize = 2048;
+
+/// The runs of triangles the grid's counting sort takes in parallel: fixed, so that the
+/// buckets do not depend on the thread count.
+const SORT_CHUNKS: usize = 4;
 
 /// How a cloth keeps off itself and other cloths.
 ///
@@ -228,10 +239,17 @@ pub struct ContactSolver {
     /// Each triangle's box as the particles stand, grown by the largest thickness, and its box
     /// in the rest shape.
     boxes: Vec<[Vec3A; 2]>,
+    /// Each triangle's first grid cell: the one of its grown box's least corner.
+    first_cells: Vec<IVec3>,
     rest_boxes: Vec<[Vec3A; 2]>,
     /// Bucket `b` holds the triangles `entries[starts[b]..starts[b + 1]]`.
     starts: Vec<u32>,
     entries: Vec<u32>,
+    /// The box of each entry's triangle, `boxes[entries[k]]`.
+    entry_boxes: Vec<[Vec3A; 2]>,
+    /// Each run of triangles' count of entries in each bucket, then where they go (the
+    /// counting sort's scratch).
+    counts: Vec<Vec<u32>>,
     /// Each particle's summed corrections and the number of contacts it took part in.
     dx: Vec<Vec3>,
     dv: Vec<Vec3>,
@@ -376,59 +394,68 @@ impl ContactSolver {
         let buckets = (2 * self.triangles.len()).next_power_of_two();
         let inv = 1.0 / cell;
         let (x, prev) = (&self.x, &self.prev);
-        self.boxes.clear();
-        self.boxes.extend(self.triangles.iter().map(|(_, corners)| {
+        let grown_box = |(_, corners): &(u32, [u32; 3])| {
             // Where the triangle was at the start of the substep, and is now.
             let ([a, b, c], [d, e, f]) = (corners.map(|k| x[k as usize]), corners.map(|k| prev[k as usize]));
             let (lo, hi) = (a.min(b).min(c).min(d.min(e).min(f)), a.max(b).max(c).max(d.max(e).max(f)));
-            [(lo - grow).into(), (hi + grow).into()]
-        }));
-        let mut clamped = 0;
+            [Vec3A::from(lo - grow), Vec3A::from(hi + grow)]
+        };
+        self.boxes.clear();
+        if self.triangles.len() >= PARALLEL_MIN {
+            self.triangles.par_iter().map(grown_box).collect_into_vec(&mut self.boxes);
+        } else {
+            self.boxes.extend(self.triangles.iter().map(grown_box));
+        }
         // The cells of each triangle's grown box, its span along each axis capped.
-        let ranges: Vec<Option<(IVec3, IVec3)>> = self
-            .boxes
-            .iter()
-            .map(|&[lo, hi]| {
-                let (range, capped) = cells_of_box(lo, hi, inv, MAX_SPAN)?;
-                clamped += usize::from(capped);
-                Some(range)
-            })
-            .collect();
+        let cells = |&[lo, hi]: &[Vec3A; 2]| cells_of_box(lo, hi, inv, MAX_SPAN);
+        let ranges: Vec<Option<((IVec3, IVec3), bool)>> = if self.boxes.len() >= PARALLEL_MIN {
+            self.boxes.par_iter().map(cells).collect()
+        } else {
+            self.boxes.iter().map(cells).collect()
+        };
+        let clamped = ranges.iter().filter(|r| r.is_some_and(|(_, capped)| capped)).count();
+        let ranges: Vec<Option<(IVec3, IVec3)>> = ranges.into_iter().map(|r| r.map(|(range, _)| range)).collect();
+        self.first_cells.clear();
+        self.first_cells.extend(ranges.iter().map(|r| r.map_or(IVec3::ZERO, |(lo, _)| lo)));
+        // A counting sort in `SORT_CHUNKS` runs of triangles, counted and scattered in
+        // parallel: each run's triangles go after the earlier runs' in every bucket, so the
+        // buckets hold their triangles in order, as one pass over all of them would.
+        let run = ranges.len().div_ceil(SORT_CHUNKS).max(1);
+        let runs = ranges.len().div_ceil(run);
+        self.counts.resize_with(runs, Vec::new);
+        self.counts.par_iter_mut().zip(ranges.par_chunks(run)).for_each(|(count, part)| {
+            count.clear();
+            count.resize(buckets, 0);
+            for range in part {
+                for_each_bucket(*range, buckets, |b| count[b] += 1);
+            }
+        });
+        // Each run's count becomes where its triangles start in the bucket.
         self.starts.clear();
         self.starts.resize(buckets + 1, 0);
-        let mut used = Vec::with_capacity((MAX_SPAN * MAX_SPAN * MAX_SPAN) as usize);
-        for pass in 0..2 {
-            let mut next: Vec<u32> = if pass == 1 { self.starts[..buckets].to_vec() } else { Vec::new() };
-            for (t, range) in ranges.iter().enumerate() {
-                let Some((lo, hi)) = *range else { continue };
-                used.clear();
-                for z in lo.z..=hi.z {
-                    for y in lo.y..=hi.y {
-                        for x in lo.x..=hi.x {
-                            let b = bucket(IVec3::new(x, y, z), buckets);
-                            // Two cells of one triangle may share a bucket: enter it once.
-                            if used.contains(&b) {
-                                continue;
-                            }
-                            used.push(b);
-                            if pass == 0 {
-                                self.starts[b + 1] += 1;
-                            } else {
-                                self.entries[next[b] as usize] = t as u32;
-                                next[b] += 1;
-                            }
-                        }
-                    }
-                }
-            }
-            if pass == 0 {
-                for b in 0..buckets {
-                    self.starts[b + 1] += self.starts[b];
-                }
-                self.entries.clear();
-                self.entries.resize(self.starts[buckets] as usize, 0);
+        let mut total = 0u32;
+        for b in 0..buckets {
+            self.starts[b] = total;
+            for count in &mut self.counts[..runs] {
+                (count[b], total) = (total, total + count[b]);
             }
         }
+        self.starts[buckets] = total;
+        let entries: Vec<AtomicU32> = (0..total).map(|_| AtomicU32::new(0)).collect();
+        ranges.par_chunks(run).zip(self.counts.par_iter_mut()).enumerate().for_each(|(k, (part, next))| {
+            for (i, range) in part.iter().enumerate() {
+                let t = (k * run + i) as u32;
+                for_each_bucket(*range, buckets, |b| {
+                    entries[next[b] as usize].store(t, Ordering::Relaxed);
+                    next[b] += 1;
+                });
+            }
+        });
+        self.entries.clear();
+        self.entries.extend(entries.into_iter().map(AtomicU32::into_inner));
+        // Each entry's box beside it, so that a point's scan of a bucket reads them in a row.
+        let boxes = &self.boxes;
+        self.entries.par_iter().map(|&t| boxes[t as usize]).collect_into_vec(&mut self.entry_boxes);
         clamped
     }
 
@@ -449,19 +476,18 @@ impl ContactSolver {
                 for x in lo.x..=hi.x {
                     let at = IVec3::new(x, y, z);
                     let b = bucket(at, buckets);
-                    let candidates = &self.entries[self.starts[b] as usize..self.starts[b + 1] as usize];
-                    clamped |= candidates.len() > MAX_CANDIDATES;
-                    for &t in candidates.iter().take(MAX_CANDIDATES) {
+                    let bucket = self.starts[b] as usize..self.starts[b + 1] as usize;
+                    clamped |= bucket.len() > MAX_CANDIDATES;
+                    let candidates = self.entries[bucket.clone()].iter().zip(&self.entry_boxes[bucket]);
+                    for (&t, &[t_lo, t_hi]) in candidates.take(MAX_CANDIDATES) {
                         // The grown boxes first, here in the scan: most candidates are beside
                         // the path, not within the thickness of it.
-                        let [t_lo, t_hi] = self.boxes[t as usize];
                         if !(path_lo.cmple(t_hi).all() && path_hi.cmpge(t_lo).all()) {
                             continue;
                         }
                         // Once per triangle: in the first cell both it and the path cover (a
                         // triangle met in another cell's bucket is a hash collision there).
-                        let Some(((first, _), _)) = cells_of_box(t_lo, t_hi, inv, MAX_SPAN) else { continue };
-                        if first.max(lo) != at {
+                        if self.first_cells[t as usize].max(lo) != at {
                             continue;
                         }
                         found.extend(self.contact(bodies, p, t));
@@ -622,8 +648,39 @@ fn barycentric(q: Vec3, [a, b, c]: [Vec3; 3]) -> [f32; 3] {
 /// non-finite one gives cell 0 (such a particle is left out of the grid).
 #[inline]
 fn cell_of(p: Vec3, inv: f32) -> IVec3 {
-    let c = (p * inv).floor();
-    IVec3::new(c.x as i32, c.y as i32, c.z as i32)
+    let c = p * inv;
+    IVec3::new(floor(c.x), floor(c.y), floor(c.z))
+}
+
+/// `v.floor() as i32` without a call to the C library's `floorf`, which x86-64's baseline
+/// (SSE2, no rounding instruction) makes of `f32::floor`: the truncation, less one where it
+/// rounded up. Saturates as `as` does; NaN gives 0.
+#[inline]
+fn floor(v: f32) -> i32 {
+    let t = v as i32;
+    t.saturating_sub(i32::from(t as f32 > v))
+}
+
+/// Calls `f(bucket)` once for each bucket (of `buckets`) of the cells in `range`: two cells of
+/// one triangle may share a bucket.
+#[inline]
+fn for_each_bucket(range: Option<(IVec3, IVec3)>, buckets: usize, mut f: impl FnMut(usize)) {
+    let Some((lo, hi)) = range else { return };
+    let mut used = [usize::MAX; (MAX_SPAN * MAX_SPAN * MAX_SPAN) as usize];
+    let mut count = 0;
+    for z in lo.z..=hi.z {
+        for y in lo.y..=hi.y {
+            for x in lo.x..=hi.x {
+                let b = bucket(IVec3::new(x, y, z), buckets);
+                if used[..count].contains(&b) {
+                    continue;
+                }
+                used[count] = b;
+                count += 1;
+                f(b);
+            }
+        }
+    }
 }
 
 /// The bucket of cell `c` in a table of `buckets` (a power of two).
