@@ -538,9 +538,13 @@ fn contact_find(@builtin(global_invocation_id) id: vec3<u32>) {
                 let last = min(end, start + MAX_CANDIDATES);
                 for (var e = start; e < last; e++) {
                     let t = atomicLoad(&contact_grid[entry_at(e)]);
-                    // Once per triangle: in the first cell both it and the path cover.
+                    // The boxes first, as the CPU's scan: most candidates are beside the path.
                     let lo = bitcast<vec3<f32>>(contact_triangles[CONTACT_TRIANGLE_WORDS * t + 3u].xyz);
                     let hi = bitcast<vec3<f32>>(contact_triangles[CONTACT_TRIANGLE_WORDS * t + 4u].xyz);
+                    if (!(all(path_lo <= hi) && all(path_hi >= lo))) {
+                        continue;
+                    }
+                    // Once per triangle: in the first cell both it and the path cover.
                     let cells = cells_of_box(lo, hi, MAX_SPAN);
                     if (!cells.valid || any(max(cells.lo, path.lo) != at)) {
                         continue;
