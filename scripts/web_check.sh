@@ -21,6 +21,17 @@ python3 -c 'import websocket' 2>/dev/null || need+=(python3-websocket)
 if [ ${#need[@]} -gt 0 ]; then
     apt-get update -qq && apt-get install -y -qq --no-install-recommends "${need[@]}" >/dev/null
 fi
+# The python3 first on the PATH may not be Debian's (pyenv's, say), and then it does not see
+# the module the package installed: the check runs on Debian's where that one has it, else the
+# module is installed for the python3 on the PATH.
+python=python3
+if ! python3 -c 'import websocket' 2>/dev/null; then
+    if /usr/bin/python3 -c 'import websocket' 2>/dev/null; then
+        python=/usr/bin/python3
+    else
+        python3 -m pip install --quiet websocket-client
+    fi
+fi
 web_tools
 
 target=${CARGO_TARGET_DIR:-$HOME/.cache/bevy_bvh_cloth/target}
@@ -43,5 +54,5 @@ trap 'kill $server 2>/dev/null' EXIT
 sleep 1
 kill -0 "$server" 2>/dev/null || { echo "web check: the page's server did not start on port $port" >&2; exit 1; }
 for backend in gpu cpu; do
-    python3 scripts/web/check.py "http://127.0.0.1:$port/?backend=$backend" "${backend^^}" "$out/web_check_$backend.png"
+    "$python" scripts/web/check.py "http://127.0.0.1:$port/?backend=$backend" "${backend^^}" "$out/web_check_$backend.png"
 done

@@ -181,7 +181,8 @@ const WIDE_STACK: usize = 2 * STACK_SIZE + 4;
 
 impl WideBvh {
     /// Folds `tree` into a wide tree. `leaf_box(k)` is leaf `k`'s box, the one `tree`'s inner
-    /// boxes were fitted to. A large tree's subtrees under the root are folded in parallel.
+    /// boxes were fitted to. A large tree's subtrees under its top three wide levels are folded
+    /// in parallel.
     pub fn from_lbvh(tree: &Lbvh, leaf_box: impl Fn(u32) -> (Vec3, Vec3) + Sync) -> Self {
         if tree.nodes.is_empty() {
             if tree.spheres.is_empty() {
