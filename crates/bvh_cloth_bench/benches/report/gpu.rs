@@ -104,10 +104,12 @@ pub(crate) fn print_with_and_without(
 }
 
 /// The row of a GPU cost table: `cloth` alone in a batch with `c`, the GPU ms per tick of
-/// `kernel`'s column of [`kernel_column`] against the rest of the tick ([`kernel_ms`]), and
-/// the software adapter's caveat.
-pub(crate) fn print_kernel_share(gpu: &Gpu, c: &Collider, cloth: &ClothSim, kernel: Kernel) {
-    match kernel_ms(gpu, c, std::slice::from_ref(cloth)) {
+/// `kernel`'s column of [`kernel_column`] against the rest of the tick, then each of
+/// `breakdown`'s kernels on its own, all from the same timed ticks ([`timed_ticks`]), and the
+/// software adapter's caveat.
+pub(crate) fn print_kernel_share(gpu: &Gpu, c: &Collider, cloth: &ClothSim, kernel: Kernel, breakdown: &[Kernel]) {
+    let ticks = timed_ticks(gpu, c, std::slice::from_ref(cloth));
+    match ticks.as_deref().map(by_column) {
         Some((column, total)) => {
             let part = column[kernel_column(kernel)];
             let rest = total - part;
@@ -115,15 +117,28 @@ pub(crate) fn print_kernel_share(gpu: &Gpu, c: &Collider, cloth: &ClothSim, kern
         }
         None => println!("| {} | no timestamp queries | | |", gpu.info.name),
     }
+    if let Some(ticks) = ticks.as_deref().filter(|_| !breakdown.is_empty()) {
+        println!("\nThe same ticks by kernel, all of a tick's dispatches of each together (medians):\n");
+        println!("| kernel | ms per tick |\n|---|---|");
+        for &k in breakdown {
+            let ms = median(ticks.iter().map(|t| t.iter().filter(|d| d.0 == k).map(|d| d.1).sum()).collect());
+            println!("| {k:?} | {ms:.3} |");
+        }
+    }
     if gpu.is_software() {
         println!("\nThe GPU here is a software adapter on the same CPU cores: its times are not GPU figures.");
     }
 }
 
 /// GPU ms of one 60 Hz tick of `cloths` (one batch, colliding with `c`) by kernel, in
-/// [`kernel_column`] order, and in all ([`ms_by_kernel`], grouped by column).
+/// [`kernel_column`] order, and in all: medians of the ticks of [`timed_ticks`].
 pub(crate) fn kernel_ms(gpu: &Gpu, c: &Collider, cloths: &[ClothSim]) -> Option<([f64; 8], f64)> {
-    let samples: Vec<[f64; 8]> = timed_ticks(gpu, c, cloths)?
+    timed_ticks(gpu, c, cloths).as_deref().map(by_column)
+}
+
+/// The medians of timed ticks summed by [`kernel_column`], and of their totals.
+fn by_column(ticks: &[Vec<(Kernel, f64)>]) -> ([f64; 8], f64) {
+    let samples: Vec<[f64; 8]> = ticks
         .iter()
         .map(|tick| {
             let mut ms = [0.0f64; 8];
@@ -134,22 +149,13 @@ pub(crate) fn kernel_ms(gpu: &Gpu, c: &Collider, cloths: &[ClothSim]) -> Option<
         })
         .collect();
     let total = median(samples.iter().map(|s| s.iter().sum()).collect());
-    Some((core::array::from_fn(|k| median(samples.iter().map(|s| s[k]).collect())), total))
-}
-
-/// GPU ms of one 60 Hz tick of `cloths` spent in each of `kernels`, all its dispatches
-/// together: medians of the ticks of [`timed_ticks`].
-pub(crate) fn ms_by_kernel(gpu: &Gpu, c: &Collider, cloths: &[ClothSim], kernels: &[Kernel]) -> Option<Vec<f64>> {
-    let ticks = timed_ticks(gpu, c, cloths)?;
-    let of =
-        |kernel: Kernel| median(ticks.iter().map(|t| t.iter().filter(|d| d.0 == kernel).map(|d| d.1).sum()).collect());
-    Some(kernels.iter().map(|&k| of(k)).collect())
+    (core::array::from_fn(|k| median(samples.iter().map(|s| s[k]).collect())), total)
 }
 
 /// Each dispatch's kernel and GPU ms in 9 ticks of `cloths` (one batch, colliding with `c`),
 /// timed with timestamp queries, each dispatch in a compute pass of its own, after a second of
-/// falling (10 ticks on a software adapter). `None` without timestamp queries, or when a tick has more dispatches than a query
-/// set holds.
+/// falling (10 ticks on a software adapter). `None` without timestamp queries, or when a tick
+/// has more dispatches than a query set holds.
 fn timed_ticks(gpu: &Gpu, c: &Collider, cloths: &[ClothSim]) -> Option<Vec<Vec<(Kernel, f64)>>> {
     if !gpu.device.features().contains(wgpu::Features::TIMESTAMP_QUERY) {
         return None;

@@ -124,7 +124,6 @@ pub(crate) fn self_contact_on_gpu(bunny: &ObjMesh, gpu: Option<&Gpu>) {
     println!("| adapter | self-contact ms | rest of the tick ms | self-contact / rest |");
     println!("|---|---|---|---|");
     let (surface, with) = resting_with_self_contact(bunny);
-    print_kernel_share(gpu, &surface, &with, Kernel::ContactFind);
     let kernels = [
         Kernel::ContactBegin,
         Kernel::ContactCount,
@@ -133,13 +132,7 @@ pub(crate) fn self_contact_on_gpu(bunny: &ObjMesh, gpu: Option<&Gpu>) {
         Kernel::ContactFind,
         Kernel::ContactApply,
     ];
-    if let Some(ms) = ms_by_kernel(gpu, &surface, std::slice::from_ref(&with), &kernels) {
-        println!("\nThe same tick's self-contact by kernel, all its dispatches together (medians of 9 more ticks):\n");
-        println!("| kernel | ms per tick |\n|---|---|");
-        for (kernel, ms) in kernels.iter().zip(ms) {
-            println!("| {kernel:?} | {ms:.3} |");
-        }
-    }
+    print_kernel_share(gpu, &surface, &with, Kernel::ContactFind, &kernels);
 }
 
 /// Pairs of intersecting triangles: within `topology`'s cloth at `x` (pairs sharing no corner),
