@@ -24,11 +24,16 @@ out=$target/web/$example
 source scripts/web/tools.sh
 web_tools
 
+# The features the examples show natively beyond what the browser check needs (the
+# target-specific dev-dependencies in crates/bevy_bvh_cloth/Cargo.toml): lookup tables for the
+# tone mapping, PNG textures, the glTF character.
+shown=bevy/tonemapping_luts,bevy/zstd_rust,bevy/png,bevy/bevy_gltf,bevy/gltf_animation,bevy/reflect_auto_register
+
 rm -rf "$out"
 for api in webgpu webgl2; do
     # Bevy's `webgpu` feature takes over from `webgl2`, so each API is a build of its own.
     CARGO_TARGET_DIR=$target cargo build --profile web --locked -p bevy_bvh_cloth --example "$example" \
-        --target wasm32-unknown-unknown --features "egui,bevy/$api"
+        --target wasm32-unknown-unknown --features "egui,bevy/$api,$shown"
     wasm-bindgen --target web --no-typescript --out-dir "$out/$api" --out-name "$example" \
         "$target/wasm32-unknown-unknown/web/examples/$example.wasm"
     wasm="$out/$api/${example}_bg.wasm"

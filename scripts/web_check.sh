@@ -36,13 +36,14 @@ web_tools
 
 target=${CARGO_TARGET_DIR:-$HOME/.cache/bevy_bvh_cloth/target}
 out=$target/web/web_check
-# The dev profile (dependencies at opt-level 1): a quick build that runs fast enough. The
-# `egui` feature builds the panel for the web too, though the check does not show it.
+# The `web-check` profile: the dev profile (dependencies at opt-level 1, a quick build that runs
+# fast enough) without debug info. Without the `egui` feature: the check shows no panel, and
+# the panel's font and text stack would be a third of the build.
 CARGO_TARGET_DIR=$target cargo build --locked -p bevy_bvh_cloth --example web_check \
-    --target wasm32-unknown-unknown --features egui,bevy/webgpu
+    --target wasm32-unknown-unknown --features bevy/webgpu --profile web-check
 rm -rf "$out"
 wasm-bindgen --target web --no-typescript --out-dir "$out" --out-name web_check \
-    "$target/wasm32-unknown-unknown/debug/examples/web_check.wasm"
+    "$target/wasm32-unknown-unknown/web-check/examples/web_check.wasm"
 cp scripts/web/check.html "$out/index.html"
 cp scripts/web/start.js "$out/"
 

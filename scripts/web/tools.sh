@@ -8,7 +8,9 @@ web_tools() {
         # Its own lock file first; a registry that lacks one of its pinned versions gets the
         # newest compatible ones instead. Forced: cargo skips a version it has on record even
         # when the binary is gone.
-        cargo install wasm-bindgen-cli --version "$version" --locked --force ||
-            cargo install wasm-bindgen-cli --version "$version" --force
+        # Only the `wasm-bindgen` binary, without the test runner's TLS stack.
+        local only=(--no-default-features --bin wasm-bindgen)
+        cargo install wasm-bindgen-cli --version "$version" "${only[@]}" --locked --force ||
+            cargo install wasm-bindgen-cli --version "$version" "${only[@]}" --force
     fi
 }
