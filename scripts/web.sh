@@ -25,9 +25,9 @@ source scripts/web/tools.sh
 web_tools
 
 # The features the examples show natively beyond what the browser check needs (the
-# target-specific dev-dependencies in crates/bevy_bvh_cloth/Cargo.toml): lookup tables for the
-# tone mapping, PNG textures, the glTF character.
-shown=bevy/tonemapping_luts,bevy/zstd_rust,bevy/png,bevy/bevy_gltf,bevy/gltf_animation,bevy/reflect_auto_register
+# target-specific dev-dependencies in crates/bevy_bvh_cloth/Cargo.toml): PBR materials, lookup
+# tables for the tone mapping, PNG textures, the glTF character.
+shown=bevy/bevy_pbr,bevy/tonemapping_luts,bevy/zstd_rust,bevy/png,bevy/bevy_gltf,bevy/gltf_animation,bevy/reflect_auto_register
 
 rm -rf "$out"
 for api in webgpu webgl2; do
