@@ -69,42 +69,42 @@ pub struct Lbvh {
     pub max_radius: f32,
 }
 
-/// Length of the longest common prefix of keys `i` and `j`, where equal Morton codes are made
-/// distinct by appending the index (Karras section 4); -1 when `j` is outside the array.
-fn common_prefix(codes: &[u32], i: i64, j: i64) -> i32 {
-    if j < 0 || j >= codes.len() as i64 {
-        return -1;
+/// Length of the longest common prefix of keys `i` and `j`; -1 when `j` is outside the array.
+/// A key is a leaf's Morton code above its index in the sorted order, so equal codes are made
+/// distinct by their indices (Karras section 4) without a branch.
+#[inline]
+fn common_prefix(keys: &[u64], i: i64, j: i64) -> i32 {
+    match usize::try_from(j).ok().and_then(|j| keys.get(j)) {
+        Some(&b) => (keys[i as usize] ^ b).leading_zeros() as i32,
+        None => -1,
     }
-    let (a, b) = (codes[i as usize], codes[j as usize]);
-    if a == b { 32 + ((i as u32) ^ (j as u32)).leading_zeros() as i32 } else { (a ^ b).leading_zeros() as i32 }
 }
 
-/// Builds inner node `i` from the sorted codes: its key range, its split and its children.
-fn build_inner_node(codes: &[u32], i: usize) -> BvhNode {
+fn build_inner_node(keys: &[u64], i: usize) -> BvhNode {
     let i = i as i64;
-    let d: i64 = if common_prefix(codes, i, i + 1) - common_prefix(codes, i, i - 1) >= 0 { 1 } else { -1 };
+    let d: i64 = if common_prefix(keys, i, i + 1) - common_prefix(keys, i, i - 1) >= 0 { 1 } else { -1 };
     // Upper bound on the range length, then binary search for its far end.
-    let delta_min = common_prefix(codes, i, i - d);
+    let delta_min = common_prefix(keys, i, i - d);
     let mut l_max: i64 = 2;
-    while common_prefix(codes, i, i + l_max * d) > delta_min {
+    while common_prefix(keys, i, i + l_max * d) > delta_min {
         l_max *= 2;
     }
     let mut l: i64 = 0;
     let mut t = l_max / 2;
     while t >= 1 {
-        if common_prefix(codes, i, i + (l + t) * d) > delta_min {
+        if common_prefix(keys, i, i + (l + t) * d) > delta_min {
             l += t;
         }
         t /= 2;
     }
     let j = i + l * d;
     // Binary search for the split: the last key sharing more than the range's common prefix.
-    let delta_node = common_prefix(codes, i, j);
+    let delta_node = common_prefix(keys, i, j);
     let mut s: i64 = 0;
     let mut t = l;
     loop {
         t = (t + 1) / 2;
-        if common_prefix(codes, i, i + (s + t) * d) > delta_node {
+        if common_prefix(keys, i, i + (s + t) * d) > delta_node {
             s += t;
         }
         if t <= 1 {
@@ -146,16 +146,17 @@ impl Lbvh {
         let codes: Vec<u32> =
             if parallel { spheres.par_iter().map(code).collect() } else { spheres.iter().map(code).collect() };
         let keyed = sort_by_code(codes.into_iter());
-        let (codes, sorted): (Vec<u32>, Vec<Sphere>) = if parallel {
-            keyed.par_iter().map(|&(c, i)| (c, spheres[i as usize])).unzip()
+        let key = |k: usize, &(c, i): &(u32, u32)| ((u64::from(c) << 32) | k as u64, spheres[i as usize]);
+        let (keys, sorted): (Vec<u64>, Vec<Sphere>) = if parallel {
+            keyed.par_iter().enumerate().map(|(k, ci)| key(k, ci)).unzip()
         } else {
-            keyed.iter().map(|&(c, i)| (c, spheres[i as usize])).unzip()
+            keyed.iter().enumerate().map(|(k, ci)| key(k, ci)).unzip()
         };
         let inner = sorted.len() - 1;
         let nodes: Vec<BvhNode> = if parallel {
-            (0..inner).into_par_iter().map(|i| build_inner_node(&codes, i)).collect()
+            (0..inner).into_par_iter().map(|i| build_inner_node(&keys, i)).collect()
         } else {
-            (0..inner).map(|i| build_inner_node(&codes, i)).collect()
+            (0..inner).map(|i| build_inner_node(&keys, i)).collect()
         };
         let max_radius = sorted.iter().fold(0.0f32, |r, s| r.max(s.radius));
         let order = keyed.into_iter().map(|(_, i)| i).collect();
