@@ -36,9 +36,10 @@ web_tools
 
 target=${CARGO_TARGET_DIR:-$HOME/.cache/bevy_bvh_cloth/target}
 out=$target/web/web_check
-# The `web-check` profile: the dev profile (dependencies at opt-level 1, a quick build that runs
-# fast enough) without debug info. Without the `egui` feature: the check shows no panel, and
-# the panel and its font and text stack would add 69 crates to the 280 the check builds.
+# The `web-check` profile: `.ci/run`'s `ci` profile (the dependencies not optimised, the core
+# optimised: a quick build that runs fast enough) without debug info. Without the `egui`
+# feature: the check shows no panel, and the panel and its font and text stack would add 69
+# crates to the 280 the check builds.
 CARGO_TARGET_DIR=$target cargo build --locked -p bevy_bvh_cloth --example web_check \
     --target wasm32-unknown-unknown --features bevy/webgpu --profile web-check
 rm -rf "$out"

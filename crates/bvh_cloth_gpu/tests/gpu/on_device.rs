@@ -10,7 +10,7 @@ use bvh_cloth_core::backend::ContactSolver;
 use bvh_cloth_core::backend::crossing_pairs;
 use bvh_cloth_core::parse_obj;
 use bvh_cloth_gpu::layout::{GpuCollider, GpuMeshWriteback, GpuParticle, load_gpu_particles};
-use std::sync::{Arc, OnceLock};
+use std::sync::Arc;
 
 use bvh_cloth_core::{
     Affine3A, ClothGrid, ClothParams, ClothSim, ClothTopology, Collider, ColliderPose, ColliderShape, CollisionLayers,
@@ -30,27 +30,17 @@ struct Rig {
     kernels: ClothKernels,
 }
 
-/// The device every test here shares, with the kernels compiled on it once: each compile of
-/// every kernel takes lavapipe about two seconds of CPU. Each test makes its own batches,
-/// buffers and colliders on it.
-fn rig() -> Option<&'static Rig> {
-    static RIG: OnceLock<Option<Rig>> = OnceLock::new();
-    RIG.get_or_init(|| {
-        let Some(headless::KernelRig { device, queue, kernels, info }) = headless::kernel_rig() else {
-            eprintln!("no GPU adapter: skipped");
-            return None;
-        };
-        eprintln!("adapter: {:?}", info.name);
-        Some(Rig { device, queue, kernels })
-    })
-    .as_ref()
-    .or_else(|| {
+fn rig() -> Option<Rig> {
+    let Some(headless::KernelRig { device, queue, kernels, info }) = headless::kernel_rig() else {
         assert!(
             std::env::var_os("BVH_CLOTH_REQUIRE_GPU").is_none(),
             "no GPU adapter (install mesa-vulkan-drivers for lavapipe and set WGPU_BACKEND=vulkan)"
         );
-        None
-    })
+        eprintln!("no GPU adapter: skipped");
+        return None;
+    };
+    eprintln!("adapter: {:?}", info.name);
+    Some(Rig { device, queue, kernels })
 }
 
 /// One cloth in a batch of its own: the kernels alone, and single scenes against the CPU.
@@ -500,7 +490,7 @@ fn hanging_cloth_agrees_with_the_cpu() {
         gpu.upload_state(&rig.queue, &cpu);
         cpu.tick(1.0 / 60.0, &[]);
         rig.ticks(&mut gpu, &none, 1);
-        worst = worst.max(largest_gap(&cpu.positions(), &gpu_positions(rig, &gpu)));
+        worst = worst.max(largest_gap(&cpu.positions(), &gpu_positions(&rig, &gpu)));
     }
     eprintln!("hanging cloth, 120 ticks: largest CPU-GPU gap after one tick {worst:e} m");
     assert!(worst < 1e-5, "GPU and CPU differ by {worst} m after one tick");
@@ -543,7 +533,7 @@ fn bunny_drop_agrees_with_the_cpu() {
         cpu.tick(1.0 / 60.0, &colliders);
     }
     rig.ticks(&mut gpu, &gpu_colliders, 10);
-    let early = largest_gap(&cpu.positions(), &gpu_positions(rig, &gpu));
+    let early = largest_gap(&cpu.positions(), &gpu_positions(&rig, &gpu));
     eprintln!("bunny drop, tick 10: largest CPU-GPU gap {early:e} m");
     assert!(early < 1e-4, "before contact GPU and CPU differ by {early} m");
 
@@ -551,7 +541,7 @@ fn bunny_drop_agrees_with_the_cpu() {
         cpu.tick(1.0 / 60.0, &colliders);
     }
     rig.ticks(&mut gpu, &gpu_colliders, 170);
-    let (c, g) = (cpu.positions(), gpu_positions(rig, &gpu));
+    let (c, g) = (cpu.positions(), gpu_positions(&rig, &gpu));
     let highest = |p: &[Vec3]| p.iter().map(|p| p.y).fold(f32::NEG_INFINITY, f32::max);
     eprintln!(
         "bunny drop, tick 180: centroid gap {:e} m, lowest {} vs {}, highest {} vs {}, largest particle gap {:e} m",
@@ -609,7 +599,7 @@ fn two_colliders_one_moving_agree_with_the_cpu() {
         cpu.tick(1.0 / 60.0, &colliders);
     }
     rig.ticks(&mut gpu, &gpu_colliders, 15);
-    let early = largest_gap(&cpu.positions(), &gpu_positions(rig, &gpu));
+    let early = largest_gap(&cpu.positions(), &gpu_positions(&rig, &gpu));
     assert!(early < 1e-4, "before contact GPU and CPU differ by {early} m");
     for tick in 15..180 {
         if tick >= 60 {
@@ -620,7 +610,7 @@ fn two_colliders_one_moving_agree_with_the_cpu() {
         rig.ticks(&mut gpu, &gpu_colliders, 1);
     }
 
-    let (c, g) = (cpu.positions(), gpu_positions(rig, &gpu));
+    let (c, g) = (cpu.positions(), gpu_positions(&rig, &gpu));
     eprintln!(
         "two colliders, tick 180: centroid gap {:e} m, lowest {} vs {}, largest particle gap {:e} m",
         centroid(&c).distance(centroid(&g)),
@@ -679,7 +669,7 @@ fn a_skinned_collider_rewritten_in_place_agrees_with_the_cpu() {
         cpu.tick(1.0 / 60.0, &colliders);
         rig.ticks(&mut gpu, &gpu_colliders, 1);
     }
-    let g = gpu_positions(rig, &gpu);
+    let g = gpu_positions(&rig, &gpu);
     assert_draped_alike("skinned bunny, tick 180", &cpu.positions(), &g, &colliders[0]);
     // A different layout is refused.
     assert!(!gpu_colliders.rewrite_trees(&rig.queue, &[bunny(3)], &[0]));
@@ -753,7 +743,7 @@ fn a_skinned_collider_refitted_on_the_gpu_matches_the_cpu_refit() {
     let (mut worst_sphere, mut worst_box, mut worst_reach) = (0.0f32, 0.0f32, 0.0f32);
     for k in 0..6 {
         let pose = bunny_sway(0.4 * k as f32);
-        gpu_refit(rig, &mut colliders, &refit, &pose);
+        gpu_refit(&rig, &mut colliders, &refit, &pose);
         let mut cpu = colliders[1].clone();
         cpu.pose_skin(&pose, &mut scratch).unwrap();
         let want = cpu.lbvh().unwrap();
@@ -803,11 +793,11 @@ fn a_skinned_collider_refitted_on_the_gpu_matches_the_cpu_refit() {
         let pose = bunny_sway(tick as f32 / 100.0);
         cpu_colliders[1].pose_skin(&pose, &mut scratch).unwrap();
         gpu.update_frames(&rig.queue, &colliders);
-        gpu_refit(rig, &mut colliders, &refit, &pose);
+        gpu_refit(&rig, &mut colliders, &refit, &pose);
         cpu.tick(1.0 / 60.0, &cpu_colliders);
         rig.ticks(&mut cloth, &gpu, 1);
     }
-    let g = gpu_positions(rig, &cloth);
+    let g = gpu_positions(&rig, &cloth);
     assert_draped_alike("swaying skinned bunny refitted on the GPU, tick 150", &cpu.positions(), &g, &cpu_colliders[1]);
     // A tree of another size is not bound.
     let other = GpuColliders::new(&rig.device, &[bunny(3), bunny(4)]);
@@ -856,7 +846,7 @@ fn exact_contact_agrees_with_the_cpu() {
             cpu.tick(1.0 / 60.0, &colliders);
             rig.ticks(&mut gpu, &gpu_colliders, 1);
         }
-        let (c, g) = (cpu.positions(), gpu_positions(rig, &gpu));
+        let (c, g) = (cpu.positions(), gpu_positions(&rig, &gpu));
         let gap = centroid(&c).distance(centroid(&g));
         eprintln!("exact contact, {scene}, tick 150: centroid gap {gap:e} m, lowest {} vs {}", lowest(&c), lowest(&g));
         assert!(gap < 0.02 && (lowest(&c) - lowest(&g)).abs() < 0.03, "{scene}: the GPU's drape is not the CPU's");
@@ -951,7 +941,7 @@ fn authored_mesh_with_moving_anchors_agrees_with_the_cpu() {
             }
             gpu.batch.set_anchor_targets(gpu.id, &targets);
             rig.ticks(&mut gpu, &none, TICKS);
-            let on_gpu = gpu_positions(rig, &gpu);
+            let on_gpu = gpu_positions(&rig, &gpu);
             worst = worst.max(largest_gap(&cpu.positions(), &on_gpu));
             for &(i, target) in targets.last().unwrap() {
                 pin_gap = pin_gap.max(on_gpu[i as usize].distance(target));
@@ -970,7 +960,7 @@ fn authored_mesh_with_moving_anchors_agrees_with_the_cpu() {
         const STRIDE: u32 = 8;
         let writeback = GpuMeshWriteback::new(Affine3A::IDENTITY, 0, STRIDE, 0, 4);
         let out = rig.write_vertices(&mut gpu, writeback, vec![0.0; positions.len() * STRIDE as usize]);
-        let on_gpu = gpu_positions(rig, &gpu);
+        let on_gpu = gpu_positions(&rig, &gpu);
         let vertex = |v: usize| &out[v * STRIDE as usize..][..STRIDE as usize];
         let topology = cpu.topology();
         for (v, &p) in topology.vertex_particle().iter().enumerate() {
@@ -1468,7 +1458,7 @@ fn a_cloth_dropped_on_primitives_agrees_with_the_cpu() {
         cpu.tick(1.0 / 60.0, &colliders);
     }
     rig.ticks(&mut gpu, &gpu_colliders, 240);
-    let (c, g) = (cpu.positions(), gpu_positions(rig, &gpu));
+    let (c, g) = (cpu.positions(), gpu_positions(&rig, &gpu));
     eprintln!(
         "primitive drop, tick 240: centroid gap {:e} m, lowest {} vs {}",
         centroid(&c).distance(centroid(&g)),
@@ -1603,7 +1593,7 @@ fn self_contact_on_the_gpu_keeps_two_cloths_apart() {
         for (_, sim) in cloths.iter_mut().filter(|_| !contact) {
             sim.set_params(ClothParams { self_contact: None, ..sim.params().clone() }).unwrap();
         }
-        let (x, crossing) = contact_scene_on_the_gpu(rig, &cloths, &colliders, if contact { 180 } else { 60 });
+        let (x, crossing) = contact_scene_on_the_gpu(&rig, &cloths, &colliders, if contact { 180 } else { 60 });
         let close: usize = x[0].iter().map(|p| x[1].iter().filter(|q| p.distance(**q) < 0.004).count()).sum();
         assert!(x.iter().flatten().all(|p| p.is_finite()));
         eprintln!("GPU, contact {contact}: {crossing} crossing triangles, {close} close pairs between the cloths");
@@ -1675,7 +1665,7 @@ fn cloths_whose_layers_do_not_meet_pass_through_each_other_on_the_gpu() {
         let layers = CollisionLayers::new(own, own | CollisionLayers::DEFAULT.memberships);
         sim.set_params(ClothParams { layers, ..sim.params().clone() }).unwrap();
     }
-    let (x, crossing) = contact_scene_on_the_gpu(rig, &cloths, &colliders, 60);
+    let (x, crossing) = contact_scene_on_the_gpu(&rig, &cloths, &colliders, 60);
     let inside = x.iter().take(2).flatten().filter(|&&p| colliders[0].contains(p)).count();
     eprintln!("GPU, contact cloths on layers apart: {crossing} crossing triangles, {inside} particles in the ball");
     assert!(crossing > 100, "only {crossing} triangles cross: the cloths kept off each other");
