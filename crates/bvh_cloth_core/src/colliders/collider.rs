@@ -90,14 +90,10 @@ impl Collider {
     }
 
     /// As [`Self::from_mesh_exact`], with the voxels `voxels` gives.
-    /// The spheres and the triangle surface are built side by side on the rayon pool: each
-    /// build has stretches that run on one thread (a sort, the top of a tree), which the other
-    /// fills.
     pub fn from_mesh_in_exact(mesh: MeshRef<'_>, voxels: Voxels) -> Result<Self, ColliderError> {
-        let (collider, built) = rayon::join(|| Self::from_mesh_in(mesh, voxels), || TriangleSurface::build(mesh));
-        let mut collider = collider?;
+        let mut collider = Self::from_mesh_in(mesh, voxels)?;
         if let ColliderShape::Spheres { surface, .. } = &mut collider.shape {
-            *surface = Some(Arc::new(built?));
+            *surface = Some(Arc::new(TriangleSurface::build(mesh)?));
         }
         Ok(collider)
     }
