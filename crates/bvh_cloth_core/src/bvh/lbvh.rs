@@ -80,6 +80,7 @@ fn common_prefix(keys: &[u64], i: i64, j: i64) -> i32 {
     }
 }
 
+/// Builds inner node `i` from the sorted keys: its key range, its split and its children.
 fn build_inner_node(keys: &[u64], i: usize) -> BvhNode {
     let i = i as i64;
     let d: i64 = if common_prefix(keys, i, i + 1) - common_prefix(keys, i, i - 1) >= 0 { 1 } else { -1 };
