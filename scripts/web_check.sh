@@ -36,15 +36,14 @@ web_tools
 
 target=${CARGO_TARGET_DIR:-$HOME/.cache/bevy_bvh_cloth/target}
 out=$target/web/web_check
-# The `web-check` profile: `.ci/run`'s `ci` profile (the dependencies not optimised, the core
-# optimised: a quick build that runs fast enough) without debug info. Without the `egui`
-# feature: the check shows no panel, and the panel and its font and text stack would add 69
-# crates to the 280 the check builds.
+# `.ci/run`'s `ci` profile (the dependencies not optimised, the core optimised, no debug info: a
+# quick build that runs fast enough). Without the `egui` feature: the check shows no panel, and
+# the panel and its font and text stack would add 69 crates to the 280 the check builds.
 CARGO_TARGET_DIR=$target cargo build --locked -p bevy_bvh_cloth --example web_check \
-    --target wasm32-unknown-unknown --features bevy/webgpu --profile web-check
+    --target wasm32-unknown-unknown --features bevy/webgpu --profile ci
 rm -rf "$out"
 wasm-bindgen --target web --no-typescript --out-dir "$out" --out-name web_check \
-    "$target/wasm32-unknown-unknown/web-check/examples/web_check.wasm"
+    "$target/wasm32-unknown-unknown/ci/examples/web_check.wasm"
 cp scripts/web/check.html "$out/index.html"
 cp scripts/web/start.js "$out/"
 

@@ -97,25 +97,64 @@ pub fn skinned_triangles(app: &App, shoulder: Entity, elbow: Entity) -> Vec<[Vec
     indices.chunks_exact(3).map(|t| [0, 1, 2].map(|k| Vec3::from(skinned[t[k] as usize]))).collect()
 }
 
-/// Whether `p` is inside the closed triangle mesh: the parity of a ray's crossings.
-pub fn inside(p: Vec3, triangles: &[[Vec3; 3]]) -> bool {
-    let dir = Vec3::new(0.1234, 1.0, 0.0457).normalize();
-    let crossings = triangles
-        .iter()
-        .filter(|[a, b, c]| {
-            // Möller–Trumbore.
-            let (e1, e2) = (*b - *a, *c - *a);
-            let h = dir.cross(e2);
-            let det = e1.dot(h);
-            if det.abs() < 1e-12 {
-                return false;
-            }
-            let s = p - *a;
-            let u = s.dot(h) / det;
-            let q = s.cross(e1);
-            let v = dir.dot(q) / det;
-            u >= 0.0 && v >= 0.0 && u + v <= 1.0 && e2.dot(q) / det > 0.0
-        })
-        .count();
-    crossings % 2 == 1
+/// A closed triangle mesh for inside tests: the parity of the crossings of a ray from the point.
+/// Each triangle keeps its bounds seen along the ray (in the plane the ray's direction projects
+/// to a point), so that a query runs the exact crossing test only on the few triangles whose
+/// bounds hold the point's projection.
+pub struct Solid {
+    triangles: Vec<[Vec3; 3]>,
+    /// Per triangle: the least and the greatest of its corners' projections, `[u0, w0, u1, w1]`.
+    bounds: Vec<[f32; 4]>,
+}
+
+/// The ray's direction: off every axis, so that no face of the arm lies along it.
+const RAY: Vec3 = Vec3::new(0.1234, 1.0, 0.0457);
+
+/// Where the ray through `p` meets the plane `y = 0`: constant along the ray.
+fn project(p: Vec3) -> [f32; 2] {
+    [p.x - p.y * RAY.x / RAY.y, p.z - p.y * RAY.z / RAY.y]
+}
+
+impl Solid {
+    pub fn new(triangles: Vec<[Vec3; 3]>) -> Self {
+        let bounds = triangles
+            .iter()
+            .map(|t| {
+                let [a, b, c] = t.map(project);
+                [a[0].min(b[0]).min(c[0]), a[1].min(b[1]).min(c[1]), a[0].max(b[0]).max(c[0]), a[1].max(b[1]).max(c[1])]
+            })
+            .collect();
+        Self { triangles, bounds }
+    }
+
+    /// Whether `p` is inside (Möller–Trumbore on the triangles whose projected bounds hold `p`'s).
+    pub fn contains(&self, p: Vec3) -> bool {
+        let dir = RAY.normalize();
+        let [u, w] = project(p);
+        let crossings = self
+            .triangles
+            .iter()
+            .zip(&self.bounds)
+            .filter(|(_, b)| u >= b[0] && w >= b[1] && u <= b[2] && w <= b[3])
+            .filter(|([a, b, c], _)| {
+                let (e1, e2) = (*b - *a, *c - *a);
+                let h = dir.cross(e2);
+                let det = e1.dot(h);
+                if det.abs() < 1e-12 {
+                    return false;
+                }
+                let s = p - *a;
+                let u = s.dot(h) / det;
+                let q = s.cross(e1);
+                let v = dir.dot(q) / det;
+                u >= 0.0 && v >= 0.0 && u + v <= 1.0 && e2.dot(q) / det > 0.0
+            })
+            .count();
+        crossings % 2 == 1
+    }
+
+    /// The triangles, as given.
+    pub fn triangles(&self) -> &[[Vec3; 3]] {
+        &self.triangles
+    }
 }

@@ -6,7 +6,7 @@ use bevy_bvh_cloth::prelude::*;
 use bevy_bvh_cloth::{ClothCollider, ColliderFailure};
 
 use crate::headless::harness::{app, positions, run, sent, wait_for_collider};
-use crate::skinned_arm::{RADIUS, arm, arm_mesh, inside, skinned_triangles, spawn_arm};
+use crate::skinned_arm::{RADIUS, Solid, arm, arm_mesh, skinned_triangles, spawn_arm};
 
 /// A cloth dropped on an arm that then swings at the shoulder and bends at the elbow for 10 s:
 /// after every tick no particle is inside the skinned body (the parity test against the triangles the
@@ -37,15 +37,15 @@ fn a_cloth_on_an_animated_arm_never_ends_a_tick_inside_it() {
         app.world_mut().get_mut::<Transform>(shoulder).unwrap().rotation = Quat::from_rotation_z(swing);
         app.world_mut().get_mut::<Transform>(elbow).unwrap().rotation = Quat::from_rotation_z(bend);
         run(&mut app, 1.0 / 60.0);
-        let triangles = skinned_triangles(&app, shoulder, elbow);
+        let body = Solid::new(skinned_triangles(&app, shoulder, elbow));
         let p = positions(&app, cloth);
-        let bad: Vec<usize> = (0..p.len()).filter(|&i| inside(p[i], &triangles)).collect();
+        let bad: Vec<usize> = (0..p.len()).filter(|&i| body.contains(p[i])).collect();
         assert!(bad.is_empty(), "at {t:.2} s particles {bad:?} are inside the arm");
         checked += p.len();
         // The cloth is on the arm: many particles within 5 cm of its collider.
         let near = app.world().get::<ClothCollider>(arm).unwrap().collider().clone().with_margin(0.05);
         touching += usize::from(p.iter().filter(|&&q| near.contains(q)).count() >= 50);
-        let tip = triangles.iter().flatten().map(|v| v.y).fold(f32::NEG_INFINITY, f32::max);
+        let tip = body.triangles().iter().flatten().map(|v| v.y).fold(f32::NEG_INFINITY, f32::max);
         lifted = lifted.max(tip);
     }
     assert_eq!(checked, 660 * 24 * 24);

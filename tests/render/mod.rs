@@ -562,7 +562,7 @@ fn the_gpu_backend_runs_every_tick_of_a_fixed_schedule() {
 /// tree in place instead; the arm is lowered and the cloth still rests on it.
 #[test]
 fn the_gpu_backend_refits_a_skinned_collider() {
-    use crate::skinned_arm::{RADIUS, arm_mesh, inside, skinned_triangles, spawn_arm};
+    use crate::skinned_arm::{RADIUS, Solid, arm_mesh, skinned_triangles, spawn_arm};
     let Some(mut app) = gpu_backend_app() else { return };
     let (arm, shoulder, elbow) = spawn_arm(&mut app, arm_mesh(), Vec3::new(-0.6, 1.0, 0.0));
     let cloth = app
@@ -584,9 +584,9 @@ fn the_gpu_backend_refits_a_skinned_collider() {
             app.update();
         }
         assert!(app.world().get::<ClothReadback>(cloth).unwrap().ticks_late.is_some(), "a state arrived");
-        let triangles = skinned_triangles(app, shoulder, elbow);
+        let body = Solid::new(skinned_triangles(app, shoulder, elbow));
         let p = app.world().get::<ClothSimulation>(cloth).unwrap().sim().positions().to_vec();
-        let bad = p.iter().filter(|&&q| inside(q, &triangles)).count();
+        let bad = p.iter().filter(|&&q| body.contains(q)).count();
         assert_eq!(bad, 0, "{bad} particles read back inside the arm");
         p.iter().map(|q| q.y).fold(f32::MIN, f32::max)
     };

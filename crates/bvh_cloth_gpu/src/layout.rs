@@ -549,26 +549,6 @@ pub fn load_gpu_particles(sim: &mut ClothSim, particles: &[GpuParticle]) {
     }
 }
 
-#[cfg(test)]
-mod tests {
-    use super::*;
-
-    #[test]
-    fn sizes_are_multiples_of_sixteen() {
-        assert_eq!(size_of::<GpuParticle>(), 32);
-        assert_eq!(size_of::<GpuBatchCloth>(), 112);
-        assert_eq!(size_of::<GpuColourPass>(), 16);
-        assert_eq!(size_of::<GpuContactFrame>(), 32);
-        assert_eq!(std::mem::offset_of!(GpuBatchCloth, faults) as u64, GpuBatchCloth::HOST_BYTES);
-        assert_eq!(size_of::<GpuBatchFrame>(), 16);
-        assert_eq!(size_of::<GpuBatchStep>(), 16);
-        assert_eq!(size_of::<GpuBatchWriteback>(), 176);
-        assert_eq!(size_of::<GpuWritebackGroup>(), 16);
-        assert_eq!(size_of::<GpuCollider>(), 208);
-        assert_eq!(size_of::<GpuMeshWriteback>(), 144);
-    }
-}
-
 /// One vertex of a skinned collider, as the GPU refit skins it: the bind position, four joints
 /// (two to a word, low half first) and their weights. 48 bytes.
 #[repr(C)]

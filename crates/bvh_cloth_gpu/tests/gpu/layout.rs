@@ -235,6 +235,24 @@ fn wgsl_structs_match_the_rust_layouts() {
     assert_eq!((offset_of!(Sphere, center), offset_of!(Sphere, radius)), (0, 12));
 }
 
+/// Every struct a kernel reads as an array member is a multiple of 16 bytes, the alignment of the
+/// `vec4` members WGSL lays out, and the host's part of a batch cloth ends where the kernels'
+/// fault counter begins.
+#[test]
+fn sizes_are_multiples_of_sixteen() {
+    assert_eq!(size_of::<GpuParticle>(), 32);
+    assert_eq!(size_of::<GpuBatchCloth>(), 112);
+    assert_eq!(size_of::<GpuColourPass>(), 16);
+    assert_eq!(size_of::<GpuContactFrame>(), 32);
+    assert_eq!(offset_of!(GpuBatchCloth, faults) as u64, GpuBatchCloth::HOST_BYTES);
+    assert_eq!(size_of::<GpuBatchFrame>(), 16);
+    assert_eq!(size_of::<GpuBatchStep>(), 16);
+    assert_eq!(size_of::<GpuBatchWriteback>(), 176);
+    assert_eq!(size_of::<GpuWritebackGroup>(), 16);
+    assert_eq!(size_of::<GpuCollider>(), 208);
+    assert_eq!(size_of::<GpuMeshWriteback>(), 144);
+}
+
 /// The constants the kernels share with the core are written from the Rust side: no shader file
 /// defines one of them by hand, each file that uses one imports it from `bvh_cloth::constants`,
 /// and every one of them is used.
