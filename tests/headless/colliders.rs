@@ -5,7 +5,7 @@ use bevy::mesh::{Indices, PrimitiveTopology};
 use bevy::prelude::*;
 use bevy_bvh_cloth::bvh_cloth_core::{Collider, ColliderShape, MeshRef, parse_obj};
 use bevy_bvh_cloth::prelude::*;
-use bevy_bvh_cloth::{ClothCollider, ColliderFailure, ColliderPart};
+use bevy_bvh_cloth::{ClothCollider, ColliderFailure, ColliderPart, collider_from_mesh};
 
 use crate::headless::harness::{add_mesh, app, positions, run, sent, wait_for_collider};
 
@@ -18,6 +18,31 @@ fn ball(app: &mut App, radius: f32) -> Handle<Mesh> {
 fn inside(app: &App, cloth: Entity, collider: Entity) -> usize {
     let collider = app.world().get::<ClothCollider>(collider).unwrap().collider();
     positions(app, cloth).iter().filter(|&&p| collider.contains(p)).count()
+}
+
+/// A mesh becomes a collider only as an indexed or plain triangle list the main world can read;
+/// every other mesh is refused with its reason.
+#[test]
+fn reads_triangles_and_refuses_the_rest() {
+    let mut mesh = Mesh::new(PrimitiveTopology::TriangleList, RenderAssetUsages::default());
+    assert_eq!(collider_from_mesh(&mesh, 3).unwrap_err(), ColliderFailure::NoPositions);
+    mesh.insert_attribute(
+        Mesh::ATTRIBUTE_POSITION,
+        vec![[0.0f32, 0.0, 0.0], [1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [0.0, 0.0, 1.0]],
+    );
+    mesh.insert_indices(Indices::U16(vec![0, 1, 2, 0, 3, 1, 0, 2, 3, 1, 3, 2]));
+    let tetrahedron = collider_from_mesh(&mesh, 3).unwrap();
+    assert!(tetrahedron.sphere_count() > 0);
+    // With exact contact, against the triangles read from the index list: the closest point
+    // to one just below the face in z = 0 lies on that face.
+    let surface = tetrahedron.surface().expect("the default collider has exact contact");
+    let closest = surface.closest_within(Vec3::new(0.2, 0.2, -0.05), 0.1).expect("a face within reach");
+    assert!(closest.distance(Vec3::new(0.2, 0.2, 0.0)) < 1e-6, "closest point {closest}");
+
+    let lines = Mesh::new(PrimitiveTopology::LineList, RenderAssetUsages::default());
+    assert_eq!(collider_from_mesh(&lines, 3).unwrap_err(), ColliderFailure::NotTriangles(PrimitiveTopology::LineList));
+    let render_only = Mesh::new(PrimitiveTopology::TriangleList, RenderAssetUsages::RENDER_WORLD);
+    assert_eq!(collider_from_mesh(&render_only, 3).unwrap_err(), ColliderFailure::NotInMainWorld);
 }
 
 #[test]

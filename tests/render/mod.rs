@@ -6,10 +6,10 @@
 //! Also on the GPU backend, through the whole renderer: a diverged cloth is reset and reported,
 //! and hundreds of spawn, rebuild and despawn rounds leave no wgpu buffer or bind group behind.
 //!
-//! (The fallback decision for a device without compute shaders is unit-tested in the plugin's
-//! `backend` module. It cannot be staged here: constraining lavapipe's limits below what the
-//! kernels need also breaks Bevy 0.19's own GPU preprocessing and clustering, which key on the
-//! adapter's compute support.)
+//! (The fallback decision for a device without compute shaders is tested on its own, through
+//! `ActiveClothBackend::choose`, in the headless `backend` tests. It cannot be staged here:
+//! constraining lavapipe's limits below what the kernels need also breaks Bevy 0.19's own GPU
+//! preprocessing and clustering, which key on the adapter's compute support.)
 //!
 //! Without an adapter this test passes with a note, unless `BVH_CLOTH_REQUIRE_GPU` is set (as
 //! `.ci/run` sets it).

@@ -52,41 +52,30 @@ impl ActiveClothBackend {
 /// What the device offers the GPU backend: `Ok`, or why it cannot run the kernels.
 pub(crate) type GpuCapability = Result<(), String>;
 
-/// Decides the backend, logging a fallback: once, as a warning for `Auto` and an error for an
-/// explicit `Gpu`. With no renderer at all there is nothing to warn about.
-pub(crate) fn choose_backend(requested: ClothBackend, gpu: Option<GpuCapability>) -> ActiveClothBackend {
-    match (requested, gpu) {
-        (ClothBackend::Cpu, _) => ActiveClothBackend::Cpu,
-        (_, Some(Ok(()))) => ActiveClothBackend::Gpu,
-        (ClothBackend::Auto, None) => ActiveClothBackend::Cpu,
-        (ClothBackend::Auto, Some(Err(reason))) => {
-            warn!("bevy_bvh_cloth: {reason}; simulating cloth on the CPU");
-            ActiveClothBackend::Cpu
-        }
-        (ClothBackend::Gpu, gpu) => {
-            let reason = gpu.and_then(Result::err).unwrap_or_else(|| "the app has no renderer".into());
-            error!("bevy_bvh_cloth: the GPU backend was asked for, but {reason}; simulating cloth on the CPU");
-            ActiveClothBackend::Cpu
+impl ActiveClothBackend {
+    /// The backend the plugin runs for `requested` on a renderer that offers `gpu`: `Ok` where
+    /// the device runs the kernels, the reason where it does not, `None` for an app without a
+    /// renderer. A fallback to the CPU is logged once, as a warning for
+    /// [`ClothBackend::Auto`] and as an error for an explicit [`ClothBackend::Gpu`]; without a
+    /// renderer `Auto` takes the CPU silently.
+    pub fn choose(requested: ClothBackend, gpu: Option<Result<(), String>>) -> Self {
+        match (requested, gpu) {
+            (ClothBackend::Cpu, _) => Self::Cpu,
+            (_, Some(Ok(()))) => Self::Gpu,
+            (ClothBackend::Auto, None) => Self::Cpu,
+            (ClothBackend::Auto, Some(Err(reason))) => {
+                warn!("bevy_bvh_cloth: {reason}; simulating cloth on the CPU");
+                Self::Cpu
+            }
+            (ClothBackend::Gpu, gpu) => {
+                let reason = gpu.and_then(Result::err).unwrap_or_else(|| "the app has no renderer".into());
+                error!("bevy_bvh_cloth: the GPU backend was asked for, but {reason}; simulating cloth on the CPU");
+                Self::Cpu
+            }
         }
     }
 }
 
 pub(crate) fn cpu_backend_active(active: Res<ActiveClothBackend>) -> bool {
     *active == ActiveClothBackend::Cpu
-}
-
-#[cfg(test)]
-mod tests {
-    use super::*;
-
-    #[test]
-    fn falls_back_to_the_cpu_without_compute_shaders() {
-        let no_compute = || Some(Err("the device does not run compute shaders".to_string()));
-        assert_eq!(choose_backend(ClothBackend::Auto, Some(Ok(()))), ActiveClothBackend::Gpu);
-        assert_eq!(choose_backend(ClothBackend::Auto, no_compute()), ActiveClothBackend::Cpu);
-        assert_eq!(choose_backend(ClothBackend::Auto, None), ActiveClothBackend::Cpu);
-        assert_eq!(choose_backend(ClothBackend::Gpu, no_compute()), ActiveClothBackend::Cpu);
-        assert_eq!(choose_backend(ClothBackend::Gpu, None), ActiveClothBackend::Cpu);
-        assert_eq!(choose_backend(ClothBackend::Cpu, Some(Ok(()))), ActiveClothBackend::Cpu);
-    }
 }

@@ -92,27 +92,3 @@ impl TriangleList {
 pub fn collider_from_mesh(mesh: &Mesh, n: u32) -> Result<Collider, ColliderFailure> {
     TriangleList::from_mesh(mesh)?.build(Voxels::PerAxis(n), true)
 }
-
-#[cfg(test)]
-mod tests {
-    use super::*;
-
-    #[test]
-    fn reads_indexed_triangles_and_refuses_the_rest() {
-        let mut mesh = Mesh::new(PrimitiveTopology::TriangleList, RenderAssetUsages::default());
-        assert_eq!(TriangleList::from_mesh(&mesh).unwrap_err(), ColliderFailure::NoPositions);
-        mesh.insert_attribute(Mesh::ATTRIBUTE_POSITION, vec![[0.0f32, 0.0, 0.0], [1.0, 0.0, 0.0], [0.0, 1.0, 0.0]]);
-        mesh.insert_indices(Indices::U16(vec![0, 1, 2]));
-        let list = TriangleList::from_mesh(&mesh).unwrap();
-        assert_eq!(list.indices, Some(vec![0, 1, 2]));
-        assert_eq!(list.len(), 3);
-
-        let lines = Mesh::new(PrimitiveTopology::LineList, RenderAssetUsages::default());
-        assert_eq!(
-            TriangleList::from_mesh(&lines).unwrap_err(),
-            ColliderFailure::NotTriangles(PrimitiveTopology::LineList)
-        );
-        let render_only = Mesh::new(PrimitiveTopology::TriangleList, RenderAssetUsages::RENDER_WORLD);
-        assert_eq!(TriangleList::from_mesh(&render_only).unwrap_err(), ColliderFailure::NotInMainWorld);
-    }
-}

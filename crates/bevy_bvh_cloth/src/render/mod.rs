@@ -101,7 +101,7 @@ impl Plugin for GpuBackendPlugin {
 
     fn finish(&self, app: &mut App) {
         let requested = *app.world().resource::<ClothBackend>();
-        let active = backend::choose_backend(requested, gpu_capability(app));
+        let active = ActiveClothBackend::choose(requested, gpu_capability(app));
         app.insert_resource(active);
         if active != ActiveClothBackend::Gpu {
             return;

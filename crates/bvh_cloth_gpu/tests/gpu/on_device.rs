@@ -1580,10 +1580,10 @@ fn contact_scene_on_the_gpu(
     (x, crossing)
 }
 
-/// The contact scene on the GPU alone for 3 s: the upper cloth rests on the lower, no triangle of
-/// one crosses the other's and no particle is closer than half the thickness to one of the
-/// other cloth. The control, the same scene without self-contact, crosses within 1 s (the upper
-/// cloth meets the lower from about tick 10).
+/// The contact scene on the GPU alone for 2 s: the upper cloth lands on the lower from about tick
+/// 10 and rests on it; at the end no triangle of one crosses the other's and no particle is
+/// closer than half the thickness to one of the other cloth. The control, the same scene
+/// without self-contact, crosses within 1 s.
 #[test]
 fn self_contact_on_the_gpu_keeps_two_cloths_apart() {
     let Some(rig) = rig() else { return };
@@ -1593,7 +1593,7 @@ fn self_contact_on_the_gpu_keeps_two_cloths_apart() {
         for (_, sim) in cloths.iter_mut().filter(|_| !contact) {
             sim.set_params(ClothParams { self_contact: None, ..sim.params().clone() }).unwrap();
         }
-        let (x, crossing) = contact_scene_on_the_gpu(&rig, &cloths, &colliders, if contact { 180 } else { 60 });
+        let (x, crossing) = contact_scene_on_the_gpu(&rig, &cloths, &colliders, if contact { 120 } else { 60 });
         let close: usize = x[0].iter().map(|p| x[1].iter().filter(|q| p.distance(**q) < 0.004).count()).sum();
         assert!(x.iter().flatten().all(|p| p.is_finite()));
         eprintln!("GPU, contact {contact}: {crossing} crossing triangles, {close} close pairs between the cloths");
