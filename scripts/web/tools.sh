@@ -12,8 +12,8 @@ web_tools() {
         # optimisation or debug info: on the 2-core machine it built in 87 s against 201 s
         # optimised (190 s at opt-level 1) and binds the browser check's 87 MB page in 71 s
         # against 17 s, so a fresh machine, which does both once, is done about 60 s sooner.
-        local only=(--no-default-features --bin wasm-bindgen --debug)
-        CARGO_PROFILE_DEV_DEBUG=0 cargo install wasm-bindgen-cli --version "$version" "${only[@]}" --locked --force ||
-            CARGO_PROFILE_DEV_DEBUG=0 cargo install wasm-bindgen-cli --version "$version" "${only[@]}" --force
+        local install=(env CARGO_PROFILE_DEV_DEBUG=0 cargo install wasm-bindgen-cli --version "$version"
+            --no-default-features --bin wasm-bindgen --debug --force)
+        "${install[@]}" --locked || "${install[@]}"
     fi
 }
