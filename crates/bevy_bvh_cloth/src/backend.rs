@@ -49,9 +49,6 @@ impl ActiveClothBackend {
     }
 }
 
-/// What the device offers the GPU backend: `Ok`, or why it cannot run the kernels.
-pub(crate) type GpuCapability = Result<(), String>;
-
 impl ActiveClothBackend {
     /// The backend the plugin runs for `requested` on a renderer that offers `gpu`: `Ok` where
     /// the device runs the kernels, the reason where it does not, `None` for an app without a

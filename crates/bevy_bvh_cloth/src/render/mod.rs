@@ -49,7 +49,7 @@ use bevy::render::renderer::{RenderAdapter, RenderDevice, RenderGraph};
 use bevy::render::{ExtractSchedule, Render, RenderApp, RenderSystems};
 use bevy::shader::Shader;
 
-use crate::backend::{self, ActiveClothBackend, ClothBackend, cpu_backend_active};
+use crate::backend::{ActiveClothBackend, ClothBackend, cpu_backend_active};
 use crate::clock::ClothClock;
 use crate::cloth::simulation::{ClothSimulation, plan_anchors, rigid_pose, sync_cloths, warn_stiff_cloths};
 use crate::cloth::stats::update_stats;
@@ -121,8 +121,9 @@ impl Plugin for GpuBackendPlugin {
     }
 }
 
-/// What the render device offers the GPU backend; `None` when the app does not render.
-fn gpu_capability(app: &App) -> Option<backend::GpuCapability> {
+/// What the render device offers the GPU backend: `Ok`, or why it cannot run the kernels;
+/// `None` when the app does not render.
+fn gpu_capability(app: &App) -> Option<Result<(), String>> {
     let render_world = app.get_sub_app(RenderApp)?.world();
     let adapter = render_world.get_resource::<RenderAdapter>()?;
     let device = render_world.get_resource::<RenderDevice>()?;
