@@ -37,24 +37,24 @@
 //! may move away from its pin at its own speed. The rope takes speed, not position, so a
 //! cloth still settles where its springs hold it: hanging from two corners (damping 2, after
 //! 8 s), 0.33 % short of RK4's sag at 32 x 32
-//! (`cargo test -p bvh_cloth_core --release --test block_descent -- --nocapture hangs_to`).
+//! (`cargo test -p bvh_cloth_core --release --test core -- --nocapture hangs_to`).
 //!
 //! ## Measured
 //! The same cloth, dropped flat, at the defaults (Looper 16, one sweep), against RK4 at the same
 //! resolution; the sag of the last row's middle below the pins and the p99 strain of the
-//! structural springs at 1 s, the top of the first swing back
-//! (`cargo test -p bvh_cloth_core --release --test motion -- --nocapture`; 256 x 256 from
-//! the report's `motion` section, BENCHMARKS.md):
+//! structural springs at 1 s, the top of the first swing back. With tethers from 32 x 32 to
+//! 128 x 128: `cargo test -p bvh_cloth_core --release --test core -- --nocapture motion::`;
+//! without them, and 256 x 256: the report's `motion` section (BENCHMARKS.md, "Motion"):
 //!
 //! | side | no tethers: sag vs RK4 | p99 strain vs RK4 | tethers 3 %: sag vs RK4 | p99 strain vs RK4 |
 //! |---|---|---|---|---|
-//! | 32 | +15 % | 1.08x | +18.6 % | 1.21x |
-//! | 64 | +47 % | 2.63x | +17.7 % | 1.02x |
-//! | 128 | +135 % | 8.9x | +14.6 % | 1.44x |
-//! | 256 | +285 % | 36.7x | +51 % | 3.9x |
+//! | 32 | +14 % | 1.06x | +18.3 % | 1.21x |
+//! | 64 | +45 % | 2.62x | +16.7 % | 1.03x |
+//! | 128 | +134 % | 9.1x | +15.7 % | 1.38x |
+//! | 256 | +284 % | 36.6x | +45 % | 3.4x |
 //!
-//! Their cost, one distance test per particle and substep: 1.08x the untethered tick at
-//! 64 x 64 and 1.05x at 256 x 256 (`cargo bench -p bvh_cloth_bench --bench report --
+//! Their cost, one distance test per particle and substep: 1.12x the untethered tick at
+//! 64 x 64 and 1.09x at 256 x 256 (`cargo bench -p bvh_cloth_bench --bench report --
 //! motion_cost`: the same state ticked with and without, alternated, best of 40 and of 8, on the
 //! 2-core development machine).
 //!
@@ -62,8 +62,8 @@
 //! away from its pin, not each spring's stretch, so at 256 x 256 the springs between still
 //! stretch unevenly while the cloth swings. At 32 x 32 the springs alone converge; what remains
 //! there is implicit Euler's damping ([`crate::solver::block_descent`]). The flag of the report's
-//! `wind` section, held along its pole, flutters at 3.7 Hz and 19 mm at the default, against
-//! RK4's 5.2 Hz and 17 mm (3.0 Hz and 13 mm without tethers).
+//! `wind` section, held along its pole, flutters at 3.0 Hz and 12 mm at the default, against
+//! RK4's 5.2 Hz and 17 mm.
 
 use glam::Vec3A;
 
