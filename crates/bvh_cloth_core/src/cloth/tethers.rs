@@ -36,7 +36,7 @@
 //! A cloth with no pin has no tethers. `slack` is how far beyond its rest distance a particle
 //! may move away from its pin at its own speed. The rope takes speed, not position, so a
 //! cloth still settles where its springs hold it: hanging from two corners (damping 2, after
-//! 8 s), 0.33 % short of RK4's sag at 32 x 32
+//! 8 s), 0.32 % short of RK4's sag at 32 x 32
 //! (`cargo test -p bvh_cloth_core --release --test core -- --nocapture hangs_to`).
 //!
 //! ## Measured
