@@ -47,9 +47,7 @@ impl ActiveClothBackend {
             Self::Gpu => "GPU",
         }
     }
-}
 
-impl ActiveClothBackend {
     /// The backend the plugin runs for `requested` on a renderer that offers `gpu`: `Ok` where
     /// the device runs the kernels, the reason where it does not, `None` for an app without a
     /// renderer. A fallback to the CPU is logged once, as a warning for

@@ -48,8 +48,8 @@
 //! mass floor), each part switched off in turn: the drop in 1 s, against
 //! `g/c (t - (1 - e^{-ct})/c)` = 4.180 m, and how far the centre of mass moves sideways on a
 //! frictionless ground in 3 s. The report's `motion` section gives the solver as it is, and
-//! `cargo test -p bvh_cloth_core --release --test core -- --nocapture free_fall::` prints its figures
-//! for the tests' poses.
+//! `cargo test -p bvh_cloth_core --release --test core -- --nocapture free_fall::` prints
+//! its figures for the tests' poses.
 //!
 //! | cloth | before: fell | drifted on the ground | first iterate alone: fell | on the ground | both: fell | on the ground |
 //! |---|---|---|---|---|---|---|
