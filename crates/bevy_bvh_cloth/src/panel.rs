@@ -133,6 +133,7 @@ fn cloth_panel(
                     if ui.radio(descent, "Block descent").clicked() && !descent {
                         c.params.integrator = Integrator::BLOCK_DESCENT;
                     }
+                    ui.radio_value(&mut c.params.integrator, Integrator::Multigrid, "Multigrid (CPU)");
                 });
                 if let Integrator::BlockDescent { iterations } = &mut c.params.integrator {
                     ui.add(egui::Slider::new(iterations, 1..=MAX_ITERATIONS).text("Iterations per substep"));

@@ -24,7 +24,8 @@
 //!     both backends, GPU against CPU in gusty wind, and what drag and lift cost.
 //! 13. Motion ([`motion`]): each solver setting's free fall and drift against the analytic
 //!     answer, a hanging cloth's sag and strain in motion against RK4 from 32 x 32 to 256 x 256,
-//!     and the flag's flutter; and what the tethers cost a tick (`motion_cost`).
+//!     and the flag's flutter; and what the tethers and the multigrid integrator cost a tick
+//!     (`motion_cost`).
 //!
 //! `WGPU_BACKEND=vulkan cargo bench -p bvh_cloth_bench --bench report`
 //! (without a GPU adapter the GPU columns say so and the rest still runs). Append `-- NAME...`

@@ -119,10 +119,12 @@ impl GpuBatchCloth {
             integrator: match params.integrator {
                 Integrator::Rk4 => INTEGRATOR_RK4,
                 Integrator::SemiImplicitEuler => INTEGRATOR_EULER,
-                Integrator::BlockDescent { .. } => INTEGRATOR_BLOCK_DESCENT,
+                // The multigrid integrator runs on the CPU only; here it is block descent.
+                Integrator::BlockDescent { .. } | Integrator::Multigrid => INTEGRATOR_BLOCK_DESCENT,
             },
             iterations: match params.integrator {
                 Integrator::BlockDescent { iterations } => iterations,
+                Integrator::Multigrid => 1,
                 _ => 0,
             },
             contact_thickness: params.self_contact.map_or(0.0, |c| c.thickness),

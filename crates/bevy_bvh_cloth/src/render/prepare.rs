@@ -12,7 +12,7 @@ use bevy::render::mesh::allocator::MeshAllocator;
 use bevy::render::render_asset::RenderAssets;
 use bevy::render::render_resource::PipelineCache;
 use bevy::render::renderer::{RenderDevice, RenderQueue};
-use bvh_cloth_core::Lbvh;
+use bvh_cloth_core::{Integrator, Lbvh};
 use bvh_cloth_gpu::layout::GpuMeshWriteback;
 use bvh_cloth_gpu::{
     ClothBatch, ClothKernels, FaultReadback, GpuColliders, ParticleReadback, PassTimer, SkinRefit, wgpu,
@@ -170,6 +170,7 @@ pub(super) fn prepare_cloths(
                         state: None,
                         self_contact: false,
                         aerodynamics: false,
+                        multigrid: false,
                     }),
                     Err(error) => {
                         error!("Cloth on {}: cannot run on the GPU: {error}; it stays at rest", cloth.entity);
@@ -196,6 +197,15 @@ pub(super) fn prepare_cloths(
         }
         render.ticks_run += u64::from(world.ticks);
         batch.set_params(&queue, render.id, &cloth.params, world.tick_seconds.max(f32::MIN_POSITIVE));
+        let multigrid = cloth.params.integrator == Integrator::Multigrid;
+        if multigrid && !render.multigrid {
+            warn!(
+                "Cloth on {}: Integrator::Multigrid runs on the CPU backend only; the GPU steps it as block \
+                 descent with one sweep and its tethers",
+                cloth.entity
+            );
+        }
+        render.multigrid = multigrid;
         render.self_contact = cloth.params.self_contact.is_some();
         render.aerodynamics = cloth.params.aerodynamics.is_active();
         batch.set_anchor_targets(render.id, &cloth.anchor_targets);

@@ -50,6 +50,9 @@ pub(super) struct RenderCloth {
     /// Whether its parameters ask for self-contact, and for drag or lift.
     pub(super) self_contact: bool,
     pub(super) aerodynamics: bool,
+    /// Whether its parameters ask for [`Integrator::Multigrid`](bvh_cloth_core::Integrator),
+    /// which the GPU steps as block descent (said once each time they start to).
+    pub(super) multigrid: bool,
 }
 
 /// The render world's cloth state.

@@ -8,13 +8,14 @@ use bvh_cloth_core::{Affine3A, ClothParams, ClothSim, ClothTopology, Collider, I
 
 use super::{flutter_on_cpu, hanging, sag_of, spectral_peak};
 
-/// The solver settings the tables compare: RK4 (the reference), block descent as it comes, and
-/// block descent with four sweeps a substep.
-const SETTINGS: [Integrator; 3] =
-    [Integrator::Rk4, Integrator::BLOCK_DESCENT, Integrator::BlockDescent { iterations: 4 }];
+/// The solver settings the tables compare: RK4 (the reference), block descent as it comes,
+/// block descent with four sweeps a substep, and the multigrid integrator.
+const SETTINGS: [Integrator; 4] =
+    [Integrator::Rk4, Integrator::BLOCK_DESCENT, Integrator::BlockDescent { iterations: 4 }, Integrator::Multigrid];
 
 /// The held cloth's settings: RK4, then block descent with and without its tethers (which act
-/// only on a held cloth), at one and four sweeps a substep.
+/// only on a held cloth), at one and four sweeps a substep, then the multigrid integrator (which
+/// has no tethers) at Looper 16 and 12.
 fn held_settings() -> Vec<(String, ClothParams)> {
     let default = ClothParams::default();
     let no_tethers = ClothParams { tethers: None, ..default.clone() };
@@ -29,6 +30,8 @@ fn held_settings() -> Vec<(String, ClothParams)> {
             ClothParams { integrator: four, ..default },
         ),
         ("block descent, 4 sweeps, no tethers".to_string(), ClothParams { integrator: four, ..no_tethers }),
+        ("multigrid".to_string(), ClothParams { integrator: Integrator::Multigrid, ..default.clone() }),
+        ("multigrid, Looper 12".to_string(), ClothParams { integrator: Integrator::Multigrid, looper: 12, ..default }),
     ]
 }
 
@@ -165,28 +168,56 @@ pub(super) fn motion() {
     }
 }
 
+/// A `side` x `side` cloth hanging from two corners, 0.5 s after it was let go.
+fn settled(side: u32, params: ClothParams) -> ClothSim {
+    let mut sim = hanging(side, params);
+    for _ in 0..30 {
+        sim.tick(TICK, &[]);
+    }
+    sim
+}
+
+/// The best of `rounds` ticks of `a` and of `b`, each from its own state, alternated, in seconds.
+fn best_ticks(a: &ClothSim, b: &ClothSim, rounds: u32) -> (f64, f64) {
+    let (mut best_a, mut best_b) = (f64::INFINITY, f64::INFINITY);
+    for _ in 0..rounds {
+        let (mut x, mut y) = (a.clone(), b.clone());
+        best_a = best_a.min(time(|| _ = x.tick(TICK, &[])));
+        best_b = best_b.min(time(|| _ = y.tick(TICK, &[])));
+    }
+    (best_a, best_b)
+}
+
 /// The section `motion_cost`: what the tethers cost a tick of a hanging cloth at the default
-/// settings, the same state ticked with and without them, alternated, best of each.
+/// settings, the same state ticked with and without them, alternated, best of each; then what
+/// the multigrid integrator costs against the default, the same way.
 pub(super) fn motion_cost() {
     println!("\n### What the tethers cost: a cloth of 1 m hanging from two corners for 0.5 s, then one tick\n");
     println!("| side | tick with tethers ms | without ms | with / without |");
     println!("|---|---|---|---|");
     for (side, rounds) in [(64u32, 40), (256, 8)] {
-        let settle = |params: ClothParams| {
-            let mut sim = hanging(side, params);
-            for _ in 0..30 {
-                sim.tick(TICK, &[]);
-            }
-            sim
-        };
-        let with = settle(ClothParams::default());
-        let without = settle(ClothParams { tethers: None, ..ClothParams::default() });
-        let (mut best_with, mut best_without) = (f64::INFINITY, f64::INFINITY);
-        for _ in 0..rounds {
-            let (mut a, mut b) = (with.clone(), without.clone());
-            best_with = best_with.min(time(|| _ = a.tick(TICK, &[])));
-            best_without = best_without.min(time(|| _ = b.tick(TICK, &[])));
-        }
+        let with = settled(side, ClothParams::default());
+        let without = settled(side, ClothParams { tethers: None, ..ClothParams::default() });
+        let (best_with, best_without) = best_ticks(&with, &without, rounds);
         println!("| {side} | {:.3} | {:.3} | {:.2}x |", best_with * 1e3, best_without * 1e3, best_with / best_without);
+    }
+    println!(
+        "\n### What the multigrid integrator costs: the same cloth, a tick of each setting from its own state at 0.5 s, alternated with the default's, best of each\n"
+    );
+    println!("| side | setting | tick ms | default ms | setting / default |");
+    println!("|---|---|---|---|---|");
+    for (side, rounds) in [(64u32, 40), (256, 8)] {
+        let default = settled(side, ClothParams::default());
+        for looper in [16, 12] {
+            let multigrid =
+                settled(side, ClothParams { integrator: Integrator::Multigrid, looper, ..ClothParams::default() });
+            let (best, best_default) = best_ticks(&multigrid, &default, rounds);
+            println!(
+                "| {side} | multigrid, Looper {looper} | {:.3} | {:.3} | {:.2}x |",
+                best * 1e3,
+                best_default * 1e3,
+                best / best_default
+            );
+        }
     }
 }

@@ -75,7 +75,9 @@ impl ClothSim {
                 self.run_stage(&model, h, &frames, Stage::Euler, Src::State, Dst::A);
                 core::mem::swap(&mut self.state, &mut self.stage_a);
             }
-            Integrator::BlockDescent { .. } => unreachable!("block descent returned above"),
+            Integrator::BlockDescent { .. } | Integrator::Multigrid => {
+                unreachable!("the implicit integrators are stepped by `descend`")
+            }
         }
     }
 

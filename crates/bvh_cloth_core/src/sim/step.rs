@@ -9,6 +9,7 @@ use super::*;
 use crate::colliders::collider::Collider;
 use crate::colliders::collision::ColliderFrame;
 use crate::self_contact::{ContactBody, ContactSolver, ContactStats, SelfContact, shared_substeps};
+use crate::solver::block_descent::Solve;
 use crate::solver::forces::{ForceModel, LANES};
 use crate::solver::params::Integrator;
 
@@ -27,12 +28,12 @@ impl ClothSim {
         let substeps = self.substeps(dt);
         let h = dt / substeps as f32;
         self.sample_air();
-        if let Integrator::BlockDescent { iterations } = self.params.integrator {
-            self.descend(h, substeps, iterations, colliders);
-        } else {
+        if self.params.integrator.is_explicit() {
             for _ in 0..substeps {
                 self.explicit_substep(h, colliders);
             }
+        } else {
+            self.descend(h, substeps, colliders);
         }
         self.wind_time += f64::from(dt);
         self.ticked(substeps)
@@ -43,8 +44,9 @@ impl ClothSim {
         Ticked { substeps, non_finite: self.non_finite_particles(), quarantined: self.quarantined }
     }
 
-    /// Runs `substeps` block-descent substeps of `h` seconds on positions kept by particle.
-    fn descend(&mut self, h: f32, substeps: u32, iterations: u32, colliders: &[Collider]) {
+    /// Runs `substeps` block-descent or multigrid substeps of `h` seconds on positions kept by
+    /// particle.
+    fn descend(&mut self, h: f32, substeps: u32, colliders: &[Collider]) {
         let frames = self.frames(colliders);
         let model = ForceModel::new(&self.params);
         let n = self.len();
@@ -52,13 +54,29 @@ impl ClothSim {
         descent.resize(n);
         let free_body = self.is_free_body();
         let tether_set = Arc::clone(&self.tethers);
-        let tethers = self.params.tethers.filter(|_| !tether_set.is_empty()).map(|t| (&*tether_set, 1.0 + t.slack));
+        let solve = match self.params.integrator {
+            Integrator::BlockDescent { iterations } => Solve::Sweeps {
+                iterations,
+                tethers: self.params.tethers.filter(|_| !tether_set.is_empty()).map(|t| (&*tether_set, 1.0 + t.slack)),
+            },
+            _ => Solve::Multigrid,
+        };
         let w = self.width;
+        // BDF2 builds on the last substep only if nothing changed a free particle since.
+        let mut changed = false;
         for (r, row) in self.state.chunks_exact(LANES * w).enumerate() {
             for c in 0..w.min(n.saturating_sub(r * w)) {
-                descent.x[r * w + c] = Vec3A::new(row[c], row[w + c], row[2 * w + c]);
-                descent.v[r * w + c] = Vec3A::new(row[3 * w + c], row[4 * w + c], row[5 * w + c]);
+                let i = r * w + c;
+                let (x, v) = (
+                    Vec3A::new(row[c], row[w + c], row[2 * w + c]),
+                    Vec3A::new(row[3 * w + c], row[4 * w + c], row[5 * w + c]),
+                );
+                changed |= self.free[i] != 0.0 && (x != descent.x[i] || v != descent.v[i]);
+                (descent.x[i], descent.v[i]) = (x, v);
             }
+        }
+        if changed {
+            descent.history = None;
         }
         for _ in 0..substeps {
             if self.params.self_contact.is_some() {
@@ -66,6 +84,7 @@ impl ClothSim {
                 self.contact_prev.extend(descent.x.iter().map(|&p| Vec3::from(p)));
             }
             if let Some(model) = self.air_model {
+                descent.before_kick();
                 self.air.kick(&model, &self.topology, &self.free[..n], h, &descent.x, &mut descent.v);
             }
             self.quarantined += descent.substep(
@@ -74,9 +93,8 @@ impl ClothSim {
                 &self.free[..n],
                 &mut self.held[..n],
                 h,
-                iterations,
+                solve,
                 free_body,
-                tethers,
                 &frames,
             );
             if let Some(contact) = self.params.self_contact {
@@ -85,8 +103,14 @@ impl ClothSim {
                 self.contact_v.clear();
                 self.contact_v.extend(descent.v.iter().map(|&p| Vec3::from(p)));
                 self.resolve_own_contact(contact, &frames);
+                let mut moved = false;
                 for (k, (p, v)) in self.contact_x.iter().zip(&self.contact_v).enumerate() {
-                    (descent.x[k], descent.v[k]) = (Vec3A::from(*p), Vec3A::from(*v));
+                    let (p, v) = (Vec3A::from(*p), Vec3A::from(*v));
+                    moved |= p != descent.x[k] || v != descent.v[k];
+                    (descent.x[k], descent.v[k]) = (p, v);
+                }
+                if moved {
+                    descent.history = None;
                 }
             }
         }
@@ -106,11 +130,11 @@ impl ClothSim {
     /// not move.
     pub fn substep(&mut self, h: f32, colliders: &[Collider]) {
         self.sample_air();
-        if let Integrator::BlockDescent { iterations } = self.params.integrator {
-            self.descend(h, 1, iterations, colliders);
-            return;
+        if self.params.integrator.is_explicit() {
+            self.explicit_substep(h, colliders);
+        } else {
+            self.descend(h, 1, colliders);
         }
-        self.explicit_substep(h, colliders);
     }
 
     /// One substep of an explicit integrator, with this tick's air already sampled.
@@ -185,14 +209,13 @@ impl ClothSim {
                 if sim.params.self_contact.is_some() {
                     sim.read_positions(prev);
                 }
-                match sim.params.integrator {
-                    Integrator::BlockDescent { iterations } => {
-                        // One substep, its contact left to the joint pass below.
-                        let contact = sim.params.self_contact.take();
-                        sim.descend(h, 1, iterations, colliders);
-                        sim.params.self_contact = contact;
-                    }
-                    _ => sim.integrate(h, colliders),
+                if sim.params.integrator.is_explicit() {
+                    sim.integrate(h, colliders);
+                } else {
+                    // One substep, its contact left to the joint pass below.
+                    let contact = sim.params.self_contact.take();
+                    sim.descend(h, 1, colliders);
+                    sim.params.self_contact = contact;
                 }
             }
             let mut bodies = Vec::with_capacity(sims.len());

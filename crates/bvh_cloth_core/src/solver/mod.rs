@@ -7,6 +7,7 @@
 
 pub mod block_descent;
 pub(crate) mod forces;
+pub mod multigrid;
 pub(crate) mod params;
 
 pub use params::{ClothParams, Integrator, SpringStiffness};

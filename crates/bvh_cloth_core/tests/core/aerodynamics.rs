@@ -28,7 +28,7 @@ fn mean_velocity(sim: &ClothSim) -> Vec3 {
 fn a_falling_sheet_reaches_the_terminal_speed_of_a_flat_plate() {
     let (mass, drag) = (0.2f32, 1.2f32);
     let terminal = (2.0 * mass * 9.81 / (1.225 * drag * 1.0)).sqrt();
-    for integrator in [Integrator::Rk4, Integrator::BLOCK_DESCENT] {
+    for integrator in [Integrator::Rk4, Integrator::BLOCK_DESCENT, Integrator::Multigrid] {
         let params = ClothParams {
             mass,
             damping: 0.0,

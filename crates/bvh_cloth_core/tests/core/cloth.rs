@@ -261,7 +261,8 @@ fn a_tick_reports_what_it_quarantined_and_left_non_finite() {
     assert!(reports.iter().any(|t| t.quarantined > 0), "{reports:?}");
     assert!(reports.iter().all(|t| t.non_finite == 0) && beyond.is_finite(), "the quarantine kept it finite");
 
-    for integrator in [Integrator::Rk4, Integrator::SemiImplicitEuler, Integrator::BLOCK_DESCENT] {
+    for integrator in [Integrator::Rk4, Integrator::SemiImplicitEuler, Integrator::BLOCK_DESCENT, Integrator::Multigrid]
+    {
         let params = ClothParams { integrator, ..Default::default() };
         let mut poisoned = ClothSim::new(params, grid_topology(1.0, 16, 16), pose, &[]).unwrap();
         poisoned.set_position(40, Vec3::NAN);
@@ -324,7 +325,7 @@ fn a_density_weighs_each_cloth_by_its_area() {
 /// remaining pin only; catching it again holds it where it is.
 #[test]
 fn a_corner_let_go_while_the_cloth_moves_keeps_the_state() {
-    for integrator in [Integrator::Rk4, Integrator::BLOCK_DESCENT] {
+    for integrator in [Integrator::Rk4, Integrator::BLOCK_DESCENT, Integrator::Multigrid] {
         let mut sim = hanging_with(12, 12, integrator);
         let (kept, released) = (sim.pins()[0], sim.pins()[1]);
         for _ in 0..30 {

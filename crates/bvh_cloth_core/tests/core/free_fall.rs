@@ -57,7 +57,7 @@ fn cloths() -> Vec<(&'static str, Arc<ClothTopology>, Affine3A)> {
 /// hold, and RK4 goes non-finite in its first tick.
 #[test]
 fn every_cloth_falls_as_gravity_and_damping_say() {
-    for integrator in [Integrator::BLOCK_DESCENT, Integrator::Rk4] {
+    for integrator in [Integrator::BLOCK_DESCENT, Integrator::Multigrid, Integrator::Rk4] {
         falls_as_gravity_and_damping_say(ClothParams { integrator, ..Default::default() });
     }
 }
@@ -96,9 +96,13 @@ fn falls_as_gravity_and_damping_say(params: ClothParams) {
 #[test]
 fn a_frictionless_ground_pushes_no_cloth_sideways() {
     let ground = Collider::primitive(Primitive::HalfSpace { normal: Vec3::Y }).unwrap();
-    for (name, topology, pose) in cloths() {
+    for ((name, topology, pose), integrator) in
+        cloths().into_iter().flat_map(|c| [Integrator::BLOCK_DESCENT, Integrator::Multigrid].map(|i| (c.clone(), i)))
+    {
+        let name = format!("{name} ({integrator:?})");
         let lift = Affine3A::from_translation(Vec3::new(0.0, 0.8, 0.0)) * pose;
-        let mut sim = ClothSim::new(ClothParams::default(), topology, lift, &[]).unwrap();
+        let params = ClothParams { integrator, ..Default::default() };
+        let mut sim = ClothSim::new(params, topology, lift, &[]).unwrap();
         let start = sim.centre_of_mass();
         for _ in 0..180 {
             sim.tick(TICK, std::slice::from_ref(&ground));

@@ -56,43 +56,52 @@ fn strain_p99(sim: &ClothSim) -> f32 {
     strains[strains.len() * 99 / 100]
 }
 
-/// The default's sag within `sag` (a fraction) of RK4's and its p99 strain at most `strain`
-/// times RK4's, at 0.5 s and 1 s. The bounds are the measured figures (in the comments, sag
-/// against RK4's at 0.5 s and 1 s, then the strain ratio at 1 s) with a margin.
+/// `integrator`'s sag within `sag_bound` (a fraction) of RK4's and its p99 strain at most
+/// `strain_bound` times RK4's, at 0.5 s and 1 s, on the `side` x `side` hanging cloth, the other
+/// parameters the defaults.
+fn swings_within(integrator: Integrator, side: u32, sag_bound: f32, strain_bound: f32) {
+    let rk4 = swing(side, ClothParams { integrator: Integrator::Rk4, ..Default::default() });
+    let own = swing(side, ClothParams { integrator, ..Default::default() });
+    for ((t, (sag, strain)), (rk4_sag, rk4_strain)) in [0.5, 1.0].into_iter().zip(own).zip(rk4) {
+        let case = format!("{integrator:?}, {side}x{side} at {t} s");
+        eprintln!(
+            "{case}: sag {sag:.3} m (RK4 {rk4_sag:.3}, {:+.1} %), p99 strain {:.2} % (RK4 {:.2} %, {:.2}x)",
+            (sag / rk4_sag - 1.0) * 100.0,
+            strain * 100.0,
+            rk4_strain * 100.0,
+            strain / rk4_strain
+        );
+        assert!((sag / rk4_sag - 1.0).abs() <= sag_bound, "{case}: sag {sag} against RK4's {rk4_sag}");
+        assert!(strain <= strain_bound * rk4_strain, "{case}: p99 strain {strain} against RK4's {rk4_strain}");
+    }
+}
+
+/// The default's sag within 25 % of RK4's and its p99 strain at most 1.5x RK4's, at 0.5 s and
+/// 1 s. The bounds are the measured figures (in the comments, sag against RK4's at 0.5 s and
+/// 1 s, then the strain ratio at 1 s) with a margin.
 #[test]
 fn a_held_cloth_swings_like_rk4s_without_stretching_like_rubber() {
-    // (side, sag bound, strain bound)
-    let cases = [
-        (32, 0.25, 1.5),  // -5.6 %, +18.3 %; 1.21x (implicit Euler's damping: converged, +7 %)
-        (64, 0.25, 1.5),  // -5.7 %, +16.7 %; 1.03x
-        (128, 0.25, 1.5), // -9.1 %, +15.7 %; 1.38x
-    ];
-    for (side, sag_bound, strain_bound) in cases {
-        let rk4 = swing(side, ClothParams { integrator: Integrator::Rk4, ..Default::default() });
-        let default = swing(side, ClothParams::default());
-        for ((t, (sag, strain)), (rk4_sag, rk4_strain)) in [0.5, 1.0].into_iter().zip(default).zip(rk4) {
-            eprintln!(
-                "{side}x{side} at {t} s: sag {sag:.3} m (RK4 {rk4_sag:.3}, {:+.1} %), p99 strain {:.2} % (RK4 {:.2} %, {:.2}x)",
-                (sag / rk4_sag - 1.0) * 100.0,
-                strain * 100.0,
-                rk4_strain * 100.0,
-                strain / rk4_strain
-            );
-            assert!(
-                (sag / rk4_sag - 1.0).abs() <= sag_bound,
-                "{side}x{side} at {t} s: sag {sag} against RK4's {rk4_sag}"
-            );
-            assert!(
-                strain <= strain_bound * rk4_strain,
-                "{side}x{side} at {t} s: p99 strain {strain} against RK4's {rk4_strain}"
-            );
-        }
-    }
+    swings_within(Integrator::default(), 32, 0.25, 1.5); // -5.6 %, +18.3 %; 1.21x (implicit Euler's damping: converged, +7 %)
+    swings_within(Integrator::default(), 64, 0.25, 1.5); // -5.7 %, +16.7 %; 1.03x
+    swings_within(Integrator::default(), 128, 0.25, 1.5); // -9.1 %, +15.7 %; 1.38x
+}
+
+/// The multigrid integrator, which has no tethers, at the default Looper 16: the sag at 0.5 s
+/// and 1 s within 5 % of RK4's (15 % at 128 x 128) and the p99 strain at most 1.5x RK4's, from
+/// 32 x 32 to 128 x 128. Block descent without tethers sags 45 % more than RK4 at 1 s at
+/// 64 x 64 and 134 % at 128 x 128 (the report's `motion` section), and fails this.
+#[test]
+fn the_multigrid_integrator_swings_like_rk4_without_tethers() {
+    // Measured: the sag against RK4's at 0.5 s and 1 s, the strain ratio at 1 s.
+    swings_within(Integrator::Multigrid, 32, 0.05, 1.5); // +0.2 %, +0.4 %; 0.93x
+    swings_within(Integrator::Multigrid, 64, 0.05, 1.5); // +0.6 %, +2.7 %; 1.00x
+    swings_within(Integrator::Multigrid, 128, 0.15, 1.5); // +2.2 %, +11.4 %; 0.96x
 }
 
 /// A 128 x 128 cloth of 1.4 m dropped 0.2 m onto the bundled bunny (n = 5): at 1 s, with the
 /// cloth on the bunny, its p99 structural strain is at most 1.5x RK4's (measured: 3.4 % against
-/// 2.7 %, 1.25x; at 0.5 s, landing, 6.7 % against 4.8 %).
+/// 2.7 %, 1.25x; at 0.5 s, landing, 6.7 % against 4.8 %); the multigrid integrator's too
+/// (3.3 %, 1.23x).
 #[test]
 fn a_free_cloth_landing_on_the_bunny_stretches_at_most_half_again_rk4s() {
     let mesh = common::bundled_model("bunny");
@@ -109,6 +118,13 @@ fn a_free_cloth_landing_on_the_bunny_stretches_at_most_half_again_rk4s() {
         strain_p99(&sim)
     };
     let (rk4, default) = (strain_at_1_s(Integrator::Rk4), strain_at_1_s(Integrator::default()));
+    let multigrid = strain_at_1_s(Integrator::Multigrid);
+    eprintln!(
+        "128x128 on the bunny at 1 s, multigrid: p99 strain {:.2} % ({:.2}x RK4's)",
+        multigrid * 100.0,
+        multigrid / rk4
+    );
+    assert!(multigrid <= 1.5 * rk4, "multigrid: p99 strain {multigrid} against RK4's {rk4}");
     eprintln!(
         "128x128 on the bunny at 1 s: p99 strain {:.2} % (RK4 {:.2} %, {:.2}x)",
         default * 100.0,
@@ -128,7 +144,7 @@ fn a_free_cloth_landing_on_the_bunny_stretches_at_most_half_again_rk4s() {
 /// 25 % less at 0.25 s and 54 % more at 1 s.
 #[test]
 fn a_cloth_far_from_the_origin_moves_as_one_near_it() {
-    for integrator in [Integrator::default(), Integrator::Rk4] {
+    for integrator in [Integrator::default(), Integrator::Multigrid, Integrator::Rk4] {
         let params = ClothParams { integrator, ..Default::default() };
         let near: [(f32, f32); 4] = swing_at(32, params.clone(), Vec3::new(0.0, 2.0, 0.0), 4);
         for origin in [Vec3::new(0.0, 100.0, 0.0), Vec3::new(1000.0, 1000.0, -1000.0)] {

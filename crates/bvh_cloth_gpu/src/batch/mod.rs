@@ -325,7 +325,9 @@ impl ClothBatch {
         slot.constants.free_body = u32::from(slot.free_body);
         slot.constants.tether_start = slot.tether_start();
         slot.constants.tether_scale = match (params.integrator, params.tethers) {
-            (Integrator::BlockDescent { .. }, Some(tethers)) if !slot.tethers.is_empty() => 1.0 + tethers.slack,
+            (Integrator::BlockDescent { .. } | Integrator::Multigrid, Some(tethers)) if !slot.tethers.is_empty() => {
+                1.0 + tethers.slack
+            }
             _ => 0.0,
         };
         slot.own_substeps = substeps;
