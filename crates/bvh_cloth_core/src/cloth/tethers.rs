@@ -54,10 +54,10 @@
 //! | 256 | +284 % | 36.6x | +45 % | 3.4x |
 //!
 //! Their cost, one distance test per particle and substep: 1.06x the untethered tick at
-//! 64 x 64 and at 256 x 256 (`cargo bench -p bvh_cloth_bench --bench report --
+//! 64 x 64 and 1.02x at 256 x 256 (`cargo bench -p bvh_cloth_bench --bench report --
 //! motion_cost`: the same state ticked with and without, alternated, best of 40 and of 8, on the
-//! 2-core development machine on 2026-11-28; 1.12x and 1.09x on the same machine's earlier
-//! run that day, beside other programs).
+//! 2-core development machine on 2026-11-28; runs that day gave 1.06x to 1.12x and 1.02x to
+//! 1.09x).
 //!
 //! The tethers take out most of the rubber, not all: a tether bounds how fast a particle moves
 //! away from its pin, not each spring's stretch, so at 256 x 256 the springs between still

@@ -25,12 +25,14 @@
 //!   the residual and the assembly, each once (12,474 of the 23,938 springs of a 64 x 64 grid,
 //!   202,810 of 390,658 at 256 x 256; 484 and 7,396 aggregates). Their forces are found eight
 //!   springs at a time in SIMD lanes, as the sweep's are.
-//! - The coarse matrices are assembled every 8 substeps (`REASSEMBLE`) and kept in between. The
-//!   residual is exact in every substep, and the line search measures the step with this
+//! - The coarse matrices are assembled every 12 substeps (`REASSEMBLE`) and kept in between.
+//!   The residual is exact in every substep, and the line search measures the step with this
 //!   substep's Hessian (each crossing spring's direction and stretch, kept from the residual's
 //!   pass): a kept preconditioner costs a little convergence and nothing else. Measured the
 //!   other way, with the kept matrices, a 256 x 256 cloth at Looper 12 blew up when they were
-//!   kept for 8 substeps. The matrices are kept as their mass part and their stiffness part,
+//!   kept for 8 substeps. Assembled every 8 substeps rather than 12, the integrator cost 1.34x
+//!   and 1.61x the default at 64 x 64 and 256 x 256 (Looper 12) instead of 1.23x and 1.52x,
+//!   for the same sags within 1 %. The matrices are kept as their mass part and their stiffness part,
 //!   so a change of step (implicit Euler's `h` against BDF2's `2h/3`) only inverts the
 //!   diagonal blocks and factors the coarsest level again.
 //!
@@ -44,25 +46,26 @@
 //! ## What it buys
 //! The hanging cloth of the core's `motion` tests (1 m, pinned at its first row's corners,
 //! dropped flat, the default parameters but the integrator), its sag at 1 s against RK4's at
-//! the same resolution (`cargo test -p bvh_cloth_core --release --test core -- --nocapture
-//! multigrid_integrator` prints them to 128 x 128; the report's `motion` section every row):
+//! the same resolution, from the report's `motion` section (BENCHMARKS.md, "Motion"; `cargo
+//! test -p bvh_cloth_core --release --test core -- --nocapture multigrid_integrator` prints
+//! them to 128 x 128):
 //!
 //! | side | RK4 | multigrid, Looper 16 | multigrid, Looper 12 | block descent without tethers |
 //! |---|---|---|---|---|
-//! | 32 | 0.383 m | +0.4 % | +1.0 % | |
-//! | 64 | 0.404 m | +2.7 % | +1.5 % | +47 % |
-//! | 128 | 0.435 m | +11.4 % | +11.7 % | +135 % |
-//! | 256 | 0.487 m | +6.2 % | +6.6 % | |
+//! | 32 | 0.383 m | +0 % | +1 % | +14 % |
+//! | 64 | 0.404 m | +3 % | +1 % | +45 % |
+//! | 128 | 0.435 m | +12 % | +12 % | +134 % |
+//! | 256 | 0.487 m | +5 % | +6 % | +284 % |
 //!
-//! Its p99 structural strain stays within 0.93x to 1.01x of RK4's. At 0.5 s, the bottom of the
-//! swing, the sags are within 2.2 % of RK4's. What is left at 1 s, near the top of the swing, is
-//! mostly phase: a sweep and one V-cycle leave the solve short of converged, and the cloth
-//! swings back a little late.
+//! Its p99 structural strain stays within 0.94x to 1.39x of RK4's. At 0.5 s, the bottom of the
+//! swing, the sags are within 2 % of RK4's; what is left at 1 s, near the top of the swing, is
+//! the solve left short of converged by one sweep and one V-cycle.
 //!
-//! The cost on the 2-core development machine, against block descent at the default Looper 16
-//! (the report's `motion_cost` section), is in BENCHMARKS.md. Timers in a scratch build put
-//! about 40 % of a 256 x 256 tick at Looper 12 in the correction: the residual (its largest
-//! part), the V-cycle, the line search's curvature and, every eighth substep, the assembly.
+//! Its cost on the 2-core development machine, against block descent at the default Looper 16
+//! (the report's `motion_cost` section): 1.23x at 64 x 64 and 1.52x at 256 x 256 at Looper 12,
+//! 1.64x and 2.18x at Looper 16. Timers in a scratch build put about 40 % of a 256 x 256 tick
+//! at Looper 12 in the correction: the residual (its largest part), the V-cycle, the line
+//! search's curvature and, every twelfth substep, the assembly.
 
 use glam::{DVec3, Mat3A, Vec3A};
 use rayon::prelude::*;
@@ -73,7 +76,7 @@ use crate::solver::forces::ForceModel;
 use crate::solver::params::Integrator;
 
 /// Substeps a coarse hierarchy is kept before it is assembled again.
-pub(crate) const REASSEMBLE: u32 = 8;
+pub(crate) const REASSEMBLE: u32 = 12;
 
 /// Nodes at most on the coarsest level, which is solved exactly.
 const COARSEST: usize = 24;
@@ -236,6 +239,8 @@ struct Crossing {
     spring: u32,
     side: u32,
     slot: u32,
+    /// The spring's end in the aggregate, and the other.
+    ends: [u32; 2],
 }
 
 /// The particles' aggregates (level 1's nodes) and the springs as they see them.
@@ -272,12 +277,6 @@ impl Groups {
 
     fn inner_of(&self, a: usize) -> &[Spring] {
         &self.inner[self.inner_offsets[a] as usize..self.inner_offsets[a + 1] as usize]
-    }
-
-    /// The end of crossing `c` that lies in its aggregate, and the other.
-    fn ends_of(&self, c: &Crossing) -> [u32; 2] {
-        let ends = self.crossing[c.spring as usize].ends;
-        [ends[c.side as usize], ends[1 - c.side as usize]]
     }
 }
 
@@ -418,7 +417,9 @@ impl Multigrid {
         for (a, shares) in per_agg.iter().enumerate() {
             let row_start = cols.len();
             for &(s, side) in shares {
-                let other = agg[crossing[s as usize].ends[1 - side as usize] as usize];
+                let spring_ends = crossing[s as usize].ends;
+                let ends = [spring_ends[side as usize], spring_ends[1 - side as usize]];
+                let other = agg[ends[1] as usize];
                 let slot = if other == NONE {
                     NONE
                 } else {
@@ -431,7 +432,7 @@ impl Multigrid {
                     };
                     at as u32
                 };
-                crossings.push(Crossing { spring: s, side, slot });
+                crossings.push(Crossing { spring: s, side, slot, ends });
             }
             debug_assert!(cols[row_start..].iter().all(|&c| c as usize != a));
             offsets.push(cols.len() as u32);
@@ -495,7 +496,7 @@ impl Multigrid {
                 *diag = Mat3A::ZERO;
                 row.fill(Mat3A::ZERO);
                 for c in groups.crossings_of(a) {
-                    let [own, other] = groups.ends_of(c);
+                    let [own, other] = c.ends;
                     if held[own as usize] != 0.0 {
                         continue;
                     }
@@ -597,7 +598,7 @@ impl Multigrid {
                     }
                 }
                 for c in groups.crossings_of(a) {
-                    let [own, _] = groups.ends_of(c);
+                    let [own, _] = c.ends;
                     if held[own as usize] == 0.0 {
                         let f = forces[c.spring as usize];
                         sum += if c.side == 0 { f } else { -f };
