@@ -106,7 +106,10 @@ impl ClothSim {
                 let mut moved = false;
                 for (k, (p, v)) in self.contact_x.iter().zip(&self.contact_v).enumerate() {
                     let (p, v) = (Vec3A::from(*p), Vec3A::from(*v));
-                    moved |= p != descent.x[k] || v != descent.v[k];
+                    if p != descent.x[k] || v != descent.v[k] {
+                        moved = true;
+                        descent.moved_by_contact(k);
+                    }
                     (descent.x[k], descent.v[k]) = (p, v);
                 }
                 if moved {

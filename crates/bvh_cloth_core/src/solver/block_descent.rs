@@ -320,6 +320,10 @@ pub(crate) struct BlockDescent {
     /// ([`Self::before_kick`]): BDF2 takes the kick over `2h/3`, not `h`.
     unkicked: Vec<Vec3A>,
     kicked: bool,
+    /// 1 for a particle self-contact moved after the last substep, else 0
+    /// ([`Self::moved_by_contact`]); the multigrid correction leaves it where the sweep puts it.
+    contact_moved: Vec<f32>,
+    any_contact_moved: bool,
     /// The length of the last substep when BDF2 may build on it: the cloth's state is what it
     /// left, and nothing but the springs, inertia and the uniform acceleration moved a particle
     /// in it (no collider, no self-contact, no quarantine).
@@ -353,6 +357,15 @@ impl BlockDescent {
     pub(crate) fn before_kick(&mut self) {
         self.unkicked.clone_from(&self.v);
         self.kicked = true;
+    }
+
+    /// Marks particle `i` as moved by self-contact after the last substep.
+    pub(crate) fn moved_by_contact(&mut self, i: usize) {
+        if self.contact_moved.len() != self.x.len() {
+            self.contact_moved = vec![0.0; self.x.len()];
+        }
+        self.contact_moved[i] = 1.0;
+        self.any_contact_moved = true;
     }
 
     /// Sizes the buffers for `n` particles.
@@ -462,7 +475,13 @@ impl BlockDescent {
             }
         }
         if let Solve::Multigrid = solve {
-            multigrid.correct(topology, model, free, held, step, x, start, target, stiff);
+            if std::mem::take(&mut self.any_contact_moved) {
+                let skip: Vec<f32> = held.iter().zip(&self.contact_moved).map(|(&h, &c)| h.max(c)).collect();
+                self.contact_moved.fill(0.0);
+                multigrid.correct(topology, model, free, &skip, step, x, start, target, stiff);
+            } else {
+                multigrid.correct(topology, model, free, held, step, x, start, target, stiff);
+            }
         }
         // The springs are internal forces: whatever the sweeps left unconverged, a cloth that
         // nothing holds keeps the centre of mass that inertia, damping and the uniform

@@ -36,9 +36,12 @@
 //!   so a change of step (implicit Euler's `h` against BDF2's `2h/3`) only inverts the
 //!   diagonal blocks and factors the coarsest level again.
 //!
-//! Pinned particles are outside every aggregate; particles a collider held in the last substep
-//! are left out of the residual and of the correction, and their springs to the rest count as
-//! springs to a fixed point, so the correction never pulls a particle off a collider.
+//! Pinned particles are outside every aggregate; particles a collider held in the last substep,
+//! or self-contact moved after it, are left out of the residual and of the correction, and
+//! their springs to the rest count as springs to a fixed point, so the correction never pulls
+//! a particle off a collider or through the layer it was kept from (without the second, a
+//! 64 x 64 cloth thrown onto the bunny at 7 m/s ended with 3 pairs of its triangles crossing,
+//! where with it none does: the core's `fast_folds` tests).
 //!
 //! Every quantity is in the sweep's units: divided by the cloth's mass and multiplied by `h²`,
 //! so a particle's mass is its mass share and a spring's stiffness `h² k / M`.
@@ -310,8 +313,9 @@ pub(crate) struct Multigrid {
 impl Multigrid {
     /// Corrects the sweep's displacements `d` of one substep of `h` seconds (`start` the
     /// particles' positions at its start, `target` their inertial targets less `start`, as the
-    /// sweep takes them); `free[i]` is 0 for a pinned particle, `held[i]` 1 for a particle a
-    /// collider touched in the last substep. `stiff` asks for the levels to be assembled in
+    /// sweep takes them); `free[i]` is 0 for a pinned particle, `held[i]` 1 for a particle the
+    /// correction must leave where it is (a collider touched it in the last substep, or
+    /// self-contact moved it after that). `stiff` asks for the levels to be assembled in
     /// this substep, whatever their age. Does nothing when the correction's sums are not finite
     /// (a particle the quarantine will stop must not carry the rest with it).
     #[allow(clippy::too_many_arguments)]

@@ -336,10 +336,11 @@ fn a_particle_a_collider_holds_does_not_yield() {
 /// its middle, its sides wrap round and whip into each other at up to twice that speed. After
 /// 1 s: the crossing triangle pairs, the close pairs (closer than half the thickness) and the
 /// fastest particle's speed over the second.
-fn fast_fold(collider: &Collider, top: f32, speed: f32, contact: bool) -> (usize, usize, f32) {
+fn fast_fold(collider: &Collider, top: f32, speed: f32, contact: bool, integrator: Integrator) -> (usize, usize, f32) {
     let topology = common::grid_topology(1.0, 64, 64);
     let params = ClothParams {
         self_contact: contact.then_some(SelfContact { thickness: 0.008, friction: 0.3 }),
+        integrator,
         ..ClothParams::default()
     };
     let pose = Affine3A::from_translation(Vec3::new(0.12, top + 0.1, 0.0));
@@ -357,6 +358,15 @@ fn fast_fold(collider: &Collider, top: f32, speed: f32, contact: bool) -> (usize
     (crossing_triangles(topology.triangles(), &x, None), close_pairs(&topology, &x, 0.004), fastest)
 }
 
+/// The colliders the fast folds land on, each with its top: the thin bar and the bundled bunny
+/// (exact contact at n = 5, margin 5 mm, friction 1).
+fn fold_scenes() -> [(&'static str, Collider, f32); 2] {
+    let mesh = common::bundled_model("bunny");
+    let bunny = Collider::from_mesh_exact(mesh.as_mesh_ref(), 5).unwrap().with_margin(0.005).with_friction(1.0);
+    let bunny_top = mesh.positions.iter().map(|p| p[1]).fold(f32::MIN, f32::max);
+    [("bar", thin_bar(), 0.03), ("bunny", bunny, bunny_top)]
+}
+
 /// Folds at speed: the 64 x 64 cloth thrown at 7 and 15 m/s onto a bar of radius 3 cm and onto
 /// the bundled bunny (exact contact at n = 5, margin 5 mm, friction 1) ends 1 s later with no
 /// close pair and, but on the bunny at 15 m/s, no crossing triangle pair, where without contact
@@ -366,14 +376,11 @@ fn fast_fold(collider: &Collider, top: f32, speed: f32, contact: bool) -> (usize
 /// through edges, which nothing tests, are one candidate).
 #[test]
 fn fast_folds_keep_off_themselves() {
-    let bar = thin_bar();
-    let mesh = common::bundled_model("bunny");
-    let bunny = Collider::from_mesh_exact(mesh.as_mesh_ref(), 5).unwrap().with_margin(0.005).with_friction(1.0);
-    let bunny_top = mesh.positions.iter().map(|p| p[1]).fold(f32::MIN, f32::max);
-    for (scene, collider, top) in [("bar", &bar, 0.03), ("bunny", &bunny, bunny_top)] {
+    for (scene, collider, top) in fold_scenes() {
+        let collider = &collider;
         for speed in [7.0, 15.0] {
-            let (crossing, close, fastest) = fast_fold(collider, top, speed, true);
-            let (control, _, _) = fast_fold(collider, top, speed, false);
+            let (crossing, close, fastest) = fast_fold(collider, top, speed, true, Integrator::default());
+            let (control, _, _) = fast_fold(collider, top, speed, false, Integrator::default());
             eprintln!(
                 "{scene} at {speed} m/s: {crossing} crossing pairs, {close} close pairs, fastest {fastest:.1} m/s; \
                  without contact {control} crossing pairs"
@@ -386,6 +393,28 @@ fn fast_folds_keep_off_themselves() {
                 assert_eq!(crossing, 0, "{scene} at {speed} m/s: the cloth's triangles intersect");
             }
             assert_eq!(close, 0, "{scene} at {speed} m/s: particles closer than half the thickness");
+        }
+    }
+}
+
+/// The same folds with the multigrid integrator, whose correction moves whole aggregates at
+/// once and so whips the layers harder: no crossing triangle pair in any of the four, and no
+/// close pair but one on the bunny at 15 m/s (measured: 0 crossings everywhere, that one close
+/// pair). The correction leaves alone the particles self-contact moved after the last substep,
+/// as it does those a collider held; without that, the bunny at 7 m/s ended with 3 crossing
+/// pairs.
+#[test]
+fn fast_folds_keep_off_themselves_with_the_multigrid_integrator() {
+    for (scene, collider, top) in fold_scenes() {
+        let collider = &collider;
+        for speed in [7.0, 15.0] {
+            let (crossing, close, fastest) = fast_fold(collider, top, speed, true, Integrator::Multigrid);
+            eprintln!(
+                "multigrid, {scene} at {speed} m/s: {crossing} crossing pairs, {close} close pairs, fastest {fastest:.1} m/s"
+            );
+            assert_eq!(crossing, 0, "{scene} at {speed} m/s: the cloth's triangles intersect");
+            let allowed = if (scene, speed) == ("bunny", 15.0) { 1 } else { 0 };
+            assert!(close <= allowed, "{scene} at {speed} m/s: {close} particles closer than half the thickness");
         }
     }
 }
