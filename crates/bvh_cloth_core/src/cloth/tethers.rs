@@ -53,8 +53,8 @@
 //! | 128 | +134 % | 9.1x | +15.7 % | 1.38x |
 //! | 256 | +284 % | 36.6x | +45 % | 3.4x |
 //!
-//! Their cost, one distance test per particle and substep: 1.06x the untethered tick at
-//! 64 x 64 and 1.02x at 256 x 256 (`cargo bench -p bvh_cloth_bench --bench report --
+//! Their cost, one distance test per particle and substep: 1.08x the untethered tick at
+//! 64 x 64 and 1.06x at 256 x 256 (`cargo bench -p bvh_cloth_bench --bench report --
 //! motion_cost`: the same state ticked with and without, alternated, best of 40 and of 8, on the
 //! 2-core development machine on 2026-11-28; runs that day gave 1.06x to 1.12x and 1.02x to
 //! 1.09x).

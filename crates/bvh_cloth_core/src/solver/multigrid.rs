@@ -30,11 +30,15 @@
 //!   substep's Hessian (each crossing spring's direction and stretch, kept from the residual's
 //!   pass): a kept preconditioner costs a little convergence and nothing else. Measured the
 //!   other way, with the kept matrices, a 256 x 256 cloth at Looper 12 blew up when they were
-//!   kept for 8 substeps. Assembled every 8 substeps rather than 12, the integrator cost 1.34x
-//!   and 1.61x the default at 64 x 64 and 256 x 256 (Looper 12) instead of 1.23x and 1.52x,
-//!   for the same sags within 1 %. The matrices are kept as their mass part and their stiffness part,
-//!   so a change of step (implicit Euler's `h` against BDF2's `2h/3`) only inverts the
-//!   diagonal blocks and factors the coarsest level again.
+//!   kept for 8 substeps. The kept levels' own curvature along the correction is checked
+//!   against the substep's: when they differ by more than half (a cloth snapping taut under
+//!   them, where it fell to a twentieth), they are assembled again in the next substep; without
+//!   that check a 512 x 512 cloth blew up at its first snap (the core's `motion` tests).
+//!   Assembled every 8 substeps rather than 12 (and without that check), the integrator cost
+//!   1.34x and 1.61x the default at 64 x 64 and 256 x 256 (Looper 12) instead of 1.25x and
+//!   1.54x, for the same sags within 1 %. The matrices are kept as their mass part and their stiffness part, so a change of
+//!   step (implicit Euler's `h` against BDF2's `2h/3`) only inverts the diagonal blocks and
+//!   factors the coarsest level again.
 //!
 //! Pinned particles are outside every aggregate; particles a collider held in the last substep,
 //! or self-contact moved after it, are left out of the residual and of the correction, and
@@ -60,13 +64,13 @@
 //! | 128 | 0.435 m | +12 % | +12 % | +134 % |
 //! | 256 | 0.487 m | +5 % | +6 % | +284 % |
 //!
-//! Its p99 structural strain stays within 0.94x to 1.39x of RK4's. At 0.5 s, the bottom of the
+//! Its p99 structural strain stays within 0.94x to 1.18x of RK4's (1.48x at 512 x 512). At 0.5 s, the bottom of the
 //! swing, the sags are within 2 % of RK4's; what is left at 1 s, near the top of the swing, is
 //! the solve left short of converged by one sweep and one V-cycle.
 //!
 //! Its cost on the 2-core development machine, against block descent at the default Looper 16
-//! (the report's `motion_cost` section): 1.23x at 64 x 64 and 1.52x at 256 x 256 at Looper 12,
-//! 1.64x and 2.18x at Looper 16. Timers in a scratch build put about 40 % of a 256 x 256 tick
+//! (the report's `motion_cost` section): 1.25x at 64 x 64 and 1.54x at 256 x 256 at Looper 12,
+//! 1.62x and 2.04x at Looper 16. Timers in a scratch build put about 40 % of a 256 x 256 tick
 //! at Looper 12 in the correction: the residual (its largest part), the V-cycle, the line
 //! search's curvature and, every twelfth substep, the assembly.
 
@@ -80,6 +84,10 @@ use crate::solver::params::Integrator;
 
 /// Substeps a coarse hierarchy is kept before it is assembled again.
 pub(crate) const REASSEMBLE: u32 = 12;
+
+/// How far the kept levels' curvature along the correction may drift from the substep's own,
+/// as a fraction of it, before the levels are assembled again (see [`Multigrid::correct`]).
+const STALE: f64 = 0.5;
 
 /// Nodes at most on the coarsest level, which is solved exactly.
 const COARSEST: usize = 24;
@@ -358,6 +366,19 @@ impl Multigrid {
         let e = &self.levels[0].e;
         let along: f64 = self.residual.iter().zip(e).map(|(r, e)| f64::from(r.dot(*e))).sum();
         let curvature = self.curvature(held, damp, h2, start, d);
+        // The kept levels' curvature along `e` against this substep's: when they differ by more
+        // than `STALE` of it, the cloth has changed under them (a cloth snapping taut), and
+        // they are assembled again in the next substep.
+        let level = &self.levels[0];
+        let kept: f64 = (0..level.len())
+            .map(|a| {
+                let e = level.e[a];
+                f64::from((level.diag_block(a, damp, h2) * e + level.off_product(a, &level.e, h2)).dot(e))
+            })
+            .sum();
+        if (kept / curvature - 1.0).abs() > STALE {
+            self.age = REASSEMBLE;
+        }
         let alpha = (along / curvature).clamp(0.0, 1.0) as f32;
         if !(curvature > 0.0 && alpha.is_finite() && alpha > 0.0) {
             return;
