@@ -408,6 +408,7 @@ impl BlockDescent {
         let bdf2 = matches!(solve, Solve::Multigrid) && self.history == Some(h) && !stiff;
         let step = if bdf2 { h * (2.0 / 3.0) } else { h };
         let kicked = core::mem::take(&mut self.kicked);
+        let contact_moved = core::mem::take(&mut self.any_contact_moved);
         let Self { x, v, accel, start, target, moved, v_prev, lag, history, multigrid, unkicked, .. } = self;
         let uniform = Vec3A::from(model.uniform_accel);
         let axis = AccelAxis::new(uniform);
@@ -432,7 +433,8 @@ impl BlockDescent {
                 let v_hat =
                     if bdf2 { unkicked + (unkicked - *v_prev) / 3.0 + (v0 - unkicked) * (2.0 / 3.0) } else { v0 };
                 *lag = if bdf2 { (x0 - *start) / 3.0 } else { Vec3A::ZERO };
-                (*start, *v_prev, *v) = (x0, unkicked, v_hat);
+                // A pinned particle keeps its velocity.
+                (*start, *v_prev, *v) = (x0, unkicked, if free == 0.0 { v0 } else { v_hat });
                 if free == 0.0 {
                     (*target, *x) = (Vec3A::ZERO, Vec3A::ZERO);
                 } else if bdf2 {
@@ -475,13 +477,15 @@ impl BlockDescent {
             }
         }
         if let Solve::Multigrid = solve {
-            if std::mem::take(&mut self.any_contact_moved) {
+            if contact_moved {
                 let skip: Vec<f32> = held.iter().zip(&self.contact_moved).map(|(&h, &c)| h.max(c)).collect();
-                self.contact_moved.fill(0.0);
                 multigrid.correct(topology, model, free, &skip, step, x, start, target, stiff);
             } else {
                 multigrid.correct(topology, model, free, held, step, x, start, target, stiff);
             }
+        }
+        if contact_moved {
+            self.contact_moved.fill(0.0);
         }
         // The springs are internal forces: whatever the sweeps left unconverged, a cloth that
         // nothing holds keeps the centre of mass that inertia, damping and the uniform
