@@ -244,6 +244,15 @@ impl ClothSim {
             drop(bodies);
             for (sim, (_, x, v)) in sims.iter_mut().zip(&states) {
                 if sim.params.self_contact.is_some() {
+                    // What the joint pass moved, the multigrid correction leaves alone in the
+                    // next substep, as after a cloth's own pass.
+                    if sim.params.integrator == Integrator::Multigrid {
+                        for (k, (p, u)) in x.iter().zip(v).enumerate() {
+                            if *p != sim.position(k) || *u != sim.velocity(k) {
+                                sim.descent.moved_by_contact(k);
+                            }
+                        }
+                    }
                     sim.write_state(x, v);
                 }
             }

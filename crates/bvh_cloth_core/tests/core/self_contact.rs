@@ -102,18 +102,26 @@ fn a_cloth_folding_over_a_thin_bar_keeps_off_itself() {
 }
 
 /// Two 32 x 32 cloths of 0.8 m dropped 0.1 m apart onto a ball of radius 0.25 m, the upper
-/// turned and stepped by RK4, the lower by block descent, together: after 3 s the upper one rests on the lower, none of their
+/// turned and stepped by RK4, the lower by block descent (and again by the multigrid
+/// integrator), together: after 3 s the upper one rests on the lower, none of their
 /// particles closer than half the thickness and none of their triangles crossing; stepped
 /// together without contact, the upper falls through the lower.
 #[test]
 fn two_cloths_dropped_on_a_ball_keep_apart() {
+    // The lower cloth by block descent, then by the multigrid integrator.
+    for integrator in [Integrator::default(), Integrator::Multigrid] {
+        two_cloths_on_a_ball_keep_apart(integrator);
+    }
+}
+
+fn two_cloths_on_a_ball_keep_apart(integrator: Integrator) {
     let ball = Collider::primitive(Primitive::Sphere { radius: 0.25 }).unwrap().with_friction(0.5);
     let colliders = [ball];
     let topology = common::grid_topology(0.8, 32, 32);
     let mut results = Vec::new();
     for contact in [true, false] {
         let thickness = SelfContact { thickness: THICKNESS, friction: 0.3 };
-        let p = ClothParams { self_contact: contact.then_some(thickness), ..ClothParams::default() };
+        let p = ClothParams { self_contact: contact.then_some(thickness), integrator, ..ClothParams::default() };
         let place = |y: f32, turn: f32| Affine3A::from_rotation_translation(Quat::from_rotation_y(turn), Vec3::Y * y);
         let mut lower = ClothSim::new(p.clone(), Arc::clone(&topology), place(0.35, 0.0), &[]).unwrap();
         // The upper cloth is RK4: cloths of either integrator step together.
@@ -128,14 +136,16 @@ fn two_cloths_dropped_on_a_ball_keep_apart() {
         let close = close_between(&a, &b, 0.5 * THICKNESS);
         let crossing = crossing_triangles(topology.triangles(), &a, Some((topology.triangles(), &b)));
         let own = close_pairs(&topology, &a, 0.5 * THICKNESS) + close_pairs(&topology, &b, 0.5 * THICKNESS);
-        eprintln!("contact {contact}: {close} close pairs between, {crossing} crossing triangles, {own} close within");
+        eprintln!(
+            "{integrator:?} below, contact {contact}: {close} close pairs between, {crossing} crossing triangles, {own} close within"
+        );
         results.push((close, crossing, own));
     }
     let [(close, crossing, own), (_, control_crossing, _)] = results[..] else { unreachable!() };
-    assert!(control_crossing > 100, "without contact only {control_crossing} triangles cross: the cloths never met");
-    assert_eq!(close, 0, "particles of the two cloths closer than half the thickness");
-    assert_eq!(crossing, 0, "triangles of the two cloths intersect");
-    assert_eq!(own, 0, "a cloth's particles closer than half the thickness to each other");
+    assert!(control_crossing > 100, "{integrator:?}: without contact only {control_crossing} triangles cross");
+    assert_eq!(close, 0, "{integrator:?}: particles of the two cloths closer than half the thickness");
+    assert_eq!(crossing, 0, "{integrator:?}: triangles of the two cloths intersect");
+    assert_eq!(own, 0, "{integrator:?}: a cloth's particles closer than half the thickness to each other");
 }
 
 /// Thicknesses below zero, NaN and above the particle spacing are refused, naming the field; so
