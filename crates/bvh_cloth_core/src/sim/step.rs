@@ -103,17 +103,12 @@ impl ClothSim {
                 self.contact_v.clear();
                 self.contact_v.extend(descent.v.iter().map(|&p| Vec3::from(p)));
                 self.resolve_own_contact(contact, &frames);
-                let mut moved = false;
                 for (k, (p, v)) in self.contact_x.iter().zip(&self.contact_v).enumerate() {
                     let (p, v) = (Vec3A::from(*p), Vec3A::from(*v));
                     if p != descent.x[k] || v != descent.v[k] {
-                        moved = true;
                         descent.moved_by_contact(k);
                     }
                     (descent.x[k], descent.v[k]) = (p, v);
-                }
-                if moved {
-                    descent.history = None;
                 }
             }
         }

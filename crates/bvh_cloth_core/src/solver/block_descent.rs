@@ -359,8 +359,10 @@ impl BlockDescent {
         self.kicked = true;
     }
 
-    /// Marks particle `i` as moved by self-contact after the last substep.
+    /// Marks particle `i` as moved by self-contact after the last substep: BDF2 starts again,
+    /// and the multigrid correction leaves the particle alone in the next substep.
     pub(crate) fn moved_by_contact(&mut self, i: usize) {
+        self.history = None;
         if self.contact_moved.len() != self.x.len() {
             self.contact_moved = vec![0.0; self.x.len()];
         }
@@ -478,8 +480,11 @@ impl BlockDescent {
         }
         if let Solve::Multigrid = solve {
             if contact_moved {
-                let skip: Vec<f32> = held.iter().zip(&self.contact_moved).map(|(&h, &c)| h.max(c)).collect();
-                multigrid.correct(topology, model, free, &skip, step, x, start, target, stiff);
+                // The particles to leave alone: those a collider held, and those contact moved.
+                for (c, &h) in self.contact_moved.iter_mut().zip(held.iter()) {
+                    *c = c.max(h);
+                }
+                multigrid.correct(topology, model, free, &self.contact_moved, step, x, start, target, stiff);
             } else {
                 multigrid.correct(topology, model, free, held, step, x, start, target, stiff);
             }

@@ -83,7 +83,7 @@ use crate::solver::forces::ForceModel;
 use crate::solver::params::Integrator;
 
 /// Substeps a coarse hierarchy is kept before it is assembled again.
-pub(crate) const REASSEMBLE: u32 = 12;
+const REASSEMBLE: u32 = 12;
 
 /// How far the kept levels' curvature along the correction may drift from the substep's own,
 /// as a fraction of it, before the levels are assembled again (see [`Multigrid::correct`]).
@@ -392,8 +392,9 @@ impl Multigrid {
         });
     }
 
-    /// Groups the free particles into aggregates of structural neighbours, lists the springs
-    /// that cross them and those inside them, and lays out level 1's off-diagonal blocks.
+    /// Groups the free particles into aggregates of structural and shear neighbours, lists the
+    /// springs that cross them and those inside them, and lays out level 1's off-diagonal
+    /// blocks.
     fn aggregate(&mut self, topology: &ClothTopology, model: &ForceModel, free: &[f32]) {
         let n = topology.len();
         self.built_for = free.to_vec();
