@@ -64,6 +64,10 @@
 //! | 128 | 0.435 m | +12 % | +12 % | +134 % |
 //! | 256 | 0.487 m | +5 % | +6 % | +284 % |
 //!
+//! A flag in steady 8 m/s wind flutters at RK4's pace and swing (5.58 Hz and 34.3 mm against
+//! 5.08 Hz and 33.5 mm; block descent at the default, 3.08 Hz and 23.5 mm: the core's test
+//! `the_multigrid_integrators_flag_flutters_like_rk4s`).
+//!
 //! Its p99 structural strain stays within 0.94x to 1.18x of RK4's (1.48x at 512 x 512). At 0.5 s, the bottom of the
 //! swing, the sags are within 2 % of RK4's; what is left at 1 s, near the top of the swing, is
 //! the solve left short of converged by one sweep and one V-cycle.
@@ -73,6 +77,25 @@
 //! 1.62x and 2.04x at Looper 16. Timers in a scratch build put about 40 % of a 256 x 256 tick
 //! at Looper 12 in the correction: the residual (its largest part), the V-cycle, the line
 //! search's curvature and, every twelfth substep, the assembly.
+//!
+//! ## Two alternatives, measured
+//! With a scratch program on the same hanging cloth (2026-11-28, the 2-core development
+//! machine), the sag against RK4's over 2 s:
+//! - **A constant preconditioner.** Each crossing spring's Hessian replaced by `k/2 I` (its
+//!   stretch stiffness spread evenly over the three axes, whatever its direction), so that the
+//!   levels are scalar matrices assembled once, never stale, and the residual, the line search
+//!   and the step unchanged: the sag at 1 s was +3 / +8 / 0 % off RK4's at 64 / 128 / 256
+//!   (`k I`: +3 / +14 / +6 %), the sag's RMS error over 2 s about the same as with the Hessians
+//!   (39 against 41 mm at 128 x 128), but at 256 x 256 the p99 strain at 1 s was 1.74x RK4's
+//!   against 1.17x: a direction-blind preconditioner corrects a taut cloth's stretch too
+//!   little. It would spare the GPU the assembly and the coarsest factor in every twelfth
+//!   substep, at that price in strain.
+//! - **Two rounds a substep at half the substeps.** Sweep, correct, sweep, correct, at Looper 8,
+//!   which costs what one round at Looper 16 does: the sag at 1 s +1 / +2 / +7 / +5 % off RK4's
+//!   from 32 x 32 to 256 x 256, p99 strain 0.98x-1.12x; one round at Looper 16 gives
+//!   +0 / +3 / +12 / +5 %. Four rounds at Looper 16 still left 128 x 128 8 % off at 1 s, and
+//!   Looper 32 and 64 (one round) 2 % and 1 %: what is left at Looper 16 is mostly BDF2's own
+//!   step error where the cloth snaps taut, not the solve.
 
 use glam::{DVec3, Mat3A, Vec3A};
 use rayon::prelude::*;
