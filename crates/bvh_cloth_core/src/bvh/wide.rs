@@ -67,43 +67,52 @@ impl WideNode {
         let mut node = Self::EMPTY;
         let lo = boxes.iter().fold(Vec3::INFINITY, |m, b| m.min(b.0));
         let hi = boxes.iter().fold(Vec3::NEG_INFINITY, |m, b| m.max(b.1));
+        // Per axis, the least step whose 255th reaches the top; the three axes side by side
+        // (their rounding loops are independent, so they overlap).
+        let (origin, top_of) = (lo.extend(0.0), hi.extend(0.0));
+        let mut step = ((top_of - origin) / 255.0).max(Vec4::ZERO);
+        loop {
+            let short = bound(origin, Vec4::splat(255.0), step).cmplt(top_of) & step.is_finite_mask();
+            if !short.any() {
+                break;
+            }
+            // The next `f32` up from a positive finite step (or from zero).
+            let up = Vec4::from_array(step.to_array().map(|s| f32::from_bits(s.to_bits() + 1)));
+            step = Vec4::select(short, up, step);
+        }
+        node.origin = lo.to_array();
+        node.step = step.truncate().to_array();
         // The children's boxes one lane each; an unused lane repeats the first child and is not
         // written.
         let lane_box = |lane: usize| boxes.get(lane).unwrap_or(&boxes[0]);
-        for axis in 0..3 {
-            let origin = lo[axis];
-            // The least step whose 255th reaches the top.
-            let mut step = ((hi[axis] - origin) / 255.0).max(0.0);
-            while step.is_finite() && origin + 255.0 * step < hi[axis] {
-                step = step.next_up();
-            }
-            node.origin[axis] = origin;
-            node.step[axis] = step;
-            let (origin4, step4) = (Vec4::splat(origin), Vec4::splat(step));
-            let inverse = Vec4::splat(if step > 0.0 { 1.0 / step } else { 0.0 });
-            let (one, top) = (Vec4::ONE, Vec4::splat(255.0));
+        let (one, top) = (Vec4::ONE, Vec4::splat(255.0));
+        let axes: [_; 3] = std::array::from_fn(|axis| {
+            let (origin4, step4) = (Vec4::splat(origin[axis]), Vec4::splat(step[axis]));
+            let inverse = Vec4::splat(if step[axis] > 0.0 { 1.0 / step[axis] } else { 0.0 });
             let mins = Vec4::from_array(std::array::from_fn(|lane| lane_box(lane).0[axis]));
             let maxs = Vec4::from_array(std::array::from_fn(|lane| lane_box(lane).1[axis]));
-            // A first guess in whole steps, then rounded outwards exactly with the queries'
-            // arithmetic (`bound`): down for the minima, up for the maxima. The guess is off by
-            // a step at most, so each loop runs once or twice.
+            // A first guess in whole steps, rounded outwards below with the queries'
+            // arithmetic (`bound`): down for the minima, up for the maxima.
             let guess = |x: Vec4| ((x - origin4) * inverse).max(Vec4::ZERO).floor().min(top);
-            let mut q_lo = guess(mins);
-            loop {
-                let over = bound(origin4, q_lo, step4).cmpgt(mins) & q_lo.cmpgt(Vec4::ZERO);
-                if !over.any() {
-                    break;
-                }
-                q_lo = Vec4::select(over, q_lo - one, q_lo);
+            (origin4, step4, mins, maxs, guess(mins), guess(maxs))
+        });
+        let mut q: [(Vec4, Vec4); 3] = axes.map(|(_, _, _, _, lo, hi)| (lo, hi));
+        // The guesses are off by a step at most, so this runs once or twice; the six roundings
+        // are independent.
+        loop {
+            let mut moved = false;
+            for ((origin4, step4, mins, maxs, _, _), (q_lo, q_hi)) in axes.iter().zip(q.iter_mut()) {
+                let over = bound(*origin4, *q_lo, *step4).cmpgt(*mins) & q_lo.cmpgt(Vec4::ZERO);
+                let under = bound(*origin4, *q_hi, *step4).cmplt(*maxs) & q_hi.cmplt(top);
+                moved |= over.any() | under.any();
+                *q_lo = Vec4::select(over, *q_lo - one, *q_lo);
+                *q_hi = Vec4::select(under, *q_hi + one, *q_hi);
             }
-            let mut q_hi = guess(maxs);
-            loop {
-                let under = bound(origin4, q_hi, step4).cmplt(maxs) & q_hi.cmplt(top);
-                if !under.any() {
-                    break;
-                }
-                q_hi = Vec4::select(under, q_hi + one, q_hi);
+            if !moved {
+                break;
             }
+        }
+        for (axis, (q_lo, q_hi)) in q.iter().enumerate() {
             for lane in 0..boxes.len() {
                 node.lo[axis][lane] = q_lo[lane] as u8;
                 node.hi[axis][lane] = q_hi[lane] as u8;
