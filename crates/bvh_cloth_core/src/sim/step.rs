@@ -20,7 +20,17 @@ impl ClothSim {
     /// non-finite. An explicit integrator that would need more substeps than the guard takes
     /// goes non-finite: check the parameters against the tick with [`ClothParams::check_tick`]
     /// first (the plugin does).
+    ///
+    /// The tick runs on a thread of rayon's pool, which its parallel passes share from there:
+    /// called from outside the pool, it hands the pool one job a tick rather than one per pass
+    /// (a block-descent substep has a pass per colour, and the multigrid correction several
+    /// more), and between passes the pool's threads are less often asleep.
     pub fn tick(&mut self, dt: f32, colliders: &[Collider]) -> Ticked {
+        rayon::scope(|_| self.tick_in_pool(dt, colliders))
+    }
+
+    /// [`Self::tick`], on the thread it is called from.
+    fn tick_in_pool(&mut self, dt: f32, colliders: &[Collider]) -> Ticked {
         self.quarantined = 0;
         if !(dt.is_finite() && dt > 0.0) {
             return self.ticked(0);
@@ -179,7 +189,19 @@ impl ClothSim {
     /// largest substep count among them, and after each substep the contacts of all of them
     /// are resolved at once by `solver`. Returns what the tick did to each cloth, in order (as
     /// [`ClothSim::tick`] does for one), and the last substep's contact figures.
+    ///
+    /// As [`Self::tick`], the tick runs on a thread of rayon's pool.
     pub fn tick_together(
+        sims: &mut [&mut ClothSim],
+        dt: f32,
+        colliders: &[Collider],
+        solver: &mut ContactSolver,
+    ) -> (Vec<Ticked>, ContactStats) {
+        rayon::scope(|_| Self::tick_together_in_pool(sims, dt, colliders, solver))
+    }
+
+    /// [`Self::tick_together`], on the thread it is called from.
+    fn tick_together_in_pool(
         sims: &mut [&mut ClothSim],
         dt: f32,
         colliders: &[Collider],

@@ -73,8 +73,8 @@
 //! the solve left short of converged by one sweep and one V-cycle.
 //!
 //! Its cost on the 2-core development machine, against block descent at the default Looper 16
-//! (the report's `motion_cost` section): 1.25x at 64 x 64 and 1.54x at 256 x 256 at Looper 12,
-//! 1.62x and 2.04x at Looper 16. Timers in a scratch build put about 40 % of a 256 x 256 tick
+//! (the report's `motion_cost` section, three runs): 1.15x-1.29x at 64 x 64 and 1.24x-1.36x
+//! at 256 x 256 at Looper 12, 1.56x-1.71x and 1.49x-1.86x at Looper 16. Timers in a scratch build put about 40 % of a 256 x 256 tick
 //! at Looper 12 in the correction: the residual (its largest part), the V-cycle, the line
 //! search's curvature and, every twelfth substep, the assembly.
 //!
