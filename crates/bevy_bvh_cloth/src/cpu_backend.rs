@@ -8,6 +8,7 @@ use bevy::ecs::schedule::{InternedScheduleLabel, ScheduleLabel};
 use bevy::prelude::*;
 use bvh_cloth_core::backend::ContactSolver;
 use bvh_cloth_core::{ClothSim, Collider, Ticked};
+use rayon::prelude::*;
 
 use crate::backend::cpu_backend_active;
 use crate::clock::ClothClock;
@@ -47,9 +48,12 @@ impl Plugin for CpuBackendPlugin {
 }
 
 /// Runs this frame's ticks for every cloth, each tick after moving the pins where
-/// [`plan_anchors`](crate::cloth::simulation::plan_anchors) put them for it. The cloths with
-/// self-contact are stepped together ([`ClothSim::tick_together`]), so that they also keep off
-/// each other.
+/// [`plan_anchors`](crate::cloth::simulation::plan_anchors) put them for it. The cloths without
+/// self-contact are stepped side by side, one on each of rayon's threads at a time, since a
+/// cloth's own parallel passes leave a thread idle much of a small cloth's tick (eight 32 x 32
+/// cloths: 2.01x as fast as one after another on 2 cores, the report's `cpu_cloths` section);
+/// each cloth's state is the same either way. The cloths with self-contact are stepped together
+/// ([`ClothSim::tick_together`]), so that they also keep off each other.
 pub(crate) fn step_cloths(
     clock: Res<ClothClock>,
     colliders: Query<&ClothCollider>,
@@ -62,24 +66,33 @@ pub(crate) fn step_cloths(
     let ticks = clock.ticks as usize;
     // Cheap copies: the sphere trees are shared, only the poses are per frame.
     let colliders: Vec<Collider> = colliders.iter().map(|c| c.collider().clone()).collect();
-    let mut together = Vec::new();
-    for (entity, mut state, transform) in &mut cloths {
+    let (mut alone, mut together) = (Vec::new(), Vec::new());
+    for (entity, state, transform) in &mut cloths {
         if ticks == 0 {
             continue;
         }
         if state.sim.params().self_contact.is_some() {
             together.push((entity, state, transform));
-            continue;
+        } else {
+            alone.push((entity, state, transform));
         }
-        let state = &mut *state;
-        let mut faults = Faults::default();
-        for k in 0..ticks {
-            if let Some(targets) = state.anchor_targets.get(k) {
-                state.sim.move_pins(targets);
+    }
+    let faults: Vec<Faults> = alone
+        .par_iter_mut()
+        .map(|(_, state, _)| {
+            let state: &mut ClothSimulation = state;
+            let mut faults = Faults::default();
+            for k in 0..ticks {
+                if let Some(targets) = state.anchor_targets.get(k) {
+                    state.sim.move_pins(targets);
+                }
+                faults.add(state.sim.tick(clock.tick_seconds, &colliders));
             }
-            faults.add(state.sim.tick(clock.tick_seconds, &colliders));
-        }
-        finish_ticks(entity, state, faults.particles(), transform, &mut messages);
+            faults
+        })
+        .collect();
+    for ((entity, mut state, transform), faults) in alone.into_iter().zip(faults) {
+        finish_ticks(entity, &mut state, faults.particles(), transform, &mut messages);
     }
     if !together.is_empty() {
         let mut faults = vec![Faults::default(); together.len()];

@@ -26,6 +26,8 @@
 //!     answer, a hanging cloth's sag and strain in motion against RK4 from 32 x 32 to 256 x 256,
 //!     and the flag's flutter; and what the tethers and the multigrid integrator cost a tick
 //!     (`motion_cost`).
+//! 14. Several cloths on the CPU ([`cpu_cloths`]): stepped one after another against side by
+//!     side.
 //!
 //! `WGPU_BACKEND=vulkan cargo bench -p bvh_cloth_bench --bench report`
 //! (without a GPU adapter the GPU columns say so and the rest still runs). Append `-- NAME...`
@@ -33,10 +35,12 @@
 //! `fidelity`, `step_scaling`, `topology`, `gpu_profile`, `many_cloths`, `build_scaling`,
 //! `far_from_origin`, `solver`, `solver_gpu`, `primitives`, `skinned_refit`, `exact_contact`,
 //! `exact_contact_queries`, `exact_contact_build`, `exact_contact_gpu`, `self_contact`,
-//! `self_contact_gpu`, `wind`, `wind_gpu`, `motion`, `motion_cost`. The
+//! `self_contact_gpu`, `wind`, `wind_gpu`, `motion`, `motion_cost`, `cpu_cloths`. The
 //! GPU halves of the solver, exact-contact, self-contact and wind tables are sections of their
 //! own, so `-- gpu` runs every GPU-only table without their CPU simulations.
 
+#[path = "report/cpu_cloths.rs"]
+mod cpu_cloths;
 #[path = "report/exact_contact.rs"]
 mod exact_contact;
 #[path = "report/exact_queries.rs"]
@@ -194,6 +198,9 @@ fn main() {
     }
     if run("motion_cost") {
         motion::motion_cost();
+    }
+    if run("cpu_cloths") {
+        cpu_cloths::cpu_cloths(threads);
     }
     println!("\nCSV written to docs/benchmarks/ (plot: python3 scripts/plot_benchmarks.py)");
 }
