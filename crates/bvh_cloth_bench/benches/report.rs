@@ -19,7 +19,8 @@
 //!     build and memory up to 2 million triangles ([`exact_queries`], `exact_contact_queries`,
 //!     `exact_contact_build`).
 //! 11. Self-contact: a cloth folding over a bar and two cloths on the bunny, checked with an
-//!     exact triangle–triangle test, and its cost.
+//!     exact triangle–triangle test, and its cost; and how a fast fold's layers get through
+//!     each other ([`crossing_events`], `self_contact_events`).
 //! 12. Wind: a flag's flutter in steady wind (the free edge's spectral peak) and its energy on
 //!     both backends, GPU against CPU in gusty wind, and what drag and lift cost.
 //! 13. Motion ([`motion`]): each solver setting's free fall and drift against the analytic
@@ -35,12 +36,14 @@
 //! `fidelity`, `step_scaling`, `topology`, `gpu_profile`, `many_cloths`, `build_scaling`,
 //! `far_from_origin`, `solver`, `solver_gpu`, `primitives`, `skinned_refit`, `exact_contact`,
 //! `exact_contact_queries`, `exact_contact_build`, `exact_contact_gpu`, `self_contact`,
-//! `self_contact_gpu`, `wind`, `wind_gpu`, `motion`, `motion_cost`, `cpu_cloths`. The
+//! `self_contact_events`, `self_contact_gpu`, `wind`, `wind_gpu`, `motion`, `motion_cost`, `cpu_cloths`. The
 //! GPU halves of the solver, exact-contact, self-contact and wind tables are sections of their
 //! own, so `-- gpu` runs every GPU-only table without their CPU simulations.
 
 #[path = "report/cpu_cloths.rs"]
 mod cpu_cloths;
+#[path = "report/crossing_events.rs"]
+mod crossing_events;
 #[path = "report/exact_contact.rs"]
 mod exact_contact;
 #[path = "report/exact_queries.rs"]
@@ -94,6 +97,7 @@ use bvh_cloth_core::backend::ColliderFrame;
 use bvh_cloth_core::backend::ContactSolver;
 use bvh_cloth_core::backend::SkinnedVertices;
 use bvh_cloth_core::backend::crossing_pairs;
+use bvh_cloth_core::backend::triangles_intersect;
 use bvh_cloth_core::{
     Aerodynamics, Affine3A, ClothGrid, ClothParams, ClothSim, ClothTopology, Collider, ColliderPose, Integrator,
     Primitive, Quat, UVec2, Vec2, Vec3, Wind,
@@ -183,6 +187,9 @@ fn main() {
     }
     if run("self_contact") {
         self_contact(&meshes[0], &single, threads);
+    }
+    if run("self_contact_events") {
+        crossing_events::self_contact_events(&meshes[0]);
     }
     if run("self_contact_gpu") {
         self_contact_on_gpu(&meshes[0], gpu.as_ref());

@@ -73,7 +73,11 @@
 //! with the triangle's plane taken as it turns linearly, not by the exact cubic of continuous
 //! collision detection. Edges are not tested against edges: two edges can pass through each
 //! other between the particles of both layers. Nothing undoes an intersection that exists:
-//! the same cloth thrown onto the bunny at 15 m/s ends with 16 crossing pairs.
+//! the same cloth thrown onto the bunny at 15 m/s ends with 16 crossing pairs. Over that fold,
+//! of the 1,326 times a pair of its triangles came to intersect, 1,003 were an edge going
+//! through an edge alone, 303 a corner through a face this contact tests and 20 a corner
+//! through a neighbouring face it skips (at 7 m/s: 171, 4 and 20 of 195; the report's
+//! `self_contact_events` section).
 
 use core::sync::atomic::{AtomicU32, Ordering};
 

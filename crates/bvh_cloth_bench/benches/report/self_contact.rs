@@ -3,13 +3,13 @@
 
 use super::*;
 
-/// Self-contact on the CPU: the two scenes, each with and without contact, checked at
-/// the end by an exact triangle–triangle test between every two triangles sharing no corner
-/// and by the least distance between particles sharing no spring; then the cost of contact in
-/// a tick of a 128 x 128 cloth.
 /// The self-contact sections' contact: 8 mm thick, friction 0.3.
 pub(crate) const SELF_CONTACT: SelfContact = SelfContact { thickness: 0.008, friction: 0.3 };
 
+/// Self-contact on the CPU: two scenes, each with and without contact, checked at the end by an
+/// exact triangle–triangle test between every two triangles sharing no corner and by the least
+/// distance between particles sharing no spring; then the cost of contact in a tick of a
+/// 128 x 128 cloth.
 pub(crate) fn self_contact(bunny: &ObjMesh, single: &rayon::ThreadPool, threads: usize) {
     const THICKNESS: f32 = SELF_CONTACT.thickness;
     const SECONDS: f32 = 3.0;
