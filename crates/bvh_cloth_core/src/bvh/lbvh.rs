@@ -136,8 +136,18 @@ impl Lbvh {
     /// As [`Self::build_with_order`], with the inner boxes not fitted yet: the caller fits them
     /// with [`Self::fit_boxes_by`] to what its leaves stand for.
     pub(crate) fn build_unfitted(spheres: &[Sphere]) -> (Self, Vec<u32>) {
+        let (nodes, order, keep) = Self::build_topology(spheres, true);
+        let sorted = keep.unwrap_or_default();
+        let max_radius = sorted.iter().fold(0.0f32, |r, s| r.max(s.radius));
+        (Self { nodes, spheres: sorted, depth: 0, max_radius }, order)
+    }
+
+    /// The inner nodes of the tree over `spheres`, their boxes not fitted, and the input index
+    /// of every leaf; with `sorted`, the spheres in leaf order too. A triangle surface keeps its
+    /// triangles in leaf order, not their spheres.
+    pub(crate) fn build_topology(spheres: &[Sphere], sorted: bool) -> (Vec<BvhNode>, Vec<u32>, Option<Vec<Sphere>>) {
         if spheres.is_empty() {
-            return (Self::default(), Vec::new());
+            return (Vec::new(), Vec::new(), sorted.then(Vec::new));
         }
         let (lo, hi) = spheres
             .iter()
@@ -147,21 +157,23 @@ impl Lbvh {
         let codes: Vec<u32> =
             if parallel { spheres.par_iter().map(code).collect() } else { spheres.iter().map(code).collect() };
         let keyed = sort_by_code(codes.into_iter());
-        let key = |k: usize, &(c, i): &(u32, u32)| ((u64::from(c) << 32) | k as u64, spheres[i as usize]);
-        let (keys, sorted): (Vec<u64>, Vec<Sphere>) = if parallel {
-            keyed.par_iter().enumerate().map(|(k, ci)| key(k, ci)).unzip()
+        let key = |k: usize, &(c, _): &(u32, u32)| (u64::from(c) << 32) | k as u64;
+        let keys: Vec<u64> = if parallel {
+            keyed.par_iter().enumerate().map(|(k, ci)| key(k, ci)).collect()
         } else {
-            keyed.iter().enumerate().map(|(k, ci)| key(k, ci)).unzip()
+            keyed.iter().enumerate().map(|(k, ci)| key(k, ci)).collect()
         };
-        let inner = sorted.len() - 1;
+        let leaf = |&(_, i): &(u32, u32)| spheres[i as usize];
+        let in_order = sorted
+            .then(|| if parallel { keyed.par_iter().map(leaf).collect() } else { keyed.iter().map(leaf).collect() });
+        let inner = keys.len() - 1;
         let nodes: Vec<BvhNode> = if parallel {
             (0..inner).into_par_iter().map(|i| build_inner_node(&keys, i)).collect()
         } else {
             (0..inner).map(|i| build_inner_node(&keys, i)).collect()
         };
-        let max_radius = sorted.iter().fold(0.0f32, |r, s| r.max(s.radius));
         let order = keyed.into_iter().map(|(_, i)| i).collect();
-        (Self { nodes, spheres: sorted, depth: 0, max_radius }, order)
+        (nodes, order, in_order)
     }
 
     /// Fits every inner node's box to `leaf_box(k)` for leaf `k` instead of its sphere's box:

@@ -17,7 +17,7 @@
 use glam::{BVec4A, Vec3, Vec4};
 use rayon::prelude::*;
 
-use crate::bvh::lbvh::{LEAF_BIT, Lbvh};
+use crate::bvh::lbvh::{BvhNode, LEAF_BIT, Lbvh};
 use crate::bvh::traversal::STACK_SIZE;
 
 /// A node of the wide tree, one 64-byte cache line: the boxes of up to four children, one SIMD
@@ -199,7 +199,7 @@ impl WideBvh {
             }
             return Self { nodes: vec![WideNode::new(&[LEAF_BIT], &[leaf_box(0)])] };
         }
-        let fold = Fold { tree, leaf_box: &leaf_box };
+        let fold = Fold { nodes: &tree.nodes, leaf_box: &leaf_box };
         let mut nodes = Vec::new();
         if tree.nodes.len() < PARALLEL_FOLD_MIN_NODES {
             fold.fill(0, &mut nodes);
@@ -222,6 +222,47 @@ impl WideBvh {
         let mut parts = parts.into_iter();
         fold.top(0, 0, &mut nodes, &mut parts);
         Self { nodes }
+    }
+
+    /// As [`Self::from_lbvh`] for the inner nodes `binary` of a tree of `leaves` leaves whose
+    /// boxes are not fitted: each wide node's box is the union of its children's, found on the
+    /// way up, so the binary tree's boxes are never written nor read (the same nodes, bit for
+    /// bit: a box's bounds are the least and greatest of its leaves' however they are
+    /// grouped). Returns the root's box too.
+    pub(crate) fn from_unfitted(
+        binary: &[BvhNode],
+        leaves: usize,
+        leaf_box: impl Fn(u32) -> (Vec3, Vec3) + Sync,
+    ) -> (Self, (Vec3, Vec3)) {
+        if binary.is_empty() {
+            if leaves == 0 {
+                return (Self::default(), (Vec3::ZERO, Vec3::ZERO));
+            }
+            let only = leaf_box(0);
+            return (Self { nodes: vec![WideNode::new(&[LEAF_BIT], &[only])] }, only);
+        }
+        let fold = Fold { nodes: binary, leaf_box: &leaf_box };
+        let mut nodes = Vec::new();
+        if binary.len() < PARALLEL_FOLD_MIN_NODES {
+            let root = fold.fold_fitting(0, 0, &mut nodes, &mut None);
+            return (Self { nodes }, root);
+        }
+        // As in `from_lbvh`: the parts in parallel, then the top, each part copied in after the
+        // node that points to it.
+        let mut roots = Vec::new();
+        fold.part_roots(0, 0, &mut roots);
+        let parts: Vec<FoldedPart> = roots
+            .par_iter()
+            .map(|&root| {
+                let mut part = Vec::new();
+                let root_box = fold.fold_fitting(root, 0, &mut part, &mut None);
+                (part, root_box)
+            })
+            .collect();
+        nodes.reserve(parts.iter().map(|(part, _)| part.len()).sum::<usize>() + PART_DEPTH_NODES);
+        let mut parts = parts.into_iter();
+        let root = fold.fold_fitting(0, 0, &mut nodes, &mut Some(&mut parts));
+        (Self { nodes }, root)
     }
 
     /// Calls `visit(leaf)` for every leaf whose box overlaps `[lo, hi]` grown by `margin`, in
@@ -322,7 +363,7 @@ const PART_DEPTH_NODES: usize = 21;
 
 /// Folding a binary tree whose leaf `k` has the box `leaf_box(k)`.
 struct Fold<'a, F> {
-    tree: &'a Lbvh,
+    nodes: &'a [BvhNode],
     leaf_box: &'a F,
 }
 
@@ -330,7 +371,7 @@ impl<F: Fn(u32) -> (Vec3, Vec3) + Sync> Fold<'_, F> {
     /// Pushes, in depth-first order, the binary nodes whose wide nodes lie `PART_DEPTH` wide
     /// levels under binary node `binary` (at wide level `level`): the roots of the parts.
     fn part_roots(&self, binary: u32, level: usize, roots: &mut Vec<u32>) {
-        let (children, count) = wide_children(self.tree, binary);
+        let (children, count) = wide_children(self.nodes, binary);
         for &child in children[..count].iter().filter(|&&c| c & LEAF_BIT == 0) {
             if level + 1 == PART_DEPTH {
                 roots.push(child);
@@ -356,13 +397,7 @@ impl<F: Fn(u32) -> (Vec3, Vec3) + Sync> Fold<'_, F> {
             let base = out.len() as u32;
             out[at].child[lane] = base;
             if level + 1 == PART_DEPTH {
-                let part = parts.next().expect("a part for every root");
-                out.extend(part.into_iter().map(|mut node| {
-                    for c in node.child.iter_mut().filter(|c| **c != u32::MAX && **c & LEAF_BIT == 0) {
-                        *c += base;
-                    }
-                    node
-                }));
+                append_part(out, parts.next().expect("a part for every root"));
             } else {
                 self.top(child, level + 1, out, parts);
             }
@@ -372,16 +407,51 @@ impl<F: Fn(u32) -> (Vec3, Vec3) + Sync> Fold<'_, F> {
     /// Writes the wide node of binary node `binary` into `node`, its inner children's
     /// references still binary.
     fn node(&self, binary: u32, node: &mut WideNode) {
-        let (children, count) = wide_children(self.tree, binary);
+        let (children, count) = wide_children(self.nodes, binary);
         let boxes: [(Vec3, Vec3); 4] = std::array::from_fn(|lane| match children[lane] {
             _ if lane >= count => (Vec3::ZERO, Vec3::ZERO),
             child if child & LEAF_BIT != 0 => (self.leaf_box)(child & !LEAF_BIT),
             child => {
-                let n = &self.tree.nodes[child as usize];
+                let n = &self.nodes[child as usize];
                 (Vec3::from(n.aabb_min), Vec3::from(n.aabb_max))
             }
         });
         *node = WideNode::new(&children[..count], &boxes[..count]);
+    }
+
+    /// Folds the unfitted subtree under binary node `binary` (at wide level `level`) onto
+    /// `out`, each node written once its children's boxes are known, in the places [`Self::fill`]
+    /// and [`Self::top`] give it. With `parts`, the subtrees `PART_DEPTH` wide levels down come
+    /// from it, folded already, each with its root's box. Returns the subtree's box.
+    fn fold_fitting(
+        &self,
+        binary: u32,
+        level: usize,
+        out: &mut Vec<WideNode>,
+        parts: &mut Option<&mut dyn Iterator<Item = FoldedPart>>,
+    ) -> (Vec3, Vec3) {
+        let at = out.len();
+        out.push(WideNode::EMPTY);
+        let (mut children, count) = wide_children(self.nodes, binary);
+        let mut boxes = [(Vec3::ZERO, Vec3::ZERO); 4];
+        for lane in 0..count {
+            let child = children[lane];
+            if child & LEAF_BIT != 0 {
+                boxes[lane] = (self.leaf_box)(child & !LEAF_BIT);
+                continue;
+            }
+            children[lane] = out.len() as u32;
+            boxes[lane] = match parts.as_deref_mut() {
+                Some(parts) if level + 1 == PART_DEPTH => {
+                    let (part, part_box) = parts.next().expect("a part for every root");
+                    append_part(out, part);
+                    part_box
+                }
+                _ => self.fold_fitting(child, level + 1, out, parts),
+            };
+        }
+        out[at] = WideNode::new(&children[..count], &boxes[..count]);
+        union(&boxes[..count])
     }
 
     /// Folds the subtree under binary node `binary` onto `out` (empty), depth first, `out[0]`
@@ -408,13 +478,33 @@ impl<F: Fn(u32) -> (Vec3, Vec3) + Sync> Fold<'_, F> {
     }
 }
 
+/// A subtree folded on its own, and its root's box.
+type FoldedPart = (Vec<WideNode>, (Vec3, Vec3));
+
+/// Appends a part folded on its own (its references counted from its first node) to `out`, its
+/// references moved by where it begins.
+fn append_part(out: &mut Vec<WideNode>, part: Vec<WideNode>) {
+    let base = out.len() as u32;
+    out.extend(part.into_iter().map(|mut node| {
+        for c in node.child.iter_mut().filter(|c| **c != u32::MAX && **c & LEAF_BIT == 0) {
+            *c += base;
+        }
+        node
+    }));
+}
+
+/// The union of `boxes`.
+fn union(boxes: &[(Vec3, Vec3)]) -> (Vec3, Vec3) {
+    boxes.iter().fold((Vec3::INFINITY, Vec3::NEG_INFINITY), |(lo, hi), b| (lo.min(b.0), hi.max(b.1)))
+}
+
 /// The wide node's children for binary node `binary`, in the order a depth-first walk of the
 /// binary tree ([`Lbvh::for_each_overlapping`]) meets them. That walk, at a node, meets its leaf
 /// children at once (right, then left), then walks its left subtree, then its right one; so
 /// the grandchildren under each inner child come as that child's leaves (right, then left) and
 /// then its inner children (left, then right).
-fn wide_children(tree: &Lbvh, binary: u32) -> ([u32; 4], usize) {
-    let node = &tree.nodes[binary as usize];
+fn wide_children(nodes: &[BvhNode], binary: u32) -> ([u32; 4], usize) {
+    let node = &nodes[binary as usize];
     let mut children = [u32::MAX; 4];
     let mut count = 0;
     let mut push = |child: u32| {
@@ -428,7 +518,7 @@ fn wide_children(tree: &Lbvh, binary: u32) -> ([u32; 4], usize) {
     }
     for child in [node.left, node.right] {
         if child & LEAF_BIT == 0 {
-            let inner = &tree.nodes[child as usize];
+            let inner = &nodes[child as usize];
             for grandchild in [inner.right, inner.left] {
                 if grandchild & LEAF_BIT != 0 {
                     push(grandchild);

@@ -148,28 +148,24 @@ impl TriangleSurface {
         } else {
             kept.iter().map(|&t| bounding_sphere(&kept_triangle(t))).collect()
         };
-        // The inner boxes are fitted to the triangles themselves, not to their spheres' boxes
-        // (up to twice as wide): a query descends only where a triangle may be. The leaves keep
-        // their spheres, which each query tests before the triangle.
-        let (mut lbvh, order) = Lbvh::build_unfitted(&spheres);
+        // The spheres give the Morton codes and the largest radius; the boxes are the
+        // triangles' own, not their spheres' (up to twice as wide), so that a query descends
+        // only where a triangle may be.
+        let max_radius = spheres.iter().fold(0.0f32, |r, s| r.max(s.radius));
+        let (nodes, order, _) = Lbvh::build_topology(&spheres, false);
         drop(spheres);
         let triangles: Vec<[Vec3; 3]> = if parallel {
             order.par_iter().map(|&k| kept_triangle(kept[k as usize])).collect()
         } else {
             order.iter().map(|&k| kept_triangle(kept[k as usize])).collect()
         };
+        // The wide tree's boxes are found on the way up as it is folded: the binary tree's are
+        // never fitted (the GPU's binary tree is built again, fitted, when it is uploaded).
         let leaf_box = |k: u32| triangle_box(&triangles[k as usize]);
-        lbvh.fit_boxes_by(leaf_box);
-        let wide = WideBvh::from_lbvh(&lbvh, leaf_box);
-        let max_radius = lbvh.max_radius;
-        let (lo, hi) = match (lbvh.nodes.first(), triangles.first()) {
-            (Some(root), _) => (Vec3::from(root.aabb_min), Vec3::from(root.aabb_max)),
-            (None, Some([a, b, c])) => (a.min(b.min(*c)), a.max(b.max(*c))),
-            (None, None) => (Vec3::ZERO, Vec3::ZERO),
-        };
+        let (wide, (lo, hi)) = WideBvh::from_unfitted(&nodes, triangles.len(), leaf_box);
         let magnitude = lo.abs().max(hi.abs()).max_element();
         let min_thickness = (1.0e-6 * lo.distance(hi)).max(ROUNDING_THICKNESS * magnitude);
-        drop(lbvh);
+        drop(nodes);
         Ok(Self { wide, triangles, dropped: count - kept.len(), min_thickness, max_radius })
     }
 
