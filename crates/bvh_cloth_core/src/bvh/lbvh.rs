@@ -149,11 +149,16 @@ impl Lbvh {
         if spheres.is_empty() {
             return (Vec::new(), Vec::new(), sorted.then(Vec::new));
         }
-        let (lo, hi) = spheres
-            .iter()
-            .fold((Vec3::INFINITY, Vec3::NEG_INFINITY), |(lo, hi), s| (lo.min(s.centre()), hi.max(s.centre())));
-        let code = |s: &Sphere| morton_code(s.centre(), lo, hi);
         let parallel = spheres.len() >= PARALLEL_BUILD_MIN_LEAVES;
+        // The box of the centres (a least and a greatest, the same in any order of the sums).
+        let empty = (Vec3::INFINITY, Vec3::NEG_INFINITY);
+        let grow = |(lo, hi): (Vec3, Vec3), s: &Sphere| (lo.min(s.centre()), hi.max(s.centre()));
+        let (lo, hi) = if parallel {
+            spheres.par_iter().fold(|| empty, grow).reduce(|| empty, |a, b| (a.0.min(b.0), a.1.max(b.1)))
+        } else {
+            spheres.iter().fold(empty, grow)
+        };
+        let code = |s: &Sphere| morton_code(s.centre(), lo, hi);
         let codes: Vec<u32> =
             if parallel { spheres.par_iter().map(code).collect() } else { spheres.iter().map(code).collect() };
         let keyed = sort_by_code(codes.into_iter());

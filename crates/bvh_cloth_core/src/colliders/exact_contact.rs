@@ -129,13 +129,25 @@ impl TriangleSurface {
             };
             Some([corner(ids[0])?, corner(ids[1])?, corner(ids[2])?])
         };
-        let keep = |&t: &u32| corners(t).is_some_and(has_area);
-        // The kept triangles by index, read from the mesh again where needed: the mesh's
-        // triangles are copied once, in leaf order (a build's memory is mostly fresh pages).
-        let kept: Vec<u32> = if count >= PARALLEL_MIN {
-            (0..count as u32).into_par_iter().filter(keep).collect()
+        // Every triangle's bounding sphere in one pass over the mesh, a negative radius for one
+        // without an area; then the kept triangles by index, read from the mesh again where
+        // needed: the mesh's triangles are copied once, in leaf order (a build's memory is
+        // mostly fresh pages). When every triangle has an area (most meshes), the kept ones
+        // are all of them, in order, and the spheres are kept as they are.
+        let sphere_of = |t: u32| match corners(t) {
+            Some(c) if has_area(c) => bounding_sphere(&c),
+            _ => Sphere { center: [0.0; 3], radius: -1.0 },
+        };
+        let parallel = count >= PARALLEL_MIN;
+        let all: Vec<Sphere> = if parallel {
+            (0..count as u32).into_par_iter().map(sphere_of).collect()
         } else {
-            (0..count as u32).filter(keep).collect()
+            (0..count as u32).map(sphere_of).collect()
+        };
+        let (kept, spheres): (Vec<u32>, Vec<Sphere>) = if all.iter().all(|s| s.radius >= 0.0) {
+            ((0..count as u32).collect(), all)
+        } else {
+            (0..count as u32).zip(all).filter(|(_, s)| s.radius >= 0.0).unzip()
         };
         if kept.is_empty() {
             return Err(ColliderError::NoArea);
@@ -143,11 +155,6 @@ impl TriangleSurface {
         // Every kept triangle has its corners.
         let kept_triangle = |t: u32| corners(t).unwrap_or_default();
         let parallel = kept.len() >= PARALLEL_MIN;
-        let spheres: Vec<Sphere> = if parallel {
-            kept.par_iter().map(|&t| bounding_sphere(&kept_triangle(t))).collect()
-        } else {
-            kept.iter().map(|&t| bounding_sphere(&kept_triangle(t))).collect()
-        };
         // The spheres give the Morton codes and the largest radius; the boxes are the
         // triangles' own, not their spheres' (up to twice as wide), so that a query descends
         // only where a triangle may be.
