@@ -189,46 +189,18 @@ pub struct WideBvh {
 const WIDE_STACK: usize = 2 * STACK_SIZE + 4;
 
 impl WideBvh {
-    /// Folds `tree` into a wide tree. `leaf_box(k)` is leaf `k`'s box, the one `tree`'s inner
-    /// boxes were fitted to. A large tree's subtrees under its top three wide levels are folded
-    /// in parallel.
+    /// Folds `tree` into a wide tree. `leaf_box(k)` is leaf `k`'s box, and each wide node's
+    /// boxes are the unions of its children's (the boxes a fit to `leaf_box` gives; `tree`'s
+    /// own inner boxes are not read). A large tree's subtrees under its top three wide levels
+    /// are folded in parallel.
     pub fn from_lbvh(tree: &Lbvh, leaf_box: impl Fn(u32) -> (Vec3, Vec3) + Sync) -> Self {
-        if tree.nodes.is_empty() {
-            if tree.spheres.is_empty() {
-                return Self::default();
-            }
-            return Self { nodes: vec![WideNode::new(&[LEAF_BIT], &[leaf_box(0)])] };
-        }
-        let fold = Fold { nodes: &tree.nodes, leaf_box: &leaf_box };
-        let mut nodes = Vec::new();
-        if tree.nodes.len() < PARALLEL_FOLD_MIN_NODES {
-            fold.fill(0, &mut nodes);
-            return Self { nodes };
-        }
-        // The subtrees under the top `PART_DEPTH` levels are folded in parallel, each into its
-        // own nodes; the top is folded here, each part copied in after the node that points to
-        // it, so the whole stays in depth-first order.
-        let mut roots = Vec::new();
-        fold.part_roots(0, 0, &mut roots);
-        let parts: Vec<Vec<WideNode>> = roots
-            .par_iter()
-            .map(|&root| {
-                let mut part = Vec::new();
-                fold.fill(root, &mut part);
-                part
-            })
-            .collect();
-        nodes.reserve(parts.iter().map(Vec::len).sum::<usize>() + PART_DEPTH_NODES);
-        let mut parts = parts.into_iter();
-        fold.top(0, 0, &mut nodes, &mut parts);
-        Self { nodes }
+        Self::from_unfitted(&tree.nodes, tree.spheres.len(), leaf_box).0
     }
 
-    /// As [`Self::from_lbvh`] for the inner nodes `binary` of a tree of `leaves` leaves whose
-    /// boxes are not fitted: each wide node's box is the union of its children's, found on the
-    /// way up, so the binary tree's boxes are never written nor read (the same nodes, bit for
-    /// bit: a box's bounds are the least and greatest of its leaves' however they are
-    /// grouped). Returns the root's box too.
+    /// [`Self::from_lbvh`] for the inner nodes `binary` of a tree of `leaves` leaves, whose
+    /// boxes need not be fitted: each wide node's boxes are found on the way up, so the binary
+    /// tree's are never read (a box's bounds are the least and greatest of its leaves' however
+    /// they are grouped, so a fitted tree gives the same nodes). Returns the root's box too.
     pub(crate) fn from_unfitted(
         binary: &[BvhNode],
         leaves: usize,
@@ -244,24 +216,25 @@ impl WideBvh {
         let fold = Fold { nodes: binary, leaf_box: &leaf_box };
         let mut nodes = Vec::new();
         if binary.len() < PARALLEL_FOLD_MIN_NODES {
-            let root = fold.fold_fitting(0, 0, &mut nodes, &mut None);
+            let root = fold.fold(0, 0, &mut nodes, &mut None);
             return (Self { nodes }, root);
         }
-        // As in `from_lbvh`: the parts in parallel, then the top, each part copied in after the
-        // node that points to it.
+        // The subtrees under the top `PART_DEPTH` levels are folded in parallel, each into its
+        // own nodes; the top is folded here, each part copied in after the node that points to
+        // it, so the whole stays in depth-first order.
         let mut roots = Vec::new();
         fold.part_roots(0, 0, &mut roots);
         let parts: Vec<FoldedPart> = roots
             .par_iter()
             .map(|&root| {
                 let mut part = Vec::new();
-                let root_box = fold.fold_fitting(root, 0, &mut part, &mut None);
+                let root_box = fold.fold(root, 0, &mut part, &mut None);
                 (part, root_box)
             })
             .collect();
         nodes.reserve(parts.iter().map(|(part, _)| part.len()).sum::<usize>() + PART_DEPTH_NODES);
         let mut parts = parts.into_iter();
-        let root = fold.fold_fitting(0, 0, &mut nodes, &mut Some(&mut parts));
+        let root = fold.fold(0, 0, &mut nodes, &mut Some(&mut parts));
         (Self { nodes }, root)
     }
 
@@ -381,49 +354,11 @@ impl<F: Fn(u32) -> (Vec3, Vec3) + Sync> Fold<'_, F> {
         }
     }
 
-    /// Folds the wide nodes above the parts under binary node `binary` (at wide level
-    /// `level`) onto `out`, depth first, each part from `parts` (in [`Self::part_roots`]'
-    /// order) copied in where its root belongs, its references moved by its place.
-    fn top(&self, binary: u32, level: usize, out: &mut Vec<WideNode>, parts: &mut impl Iterator<Item = Vec<WideNode>>) {
-        let at = out.len();
-        let mut node = WideNode::EMPTY;
-        self.node(binary, &mut node);
-        out.push(node);
-        for lane in 0..4 {
-            let child = out[at].child[lane];
-            if child == u32::MAX || child & LEAF_BIT != 0 {
-                continue;
-            }
-            let base = out.len() as u32;
-            out[at].child[lane] = base;
-            if level + 1 == PART_DEPTH {
-                append_part(out, parts.next().expect("a part for every root"));
-            } else {
-                self.top(child, level + 1, out, parts);
-            }
-        }
-    }
-
-    /// Writes the wide node of binary node `binary` into `node`, its inner children's
-    /// references still binary.
-    fn node(&self, binary: u32, node: &mut WideNode) {
-        let (children, count) = wide_children(self.nodes, binary);
-        let boxes: [(Vec3, Vec3); 4] = std::array::from_fn(|lane| match children[lane] {
-            _ if lane >= count => (Vec3::ZERO, Vec3::ZERO),
-            child if child & LEAF_BIT != 0 => (self.leaf_box)(child & !LEAF_BIT),
-            child => {
-                let n = &self.nodes[child as usize];
-                (Vec3::from(n.aabb_min), Vec3::from(n.aabb_max))
-            }
-        });
-        *node = WideNode::new(&children[..count], &boxes[..count]);
-    }
-
-    /// Folds the unfitted subtree under binary node `binary` (at wide level `level`) onto
-    /// `out`, each node written once its children's boxes are known, in the places [`Self::fill`]
-    /// and [`Self::top`] give it. With `parts`, the subtrees `PART_DEPTH` wide levels down come
-    /// from it, folded already, each with its root's box. Returns the subtree's box.
-    fn fold_fitting(
+    /// Folds the subtree under binary node `binary` (at wide level `level`) onto `out`, depth
+    /// first: each node is placed before its children and written once their boxes are known,
+    /// its references absolute in `out`. With `parts`, the subtrees `PART_DEPTH` wide levels
+    /// down come from it, folded already, each with its root's box. Returns the subtree's box.
+    fn fold(
         &self,
         binary: u32,
         level: usize,
@@ -447,34 +382,11 @@ impl<F: Fn(u32) -> (Vec3, Vec3) + Sync> Fold<'_, F> {
                     append_part(out, part);
                     part_box
                 }
-                _ => self.fold_fitting(child, level + 1, out, parts),
+                _ => self.fold(child, level + 1, out, parts),
             };
         }
         out[at] = WideNode::new(&children[..count], &boxes[..count]);
         union(&boxes[..count])
-    }
-
-    /// Folds the subtree under binary node `binary` onto `out` (empty), depth first, `out[0]`
-    /// being its root.
-    fn fill(&self, binary: u32, out: &mut Vec<WideNode>) {
-        // Binary nodes still to fold, each with the wide node and lane that will point to it.
-        let mut stack: Vec<(u32, Option<(usize, usize)>)> = Vec::with_capacity(WIDE_STACK);
-        stack.push((binary, None));
-        while let Some((binary, parent)) = stack.pop() {
-            let at = out.len();
-            if let Some((parent, lane)) = parent {
-                out[parent].child[lane] = at as u32;
-            }
-            let mut node = WideNode::EMPTY;
-            self.node(binary, &mut node);
-            out.push(node);
-            // The first inner child is popped first.
-            for (lane, &child) in node.child.iter().enumerate().rev() {
-                if child != u32::MAX && child & LEAF_BIT == 0 {
-                    stack.push((child, Some((at, lane))));
-                }
-            }
-        }
     }
 }
 
