@@ -136,18 +136,21 @@ impl Lbvh {
     /// As [`Self::build_with_order`], with the inner boxes not fitted yet: the caller fits them
     /// with [`Self::fit_boxes_by`] to what its leaves stand for.
     pub(crate) fn build_unfitted(spheres: &[Sphere]) -> (Self, Vec<u32>) {
-        let (nodes, order, keep) = Self::build_topology(spheres, true);
-        let sorted = keep.unwrap_or_default();
+        let (nodes, order) = Self::build_topology(spheres);
+        let sorted: Vec<Sphere> = if spheres.len() >= PARALLEL_BUILD_MIN_LEAVES {
+            order.par_iter().map(|&i| spheres[i as usize]).collect()
+        } else {
+            order.iter().map(|&i| spheres[i as usize]).collect()
+        };
         let max_radius = sorted.iter().fold(0.0f32, |r, s| r.max(s.radius));
         (Self { nodes, spheres: sorted, depth: 0, max_radius }, order)
     }
 
     /// The inner nodes of the tree over `spheres`, their boxes not fitted, and the input index
-    /// of every leaf; with `sorted`, the spheres in leaf order too. A triangle surface keeps its
-    /// triangles in leaf order, not their spheres.
-    pub(crate) fn build_topology(spheres: &[Sphere], sorted: bool) -> (Vec<BvhNode>, Vec<u32>, Option<Vec<Sphere>>) {
+    /// of every leaf (a triangle surface keeps its triangles in leaf order, not their spheres).
+    pub(crate) fn build_topology(spheres: &[Sphere]) -> (Vec<BvhNode>, Vec<u32>) {
         if spheres.is_empty() {
-            return (Vec::new(), Vec::new(), sorted.then(Vec::new));
+            return (Vec::new(), Vec::new());
         }
         let parallel = spheres.len() >= PARALLEL_BUILD_MIN_LEAVES;
         // The box of the centres (a least and a greatest, the same in any order of the sums).
@@ -168,9 +171,6 @@ impl Lbvh {
         } else {
             keyed.iter().enumerate().map(|(k, ci)| key(k, ci)).collect()
         };
-        let leaf = |&(_, i): &(u32, u32)| spheres[i as usize];
-        let in_order = sorted
-            .then(|| if parallel { keyed.par_iter().map(leaf).collect() } else { keyed.iter().map(leaf).collect() });
         let inner = keys.len() - 1;
         let nodes: Vec<BvhNode> = if parallel {
             (0..inner).into_par_iter().map(|i| build_inner_node(&keys, i)).collect()
@@ -178,7 +178,7 @@ impl Lbvh {
             (0..inner).map(|i| build_inner_node(&keys, i)).collect()
         };
         let order = keyed.into_iter().map(|(_, i)| i).collect();
-        (nodes, order, in_order)
+        (nodes, order)
     }
 
     /// Fits every inner node's box to `leaf_box(k)` for leaf `k` instead of its sphere's box:

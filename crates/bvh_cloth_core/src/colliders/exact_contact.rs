@@ -159,7 +159,7 @@ impl TriangleSurface {
         // triangles' own, not their spheres' (up to twice as wide), so that a query descends
         // only where a triangle may be.
         let max_radius = spheres.iter().fold(0.0f32, |r, s| r.max(s.radius));
-        let (nodes, order, _) = Lbvh::build_topology(&spheres, false);
+        let (nodes, order) = Lbvh::build_topology(&spheres);
         drop(spheres);
         let triangles: Vec<[Vec3; 3]> = if parallel {
             order.par_iter().map(|&k| kept_triangle(kept[k as usize])).collect()
