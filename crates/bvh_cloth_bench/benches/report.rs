@@ -97,7 +97,7 @@ use bvh_cloth_core::backend::ColliderFrame;
 use bvh_cloth_core::backend::ContactSolver;
 use bvh_cloth_core::backend::SkinnedVertices;
 use bvh_cloth_core::backend::crossing_pairs;
-use bvh_cloth_core::backend::triangles_intersect;
+use bvh_cloth_core::backend::intersecting_pairs;
 use bvh_cloth_core::{
     Aerodynamics, Affine3A, ClothGrid, ClothParams, ClothSim, ClothTopology, Collider, ColliderPose, Integrator,
     Primitive, Quat, UVec2, Vec2, Vec3, Wind,

@@ -20,7 +20,7 @@ pub use crate::colliders::response::{CONTACT_BAND, MAX_PASSES};
 pub use crate::colliders::skinning::{SkinPoint, SkinnedVertices, largest_scale};
 pub use crate::colliders::voxel_spheres::{MAX_RESOLUTION, SURFACE_CLEARANCE, voxel_spheres};
 pub use crate::mesh::triangles::{
-    EDGE_SLACK, PLANE_ROUNDING, closest_point, crossing_pairs, face_normal, segment_hit, triangles_intersect,
+    EDGE_SLACK, PLANE_ROUNDING, closest_point, crossing_pairs, face_normal, intersecting_pairs, segment_hit,
 };
 pub use crate::self_contact::{
     ContactBody, ContactSolver, MAX_CANDIDATES, MAX_HELD_SCALE, MAX_PATH_SPAN, MAX_SPAN, particle_spacing,

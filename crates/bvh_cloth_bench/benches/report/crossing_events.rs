@@ -58,27 +58,6 @@ fn through_edge(start: &[Vec3], end: &[Vec3], e: [u32; 2], g: [u32; 2]) -> bool 
     })
 }
 
-/// The pairs of triangles sharing no corner that intersect at `x`.
-fn intersecting(triangles: &[[u32; 3]], x: &[Vec3]) -> std::collections::HashSet<(usize, usize)> {
-    let corners = |t: &[u32; 3]| t.map(|k| x[k as usize]);
-    let bounds: Vec<(Vec3, Vec3)> =
-        triangles.iter().map(corners).map(|[a, b, c]| (a.min(b).min(c), a.max(b).max(c))).collect();
-    (0..triangles.len())
-        .into_par_iter()
-        .flat_map_iter(|i| {
-            let bounds = &bounds;
-            (i + 1..triangles.len())
-                .filter(move |&j| {
-                    !triangles[i].iter().any(|k| triangles[j].contains(k))
-                        && bounds[i].1.cmpge(bounds[j].0).all()
-                        && bounds[j].1.cmpge(bounds[i].0).all()
-                        && triangles_intersect(corners(&triangles[i]), corners(&triangles[j]))
-                })
-                .map(move |j| (i, j))
-        })
-        .collect()
-}
-
 /// How the pairs that came to intersect in one run did: a corner through a face that contact
 /// skips (within the thickness of the face's box in the rest shape), a corner through a face
 /// it tests, an edge through an edge only, or neither found.
@@ -129,7 +108,8 @@ pub(crate) fn self_contact_events(bunny: &ObjMesh) {
             let start = sim.positions();
             sim.tick(TICK / 16.0, std::slice::from_ref(&collider));
             let end = sim.positions();
-            let now = intersecting(&triangles, &end);
+            let now: std::collections::HashSet<(usize, usize)> =
+                intersecting_pairs(&triangles, &end, None).into_iter().collect();
             for &(i, j) in now.difference(&known) {
                 let (a, b) = (triangles[i], triangles[j]);
                 let faces: Vec<bool> = a

@@ -127,11 +127,16 @@ pub fn triangles_intersect(a: [Vec3; 3], b: [Vec3; 3]) -> bool {
     crosses(a, b) || crosses(b, a)
 }
 
-/// Pairs of intersecting triangles (`triangles_intersect`): among `tris` (corners indexing
-/// `x`), skipping pairs that share a corner, or, with `other`, between `tris` and `other`'s
-/// triangles (indexing its own positions). Every pair whose boxes overlap is tested: a measure
-/// for tests and reports, not for a solver.
+/// How many pairs of triangles intersect ([`intersecting_pairs`]).
 pub fn crossing_pairs(tris: &[[u32; 3]], x: &[Vec3], other: Option<(&[[u32; 3]], &[Vec3])>) -> usize {
+    intersecting_pairs(tris, x, other).len()
+}
+
+/// The pairs `(i, j)` of intersecting triangles (`triangles_intersect`), in order: among `tris`
+/// (corners indexing `x`, `i < j`), skipping pairs that share a corner, or, with `other`,
+/// between `tris[i]` and `other`'s triangle `j` (indexing its own positions). Every pair whose
+/// boxes overlap is tested: a measure for tests and reports, not for a solver.
+pub fn intersecting_pairs(tris: &[[u32; 3]], x: &[Vec3], other: Option<(&[[u32; 3]], &[Vec3])>) -> Vec<(usize, usize)> {
     use rayon::prelude::*;
     let corners = |t: &[u32; 3], x: &[Vec3]| t.map(|k| x[k as usize]);
     let bounds = |t: [Vec3; 3]| (t[0].min(t[1]).min(t[2]), t[0].max(t[1]).max(t[2]));
@@ -139,19 +144,18 @@ pub fn crossing_pairs(tris: &[[u32; 3]], x: &[Vec3], other: Option<(&[[u32; 3]],
     let (theirs, y) = other.unwrap_or((tris, x));
     (0..tris.len())
         .into_par_iter()
-        .map(|i| {
+        .flat_map_iter(|i| {
             let a = corners(&tris[i], x);
             let first = if other.is_some() { 0 } else { i + 1 };
-            theirs[first..]
-                .iter()
-                .filter(|tj| other.is_some() || !tris[i].iter().any(|k| tj.contains(k)))
-                .filter(|tj| {
-                    let b = corners(tj, y);
+            (first..theirs.len())
+                .filter(move |&j| other.is_some() || !tris[i].iter().any(|k| theirs[j].contains(k)))
+                .filter(move |&j| {
+                    let b = corners(&theirs[j], y);
                     overlap(bounds(a), bounds(b)) && triangles_intersect(a, b)
                 })
-                .count()
+                .map(move |j| (i, j))
         })
-        .sum()
+        .collect()
 }
 
 /// The triangle's unit normal by its winding (`(b - a) x (c - a)`), or `None` when it has no
