@@ -49,6 +49,7 @@ fn values() -> Vec<(&'static str, Value)> {
         ("MAX_PATH_SPAN", I32(core::MAX_PATH_SPAN)),
         ("MAX_HELD_SCALE", F32(core::MAX_HELD_SCALE)),
         ("CONTACT_TRIANGLE_WORDS", U32(layout::CONTACT_TRIANGLE_WORDS as u32)),
+        ("NO_CORNER", U32(layout::NO_CORNER)),
     ]
 }
 

@@ -247,8 +247,8 @@ pub struct GpuColourPass {
     pub dispatch_width: u32,
 }
 
-/// What the self-contact kernels of a batch read (a uniform): the triangles of the cloths with
-/// self-contact, and the hashed grid they are sorted into each substep. 32 bytes.
+/// What the self-contact kernels of a batch read (a uniform): the triangles and edges of the
+/// cloths with self-contact, and the hashed grid they are sorted into each substep. 48 bytes.
 #[repr(C)]
 #[derive(Clone, Copy, Debug, Default, PartialEq, Pod, Zeroable)]
 pub struct GpuContactFrame {
@@ -268,25 +268,61 @@ pub struct GpuContactFrame {
     pub dispatch_width: u32,
     /// Particle slots the dispatches cover.
     pub particle_slots: u32,
+    /// Edges of the cloths with self-contact, after the triangles in the primitive buffer: one
+    /// thread each in the grid's build and in the edges' search.
+    pub edge_count: u32,
+    /// Padding to 16 bytes, in three words as the WGSL struct has them (a uniform holds no
+    /// array of `u32`).
+    pub pad0: u32,
+    /// Padding.
+    pub pad1: u32,
+    /// Padding.
+    pub pad2: u32,
 }
 
-/// Vec4 words per triangle in the self-contact triangle buffer: its corners and cloth, its
-/// rest box, and its box as the particles stand (written on the GPU each substep).
+/// Vec4 words per primitive (a triangle or an edge) in the self-contact primitive buffer: its
+/// corners and cloth, its rest box, and its box as the particles stand (written on the GPU
+/// each substep).
 pub const CONTACT_TRIANGLE_WORDS: usize = 5;
+
+/// The third corner of an edge in the self-contact primitive buffer: none.
+pub const NO_CORNER: u32 = u32::MAX;
 
 /// A cloth's triangles as the self-contact kernels read them, [`CONTACT_TRIANGLE_WORDS`] vec4s
 /// each: the corners' particle slots (the cloth's particles start at `particle_start`) and the
 /// cloth's index `slot`; the lower and upper corner of the triangle's box in the rest shape
 /// (`f32` bits); and two zero words, the room for its current box.
 pub fn gpu_contact_triangles(topology: &ClothTopology, particle_start: u32, slot: u32) -> Vec<[u32; 4]> {
+    contact_primitives(topology, topology.triangles().iter().map(|t| t.as_slice()), particle_start, slot)
+}
+
+/// A cloth's edges ([`ClothTopology::edges`]) as the self-contact kernels read them, laid out
+/// as [`gpu_contact_triangles`] lays out triangles, with [`NO_CORNER`] as the third corner.
+pub fn gpu_contact_edges(topology: &ClothTopology, particle_start: u32, slot: u32) -> Vec<[u32; 4]> {
+    contact_primitives(topology, topology.edges().iter().map(|e| e.as_slice()), particle_start, slot)
+}
+
+/// The primitive words of the triangles or edges `corners` (the cloth's particle indices) of a
+/// cloth whose particles start at slot `particle_start`.
+fn contact_primitives<'a>(
+    topology: &ClothTopology,
+    corners: impl ExactSizeIterator<Item = &'a [u32]>,
+    particle_start: u32,
+    slot: u32,
+) -> Vec<[u32; 4]> {
     let rest = topology.rest_positions();
     let bits = |v: Vec3| [v.x.to_bits(), v.y.to_bits(), v.z.to_bits(), 0];
-    let mut words = Vec::with_capacity(CONTACT_TRIANGLE_WORDS * topology.triangles().len());
-    for t in topology.triangles() {
-        let [a, b, c] = t.map(|k| rest[k as usize]);
-        words.push([t[0] + particle_start, t[1] + particle_start, t[2] + particle_start, slot]);
-        words.push(bits(a.min(b).min(c)));
-        words.push(bits(a.max(b).max(c)));
+    let mut words = Vec::with_capacity(CONTACT_TRIANGLE_WORDS * corners.len());
+    for c in corners {
+        let (mut lo, mut hi) = (Vec3::INFINITY, Vec3::NEG_INFINITY);
+        let mut slots = [NO_CORNER; 3];
+        for (slot, &k) in slots.iter_mut().zip(c) {
+            *slot = k + particle_start;
+            (lo, hi) = (lo.min(rest[k as usize]), hi.max(rest[k as usize]));
+        }
+        words.push([slots[0], slots[1], slots[2], slot]);
+        words.push(bits(lo));
+        words.push(bits(hi));
         words.push([0; 4]);
         words.push([0; 4]);
     }

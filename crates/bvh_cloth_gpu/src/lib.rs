@@ -6,9 +6,9 @@
 //! `collision_detection_with_bvh`: stack traversal of every collider's LBVH and the collision
 //! response), `apply_anchors` (pins moved at the start of each tick) and `normal_shader`
 //! (normals, written with the positions into an interleaved vertex buffer such as a mesh's
-//! vertex slab), block descent's three kernels, self-contact's eight ([`EntryPoint::CONTACT`]:
-//! a hashed grid of the cloths' triangles rebuilt by counting sort each substep, then
-//! point–triangle contacts within and between cloths), and aerodynamics' three
+//! vertex slab), block descent's three kernels, self-contact's nine ([`EntryPoint::CONTACT`]:
+//! a hashed grid of the cloths' triangles and edges rebuilt by counting sort each substep, then
+//! point–triangle and edge–edge contacts within and between cloths), and aerodynamics' three
 //! ([`EntryPoint::AIR`]: the wind sampled at every particle each tick, then drag and lift gathered
 //! from each particle's triangles each substep). The WGSL is one file per kernel beside a shared types file
 //! ([`SHADER_FILES`]).

@@ -73,7 +73,8 @@ pub(crate) fn kernel_column(kernel: Kernel) -> usize {
         | Kernel::ContactScan
         | Kernel::ContactScatter
         | Kernel::ContactFind
-        | Kernel::ContactApply => 6,
+        | Kernel::ContactApply
+        | Kernel::ContactFindEdges => 6,
         Kernel::AirSample | Kernel::AirForces | Kernel::AirKick => 7,
     }
 }

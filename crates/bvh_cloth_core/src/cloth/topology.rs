@@ -63,6 +63,7 @@ pub struct ClothTopology {
     spring_offsets: Vec<u32>,
     spring_ends: Vec<SpringEnd>,
     triangles: Vec<[u32; 3]>,
+    edges: Vec<[u32; 2]>,
     triangle_offsets: Vec<u32>,
     triangle_list: Vec<u32>,
     triangle_slots: Vec<[u32; 3]>,
@@ -238,6 +239,12 @@ impl ClothTopology {
                 fill[p as usize] += 1;
             }
         }
+        let mut edges: Vec<[u32; 2]> = triangles
+            .iter()
+            .flat_map(|&[a, b, c]| [[a, b], [b, c], [c, a]].map(|[p, q]| [p.min(q), p.max(q)]))
+            .collect();
+        edges.sort_unstable();
+        edges.dedup();
         let inv_mass_share: Vec<f32> = mass_share.iter().map(|&s| if s > 0.0 { 1.0 / s } else { 0.0 }).collect();
         let mut stiffness_bound = [0.0f32; 3];
         for i in 0..n {
@@ -268,6 +275,7 @@ impl ClothTopology {
             spring_offsets,
             spring_ends,
             triangles,
+            edges,
             triangle_offsets,
             triangle_list,
             triangle_slots,
@@ -334,6 +342,12 @@ impl ClothTopology {
     /// The surface's triangles over particles, counter-clockwise as authored.
     pub fn triangles(&self) -> &[[u32; 3]] {
         &self.triangles
+    }
+
+    /// The surface's edges, each once (the sides of its triangles, lower particle first), in
+    /// order.
+    pub fn edges(&self) -> &[[u32; 2]] {
+        &self.edges
     }
 
     /// Where each particle's triangles start in [`Self::triangle_list`] (one more entry than

@@ -48,7 +48,7 @@ pub(super) struct Groups {
     pub(super) drift: [BindGroup; 2],
     pub(super) apply_anchors: Option<BindGroup>,
     /// Self-contact's kernels, when a cloth has it.
-    pub(super) contact: Option<[BindGroup; 8]>,
+    pub(super) contact: Option<[BindGroup; EntryPoint::CONTACT.len()]>,
     /// Aerodynamics' kernels, when a cloth has drag or lift.
     pub(super) air: Option<[BindGroup; 4]>,
 }

@@ -4,7 +4,7 @@
 use wgpu::{BindGroupLayoutEntry, BindingType, BufferBindingType, ShaderStages};
 
 /// Every entry point of the kernels, in the order [`ClothKernels::descriptors`](crate::ClothKernels::descriptors) lists them.
-/// Self-contact's eight run in a substep in their order here ([`Self::CONTACT`]), as do
+/// Self-contact's nine run in a substep in their order here ([`Self::CONTACT`]), as do
 /// aerodynamics' three ([`Self::AIR`]) and a skinned collider's refit ([`Self::REFIT`]).
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, PartialOrd, Ord)]
 pub enum EntryPoint {
@@ -52,6 +52,9 @@ pub enum EntryPoint {
     ContactFind,
     /// `contact_apply`: each particle's mean correction, then the collision response.
     ContactApply,
+    /// `contact_find_edges`: each edge's contacts with the edges after it, their corrections
+    /// summed.
+    ContactFindEdges,
     /// `air_sample`: the wind at every particle of the cloths with aerodynamics, once a tick.
     AirSample,
     /// `air_forces`: each triangle's drag and lift, every substep.
@@ -62,7 +65,7 @@ pub enum EntryPoint {
 
 impl EntryPoint {
     /// Every entry point, in order.
-    pub const ALL: [Self; 25] = [
+    pub const ALL: [Self; 26] = [
         Self::NodeUpdate,
         Self::NodeUpdateFinal,
         Self::VbdPredict,
@@ -85,6 +88,7 @@ impl EntryPoint {
         Self::ContactScatter,
         Self::ContactFind,
         Self::ContactApply,
+        Self::ContactFindEdges,
         Self::AirSample,
         Self::AirForces,
         Self::AirKick,
@@ -93,9 +97,10 @@ impl EntryPoint {
     /// A skinned collider's refit, in the order it runs.
     pub const REFIT: [Self; 4] = [Self::SkinVertices, Self::FitLeaves, Self::RefitNodes, Self::RefitReach];
 
-    /// Self-contact's kernels, in the order they run in a substep (`contact_begin` before the
-    /// integrator, the others after it).
-    pub const CONTACT: [Self; 8] = [
+    /// Self-contact's kernels, in the order they first run in a substep (`contact_begin`
+    /// before the integrator, the others after it; `contact_apply` runs again after
+    /// `contact_find_edges`).
+    pub const CONTACT: [Self; 9] = [
         Self::ContactBegin,
         Self::ContactCount,
         Self::ContactScanBlocks,
@@ -104,6 +109,7 @@ impl EntryPoint {
         Self::ContactScatter,
         Self::ContactFind,
         Self::ContactApply,
+        Self::ContactFindEdges,
     ];
 
     /// Aerodynamics' kernels: `air_sample` once per tick, then `air_forces` at the start of
@@ -136,6 +142,7 @@ impl EntryPoint {
             Self::ContactScatter => "contact_scatter",
             Self::ContactFind => "contact_find",
             Self::ContactApply => "contact_apply",
+            Self::ContactFindEdges => "contact_find_edges",
             Self::AirSample => "air_sample",
             Self::AirForces => "air_forces",
             Self::AirKick => "air_kick",
@@ -351,6 +358,17 @@ pub(super) fn descriptors() -> [KernelDescriptor; EntryPoint::ALL.len()] {
                 storage(8, false),
                 storage(11, true),
                 storage(12, true),
+                storage(38, false),
+                storage(39, false),
+                storage(40, false),
+            ],
+        ),
+        contact(
+            EntryPoint::ContactFindEdges,
+            vec![
+                storage(8, false),
+                storage(36, false),
+                storage(37, false),
                 storage(38, false),
                 storage(39, false),
                 storage(40, false),

@@ -39,6 +39,8 @@ pub enum Kernel {
     ContactFind,
     /// `contact_apply`: each particle's mean correction, then the collision response.
     ContactApply,
+    /// `contact_find_edges`: each edge's contacts with the edges after it.
+    ContactFindEdges,
     /// `air_sample`: the wind at every particle of the cloths with aerodynamics, once a tick.
     AirSample,
     /// `air_forces`: each triangle's drag and lift.

@@ -5,20 +5,34 @@
 //   each contact particle's position at the start of the substep, clears its sums, and empties
 //   the grid's bucket counts;
 // then, after the integrator's last kernel (collision response included):
-// - contact_count, one thread per triangle: its box over the substep (where its corners were at
-//   the start and are now), grown by the largest thickness, and one count in the bucket of each
-//   cell the box overlaps (at most MAX_SPAN cells along an axis, each bucket once);
+// - contact_count, one thread per primitive (every triangle, then every edge): its box over the
+//   substep (where its corners were at the start and are now), grown by the largest thickness,
+//   and one count in the bucket of each cell the box overlaps (at most MAX_SPAN cells along an
+//   axis, each bucket once);
 // - contact_scan_blocks, contact_scan_top and contact_scan_add: the exclusive prefix sum of the
 //   counts, in blocks of 256 buckets (one workgroup of 64 threads each), then the blocks' sums
 //   (one workgroup), then the blocks' offsets added back: each bucket's first entry;
-// - contact_scatter, one thread per triangle: the triangle entered in each of its buckets;
+// - contact_scatter, one thread per primitive: the primitive entered in each of its buckets;
 // - contact_find, one thread per particle: the buckets of the cells its path over the substep
 //   overlaps (at most MAX_PATH_SPAN along an axis), at most MAX_CANDIDATES triangles of each,
 //   each triangle once, and for each contact (within the thickness at the end, or gone through
 //   the triangle during the substep) the corrections of the point and of the triangle's free
 //   corners, added to their sums;
 // - contact_apply, one thread per particle: the mean of its corrections, then the response
-//   against every collider from where it was.
+//   against every collider from where it was; its sums cleared;
+// - contact_find_edges, one thread per edge: the buckets of the cells its box over the substep
+//   (from where the points' corrections left it) overlaps, at most MAX_CANDIDATES later edges
+//   of each, each once, tested by their boxes as the corrections left them, grown by the
+//   largest thickness, and for each contact (within the thickness, or gone through each other
+//   during the substep) the corrections of the four ends;
+// - contact_apply again.
+//
+// A bucket holds its triangles first, from its start up to where the scatter's cursor ends,
+// then its edges, placed down from its end, as on the CPU; within each run the entries lie in
+// the order the scatter's atomics gave them, not in primitive order. An edge's search reads at
+// most SCANNED_ENTRIES edges of a bucket (it skips the edges before its own), and where a
+// bucket holds more than MAX_CANDIDATES of the primitives a search looks for, the ones it
+// examines may differ from the CPU's (both count the search as clamped).
 //
 // The sums are fixed-point integers, so that atomic adds give one answer whatever the order
 // the threads run in: the result is deterministic, and differs from the CPU's float sums by
@@ -29,7 +43,7 @@
 #import bvh_cloth::types::{GpuParticle, thread_index, all_finite}
 #import bvh_cloth::springs::{particle_info, cloths}
 #import bvh_cloth::collision::{collide, closest_on_triangle, layers_meet}
-#import bvh_cloth::constants::{NO_CLOTH, MAX_CANDIDATES, MAX_SPAN, MAX_PATH_SPAN, MAX_HELD_SCALE, CONTACT_TRIANGLE_WORDS}
+#import bvh_cloth::constants::{NO_CLOTH, NO_CORNER, MAX_CANDIDATES, MAX_SPAN, MAX_PATH_SPAN, MAX_HELD_SCALE, CONTACT_TRIANGLE_WORDS}
 
 struct ContactFrame {
     triangle_count: u32,
@@ -40,13 +54,18 @@ struct ContactFrame {
     grow: f32,
     dispatch_width: u32,
     particle_slots: u32,
+    edge_count: u32,
+    pad0: u32,
+    pad1: u32,
+    pad2: u32,
 }
 
 @group(0) @binding(35) var<uniform> contact: ContactFrame;
 // Per particle slot, two vec4s: the position at the start of the substep, the rest position.
 @group(0) @binding(36) var<storage, read_write> contact_points: array<vec4<f32>>;
-// Per triangle, five vec4s (bvh_cloth_gpu::layout::gpu_contact_triangles): corners and
-// cloth; rest box; current grown box (f32 bits).
+// Per primitive (every triangle, then every edge), five vec4s
+// (bvh_cloth_gpu::layout::gpu_contact_triangles and gpu_contact_edges): corners (NO_CORNER the
+// third of an edge) and cloth; rest box; current grown box (f32 bits).
 @group(0) @binding(37) var<storage, read_write> contact_triangles: array<vec4<u32>>;
 // The grid: 4 statistics words, then the bucket counts, the bucket cursors, the bucket starts
 // (one more than the buckets), the blocks' sums, and the entries.
@@ -62,6 +81,9 @@ const POSITION_LIMIT: f32 = 1.0;        // largest correction of one contact, m
 const VELOCITY_LIMIT: f32 = 64.0;       // m/s
 const STAT_CONTACTS: u32 = 0u;
 const STAT_CLAMPED: u32 = 1u;
+const STAT_CLAMPED_EDGES: u32 = 2u;
+// The most entries of one bucket an edge's search reads.
+const SCANNED_ENTRIES: u32 = 4u * MAX_CANDIDATES;
 const GRID_HEADER: u32 = 4u;
 const SCAN_BLOCK: u32 = 256u;
 const SCAN_THREADS: u32 = 64u;
@@ -150,18 +172,24 @@ fn cells_of_box(lo: vec3<f32>, hi: vec3<f32>, span: i32) -> CellRange {
     return range;
 }
 
-// Triangle t's cells: the range of its box over the substep, grown (written into the
-// triangle's box words), capped at MAX_SPAN cells along each axis.
-fn triangle_cells(t: u32, record: bool) -> CellRange {
+// Primitive t's cells: the range of its box over the substep, grown (written into the
+// primitive's box words), capped at MAX_SPAN cells along each axis.
+fn primitive_cells(t: u32, record: bool) -> CellRange {
     let corners = contact_triangles[CONTACT_TRIANGLE_WORDS * t];
     let a = corner_position(corners.x);
     let b = corner_position(corners.y);
-    let c = corner_position(corners.z);
     let d = contact_points[2u * corners.x].xyz;
     let e = contact_points[2u * corners.y].xyz;
-    let f = contact_points[2u * corners.z].xyz;
-    let lo = min(min(min(a, b), c), min(min(d, e), f)) - contact.grow;
-    let hi = max(max(max(a, b), c), max(max(d, e), f)) + contact.grow;
+    var lo = min(min(a, b), min(d, e));
+    var hi = max(max(a, b), max(d, e));
+    if (corners.z != NO_CORNER) {
+        let c = corner_position(corners.z);
+        let f = contact_points[2u * corners.z].xyz;
+        lo = min(lo, min(c, f));
+        hi = max(hi, max(c, f));
+    }
+    lo -= contact.grow;
+    hi += contact.grow;
     let valid = all_finite(lo) && all_finite(hi);
     if (record) {
         // A box that is not finite is stored empty, so that no point is inside it.
@@ -177,9 +205,9 @@ fn triangle_cells(t: u32, record: bool) -> CellRange {
     return range;
 }
 
-// Counts (or, with `place`, enters) triangle t in each bucket its cells hash to, once each.
+// Counts (or, with `place`, enters) primitive t in each bucket its cells hash to, once each.
 fn visit_buckets(t: u32, place: bool) {
-    let range = triangle_cells(t, !place);
+    let range = primitive_cells(t, !place);
     if (!range.valid) {
         return;
     }
@@ -200,7 +228,14 @@ fn visit_buckets(t: u32, place: bool) {
                 used[count] = b;
                 count++;
                 if (place) {
-                    let e = atomicAdd(&contact_grid[cursor_at(b)], 1u);
+                    // Triangles from the bucket's start, edges from its end: the cursor ends
+                    // where the triangles end and the edges begin.
+                    var e: u32;
+                    if (t < contact.triangle_count) {
+                        e = atomicAdd(&contact_grid[cursor_at(b)], 1u);
+                    } else {
+                        e = atomicLoad(&contact_grid[start_at(b + 1u)]) - 1u - atomicAdd(&contact_grid[count_at(b)], 1u);
+                    }
                     if (e < contact.entry_capacity) {
                         atomicStore(&contact_grid[entry_at(e)], t);
                     }
@@ -215,7 +250,7 @@ fn visit_buckets(t: u32, place: bool) {
 @compute @workgroup_size(8, 8, 1)
 fn contact_count(@builtin(global_invocation_id) id: vec3<u32>) {
     let t = thread_index(id, contact.dispatch_width);
-    if (t < contact.triangle_count) {
+    if (t < contact.triangle_count + contact.edge_count) {
         visit_buckets(t, false);
     }
 }
@@ -310,13 +345,15 @@ fn contact_scan_add(
         let start = atomicLoad(&contact_grid[start_at(b)]) + offset;
         atomicStore(&contact_grid[start_at(b)], start);
         atomicStore(&contact_grid[cursor_at(b)], start);
+        // The count, read by the blocks' sums, now counts the edges placed from the bucket's end.
+        atomicStore(&contact_grid[count_at(b)], 0u);
     }
 }
 
 @compute @workgroup_size(8, 8, 1)
 fn contact_scatter(@builtin(global_invocation_id) id: vec3<u32>) {
     let t = thread_index(id, contact.dispatch_width);
-    if (t < contact.triangle_count) {
+    if (t < contact.triangle_count + contact.edge_count) {
         visit_buckets(t, true);
     }
 }
@@ -532,7 +569,8 @@ fn contact_find(@builtin(global_invocation_id) id: vec3<u32>) {
             for (var x = 0; x <= span.x; x++) {
                 let at = path.lo + vec3(x, y, z);
                 let b = bucket_of(at);
-                let end = min(atomicLoad(&contact_grid[start_at(b + 1u)]), contact.entry_capacity);
+                // The bucket's triangles: from its start to its cursor.
+                let end = min(atomicLoad(&contact_grid[cursor_at(b)]), contact.entry_capacity);
                 let start = min(atomicLoad(&contact_grid[start_at(b)]), end);
                 clamped = clamped || end - start > MAX_CANDIDATES;
                 let last = min(end, start + MAX_CANDIDATES);
@@ -578,10 +616,277 @@ fn contact_apply(@builtin(global_invocation_id) id: vec3<u32>) {
     let dv = vec3<f32>(
         vec3(atomicLoad(&contact_sums[at + 3u]), atomicLoad(&contact_sums[at + 4u]), atomicLoad(&contact_sums[at + 5u])),
     ) / VELOCITY_SCALE;
+    for (var k = 0u; k < SUM_WORDS; k++) {
+        atomicStore(&contact_sums[at + k], 0);
+    }
     let me = contact_state[i];
     var moved: GpuParticle;
     moved.position = vec4(me.position.xyz + dx * mean, me.position.w);
     moved.velocity = vec4(me.velocity.xyz + dv * mean, 0.0);
     let c = contact_cloth(i);
-    contact_state[i] = collide(me.position.xyz, moved, vec2(cloths[c].memberships, cloths[c].filters));
+    var done = collide(me.position.xyz, moved, vec2(cloths[c].memberships, cloths[c].filters));
+    // Held by a collider in the integrator's response, as the edges' contacts weigh it.
+    done.velocity.w = me.velocity.w;
+    contact_state[i] = done;
+}
+
+// bvh_cloth_core::self_contact::edge_edge::closest_on_segments: where along the segments p0 p1
+// and q0 q1 their closest points lie.
+fn closest_on_segments(p0: vec3<f32>, p1: vec3<f32>, q0: vec3<f32>, q1: vec3<f32>) -> vec2<f32> {
+    let d = p1 - p0;
+    let e = q1 - q0;
+    let r = p0 - q0;
+    let a = dot(d, d);
+    let c = dot(e, e);
+    let f = dot(e, r);
+    let tiny = 1.1920929e-7 * max(a, c);
+    if (a <= tiny && c <= tiny) {
+        return vec2(0.0);
+    }
+    if (a <= tiny) {
+        return vec2(0.0, clamp(f / c, 0.0, 1.0));
+    }
+    let g = dot(d, r);
+    if (c <= tiny) {
+        return vec2(clamp(-g / a, 0.0, 1.0), 0.0);
+    }
+    let b = dot(d, e);
+    let det = a * c - b * b;
+    var s = 0.0;
+    if (det > 1.0e-6 * a * c) {
+        s = clamp((b * f - g * c) / det, 0.0, 1.0);
+    }
+    let t = (b * s + f) / c;
+    if (t < 0.0) {
+        return vec2(clamp(-g / a, 0.0, 1.0), 0.0);
+    }
+    if (t > 1.0) {
+        return vec2(clamp((b - g) / a, 0.0, 1.0), 1.0);
+    }
+    return vec2(s, t);
+}
+
+// bvh_cloth_core::self_contact::edge_edge::common_normal, a zero vector for None.
+fn common_normal(p0: vec3<f32>, p1: vec3<f32>, q0: vec3<f32>, q1: vec3<f32>) -> vec3<f32> {
+    let d = p1 - p0;
+    let e = q1 - q0;
+    let c = cross(d, e);
+    let c2 = dot(c, c);
+    if (c2 > 1.0e-8 * dot(d, d) * dot(e, e) && all_finite(vec3(c2))) {
+        return c / sqrt(c2);
+    }
+    return vec3(0.0);
+}
+
+// bvh_cloth_core::self_contact::edge_edge::crossed: whether the edges that went from (r0 r1,
+// u0 u1) to (p0 p1, q0 q1) went through each other; where along each they met in xy, z 1 for a
+// crossing.
+fn edges_crossed(r0: vec3<f32>, r1: vec3<f32>, u0: vec3<f32>, u1: vec3<f32>, p0: vec3<f32>, p1: vec3<f32>, q0: vec3<f32>, q1: vec3<f32>, side_before: f32, side_now: f32, h: f32) -> vec3<f32> {
+    if (!(side_before * side_now < 0.0)) {
+        return vec3(0.0);
+    }
+    let at = side_before / (side_before - side_now);
+    let a0 = mix(r0, p0, at);
+    let a1 = mix(r1, p1, at);
+    let b0 = mix(u0, q0, at);
+    let b1 = mix(u1, q1, at);
+    let st = closest_on_segments(a0, a1, b0, b1);
+    let off = mix(a0, a1, st.x) - mix(b0, b1, st.y);
+    if (!(dot(off, off) < h * h)) {
+        return vec3(0.0);
+    }
+    return vec3(st, 1.0);
+}
+
+// bvh_cloth_core::self_contact::ContactSolver::edge_contact, its corrections added to the sums:
+// edge primitive ep against edge primitive fp.
+fn edge_touch(ep: u32, fp: u32) {
+    let ea = contact_triangles[CONTACT_TRIANGLE_WORDS * ep];
+    let fa = contact_triangles[CONTACT_TRIANGLE_WORDS * fp];
+    if (ea.x == fa.x || ea.x == fa.y || ea.y == fa.x || ea.y == fa.y) {
+        return;
+    }
+    let ec = ea.w;
+    let fc = fa.w;
+    if (ec != fc && !layers_meet(vec2(cloths[ec].memberships, cloths[ec].filters), vec2(cloths[fc].memberships, cloths[fc].filters))) {
+        return;
+    }
+    let h = 0.5 * (cloths[ec].contact_thickness + cloths[fc].contact_thickness);
+    let ids = vec4(ea.x, ea.y, fa.x, fa.y);
+    let s0 = contact_state[ids.x];
+    let s1 = contact_state[ids.y];
+    let s2 = contact_state[ids.z];
+    let s3 = contact_state[ids.w];
+    let p0 = s0.position.xyz;
+    let p1 = s1.position.xyz;
+    let q0 = s2.position.xyz;
+    let q1 = s3.position.xyz;
+    let r0 = contact_points[2u * ids.x].xyz;
+    let r1 = contact_points[2u * ids.y].xyz;
+    let u0 = contact_points[2u * ids.z].xyz;
+    let u1 = contact_points[2u * ids.w].xyz;
+    // Their boxes over the substep as the particles stand now, within the thickness.
+    let box_e_lo = min(min(p0, p1), min(r0, r1));
+    let box_e_hi = max(max(p0, p1), max(r0, r1));
+    let box_f_lo = min(min(q0, q1), min(u0, u1));
+    let box_f_hi = max(max(q0, q1), max(u0, u1));
+    if (!(all(box_e_lo - h <= box_f_hi) && all(box_e_hi + h >= box_f_lo))) {
+        return;
+    }
+    if (ec == fc) {
+        let e_lo = bitcast<vec3<f32>>(contact_triangles[CONTACT_TRIANGLE_WORDS * ep + 1u].xyz);
+        let e_hi = bitcast<vec3<f32>>(contact_triangles[CONTACT_TRIANGLE_WORDS * ep + 2u].xyz);
+        let f_lo = bitcast<vec3<f32>>(contact_triangles[CONTACT_TRIANGLE_WORDS * fp + 1u].xyz);
+        let f_hi = bitcast<vec3<f32>>(contact_triangles[CONTACT_TRIANGLE_WORDS * fp + 2u].xyz);
+        if (all(e_lo - h <= f_hi) && all(e_hi + h >= f_lo)) {
+            return;
+        }
+    }
+    let closest = closest_on_segments(p0, p1, q0, q1);
+    var s = closest.x;
+    var t = closest.y;
+    let away = mix(p0, p1, s) - mix(q0, q1, t);
+    let d2 = dot(away, away);
+    if (!all_finite(vec3(d2))) {
+        return;
+    }
+    let normal_before = common_normal(r0, r1, u0, u1);
+    var normal_now = common_normal(p0, p1, q0, q1);
+    if (dot(normal_before, normal_now) < 0.0) {
+        normal_now = -normal_now;
+    }
+    let has_normal = any(normal_now != vec3(0.0));
+    let side_before = dot(r0 - u0, normal_before);
+    let side_now = dot(p0 - q0, normal_now);
+    let through = side_before * side_now < 0.0;
+    var n: vec3<f32>;
+    var gap: f32;
+    if (!(d2 < h * h)) {
+        // Farther than the thickness now: a contact only if they went through each other.
+        let hit = edges_crossed(r0, r1, u0, u1, p0, p1, q0, q1, side_before, side_now, h);
+        if (!has_normal || hit.z == 0.0) {
+            return;
+        }
+        n = normal_now * sign(side_before);
+        gap = -abs(side_now);
+        s = hit.x;
+        t = hit.y;
+    } else if (has_normal && through) {
+        n = normal_now * sign(side_before);
+        gap = -abs(side_now);
+    } else if (sqrt(d2) > 1.0e-6 * h) {
+        let d = sqrt(d2);
+        n = away / d;
+        gap = d;
+    } else if (has_normal && side_before != 0.0) {
+        n = normal_now * sign(side_before);
+        gap = 0.0;
+    } else {
+        return;
+    }
+    let coef = vec4(1.0 - s, s, t - 1.0, -t);
+    let free = vec4(s0.position.w, s1.position.w, s2.position.w, s3.position.w);
+    let denom = dot(free, coef * coef);
+    if (denom <= 0.0) {
+        return;
+    }
+    let unheld = free * (vec4(1.0) - vec4(s0.velocity.w, s1.velocity.w, s2.velocity.w, s3.velocity.w));
+    let unheld_denom = dot(unheld, coef * coef);
+    var w = free;
+    var scale = 1.0;
+    if (unheld_denom > 0.0) {
+        w = unheld;
+        scale = min(denom / unheld_denom, MAX_HELD_SCALE);
+    }
+    let relative = mix(s0.velocity.xyz, s1.velocity.xyz, s) - mix(s2.velocity.xyz, s3.velocity.xyz, t);
+    let vn = dot(relative, n);
+    var impulse = vec3(0.0);
+    if (vn < 0.0) {
+        let tangential = relative - vn * n;
+        let friction = 0.5 * (cloths[ec].contact_friction + cloths[fc].contact_friction);
+        let speed = length(tangential);
+        var slow = 0.0;
+        if (speed > 0.0) {
+            slow = min(friction * -vn / speed, 1.0);
+        }
+        impulse = -(vn * n + slow * tangential) / denom * scale;
+    }
+    let lambda = (h - gap) / denom * scale;
+    for (var k = 0u; k < 4u; k++) {
+        if (w[k] > 0.0) {
+            add_correction(ids[k], w[k] * coef[k] * lambda * n, w[k] * coef[k] * impulse);
+        }
+    }
+}
+
+@compute @workgroup_size(8, 8, 1)
+fn contact_find_edges(@builtin(global_invocation_id) id: vec3<u32>) {
+    let e = thread_index(id, contact.dispatch_width);
+    if (e >= contact.edge_count) {
+        return;
+    }
+    // bvh_cloth_core::self_contact::ContactSolver::edge_contacts: the cells of the edge's box
+    // over the substep.
+    let ep = contact.triangle_count + e;
+    let ends = contact_triangles[CONTACT_TRIANGLE_WORDS * ep];
+    let a = corner_position(ends.x);
+    let b = corner_position(ends.y);
+    let pa = contact_points[2u * ends.x].xyz;
+    let pb = contact_points[2u * ends.y].xyz;
+    let box_lo = min(min(a, b), min(pa, pb));
+    let box_hi = max(max(a, b), max(pa, pb));
+    let range = cells_of_box(box_lo, box_hi, MAX_SPAN);
+    if (!range.valid) {
+        return;
+    }
+    var clamped = range.capped;
+    let span = range.hi - range.lo;
+    for (var z = 0; z <= span.z; z++) {
+        for (var y = 0; y <= span.y; y++) {
+            for (var x = 0; x <= span.x; x++) {
+                let at = range.lo + vec3(x, y, z);
+                let bucket = bucket_of(at);
+                // The bucket's edges: from its cursor to its end.
+                let end = min(atomicLoad(&contact_grid[start_at(bucket + 1u)]), contact.entry_capacity);
+                let start = min(atomicLoad(&contact_grid[cursor_at(bucket)]), end);
+                let last = min(end, start + SCANNED_ENTRIES);
+                clamped = clamped || end > last;
+                var examined = 0u;
+                for (var k = start; k < last; k++) {
+                    // The edges after this one: each pair once.
+                    let f = atomicLoad(&contact_grid[entry_at(k)]);
+                    if (f <= ep) {
+                        continue;
+                    }
+                    if (examined == MAX_CANDIDATES) {
+                        clamped = true;
+                        break;
+                    }
+                    examined++;
+                    // The candidate's box as the points' corrections left it, grown (the CPU's
+                    // refreshed grid boxes); its cells, those it was entered in before them.
+                    let other = contact_triangles[CONTACT_TRIANGLE_WORDS * f];
+                    let c = corner_position(other.x);
+                    let d = corner_position(other.y);
+                    let pc = contact_points[2u * other.x].xyz;
+                    let pd = contact_points[2u * other.y].xyz;
+                    let now_lo = min(min(c, d), min(pc, pd)) - contact.grow;
+                    let now_hi = max(max(c, d), max(pc, pd)) + contact.grow;
+                    if (!(all(box_lo <= now_hi) && all(box_hi >= now_lo))) {
+                        continue;
+                    }
+                    let lo = bitcast<vec3<f32>>(contact_triangles[CONTACT_TRIANGLE_WORDS * f + 3u].xyz);
+                    let hi = bitcast<vec3<f32>>(contact_triangles[CONTACT_TRIANGLE_WORDS * f + 4u].xyz);
+                    let cells = cells_of_box(lo, hi, MAX_SPAN);
+                    if (!cells.valid || any(max(cells.lo, range.lo) != at)) {
+                        continue;
+                    }
+                    edge_touch(ep, f);
+                }
+            }
+        }
+    }
+    if (clamped) {
+        atomicAdd(&contact_grid[STAT_CLAMPED_EDGES], 1u);
+    }
 }

@@ -1,18 +1,20 @@
 //! Self-contact on the GPU: the buffers, bind groups and dispatches of `self_contact.wgsl` for
 //! the cloths of a batch that have a contact thickness.
 //!
-//! Every such cloth keeps off its own triangles and off every other such cloth's, as
+//! Every such cloth keeps off its own triangles and edges and off every other such cloth's, as
 //! [`bvh_cloth_core::ClothSim::tick_together`] does on the CPU: they share one hashed grid of
-//! triangles, rebuilt each substep with a counting sort (counts by atomics, a prefix sum, a
-//! scatter), and take the largest substep count among them. Per substep `contact_begin` runs
-//! before the integrator and the other seven kernels after it.
+//! triangles and edges, rebuilt each substep with a counting sort (counts by atomics, a prefix
+//! sum, a scatter), and take the largest substep count among them. Per substep
+//! `contact_begin` runs before the integrator and the others after it: the grid's build, the
+//! points' contacts found and applied, then the edges' found and applied.
 //!
 //! The buffers are written when the set of contact cloths, or where they lie, changes: the
-//! particles' rest positions, each triangle's corners and rest box, and a grid sized for the
-//! triangles (a table of about twice as many buckets, room for eight entries per triangle).
+//! particles' rest positions, each primitive's corners and rest box (every cloth's triangles,
+//! then every cloth's edges), and a grid sized for them (a table of about twice as many buckets
+//! as primitives, room for eight entries per primitive).
 //! Everything else is per frame: the thickness the boxes grow by and the cell width.
 
-use crate::layout::{CONTACT_TRIANGLE_WORDS, GpuContactFrame, gpu_contact_triangles};
+use crate::layout::{CONTACT_TRIANGLE_WORDS, GpuContactFrame, gpu_contact_edges, gpu_contact_triangles};
 use bvh_cloth_core::ClothTopology;
 use wgpu::{BindGroup, Buffer, BufferUsages, ComputePass, Device, Queue};
 
@@ -25,11 +27,12 @@ const SCAN_BLOCK: u32 = 256;
 /// Most buckets of the grid: the prefix sum's blocks must fit one dispatch dimension.
 const MAX_BUCKETS: u32 = 1 << 23;
 
-/// Grid entries per triangle there is room for. A triangle whose grown box is narrower than a
-/// cell (the usual case: cells are twice a grown triangle's width) covers at most eight.
-const ENTRIES_PER_TRIANGLE: u32 = 8;
+/// Grid entries per primitive there is room for. A triangle or an edge whose grown box is
+/// narrower than a cell (the usual case: cells are twice a grown triangle's width) covers at
+/// most eight.
+const ENTRIES_PER_PRIMITIVE: u32 = 8;
 
-/// Words of the grid before the counts: contacts, clamped, two unused.
+/// Words of the grid before the counts: contacts, points clamped, edges clamped, one unused.
 const GRID_HEADER: u32 = 4;
 
 /// Words per particle of the sums.
@@ -56,6 +59,7 @@ pub(crate) struct ContactPlan {
     /// Substeps every contact cloth takes per tick.
     pub substeps: u32,
     triangles: u32,
+    edges: u32,
     buckets: u32,
     blocks: u32,
     entry_capacity: u32,
@@ -82,14 +86,16 @@ impl ContactPlan {
         particle_capacity: u32,
     ) -> Result<Self, KernelError> {
         let triangles: u32 = cloths.iter().map(|(_, t)| t.triangles().len() as u32).sum();
-        let buckets = (2 * triangles).next_power_of_two().clamp(SCAN_BLOCK, MAX_BUCKETS);
+        let edges: u32 = cloths.iter().map(|(_, t)| t.edges().len() as u32).sum();
+        let primitives = triangles + edges;
+        let buckets = (2 * primitives).next_power_of_two().clamp(SCAN_BLOCK, MAX_BUCKETS);
         let blocks = buckets / SCAN_BLOCK;
-        let entry_capacity = triangles.saturating_mul(ENTRIES_PER_TRIANGLE).max(1);
+        let entry_capacity = primitives.saturating_mul(ENTRIES_PER_PRIMITIVE).max(1);
         let grid_words =
             u64::from(GRID_HEADER) + 3 * u64::from(buckets) + 1 + u64::from(blocks) + u64::from(entry_capacity);
         let sizes = [
             u64::from(particle_capacity) * 32,
-            u64::from(triangles) * CONTACT_TRIANGLE_WORDS as u64 * 16,
+            u64::from(primitives) * CONTACT_TRIANGLE_WORDS as u64 * 16,
             grid_words * 4,
             u64::from(particle_capacity) * SUM_WORDS * 4,
         ];
@@ -108,8 +114,8 @@ impl ContactPlan {
             usage: BufferUsages::UNIFORM | BufferUsages::COPY_DST,
             mapped_at_creation: false,
         });
-        let (mut perimeters, mut edges) = (0.0f64, 0u64);
-        let mut words = Vec::with_capacity(triangles as usize * CONTACT_TRIANGLE_WORDS);
+        let (mut perimeters, mut sides) = (0.0f64, 0u64);
+        let mut words = Vec::with_capacity(primitives as usize * CONTACT_TRIANGLE_WORDS);
         for &((slot, start, _), topology) in cloths {
             // Each particle's rest position, beside the start-of-substep position the kernels keep.
             let rest: Vec<[f32; 8]> =
@@ -120,18 +126,22 @@ impl ContactPlan {
             for t in topology.triangles() {
                 let [a, b, c] = t.map(|k| r[k as usize]);
                 perimeters += f64::from(a.distance(b) + b.distance(c) + c.distance(a));
-                edges += 3;
+                sides += 3;
             }
         }
+        for &((slot, start, _), topology) in cloths {
+            words.extend(gpu_contact_edges(topology, start, slot));
+        }
         queue.write_buffer(&triangle_words, 0, bytemuck::cast_slice(&words));
-        let mean_edge = if edges == 0 { 0.0 } else { (perimeters / edges as f64) as f32 };
-        let cover = triangles.max(buckets);
+        let mean_edge = if sides == 0 { 0.0 } else { (perimeters / sides as f64) as f32 };
+        let cover = primitives.max(buckets);
         let width_groups = ClothKernels::workgroups(device, cover)?.0;
         Ok(Self {
             cloths: cloths.iter().map(|(cloth, _)| *cloth).collect(),
             particle_capacity,
             substeps: 0,
             triangles,
+            edges,
             buckets,
             blocks,
             entry_capacity,
@@ -152,7 +162,7 @@ impl ContactPlan {
     /// decides only which triangles a point examines, not which touch it). Clears the
     /// statistics.
     pub fn write_frame(&mut self, device: &Device, queue: &Queue, particle_slots: u32, thickest: f32) {
-        let cover = particle_slots.max(self.triangles).max(self.buckets);
+        let cover = particle_slots.max(self.triangles + self.edges).max(self.buckets);
         self.width_groups = ClothKernels::workgroups(device, cover).map_or(self.width_groups, |(x, _)| x);
         self.slots = particle_slots;
         let cell = 2.0 * (thickest + self.mean_edge);
@@ -165,20 +175,29 @@ impl ContactPlan {
             grow: thickest,
             dispatch_width: self.width_groups * WORKGROUP_SIZE,
             particle_slots,
+            edge_count: self.edges,
+            pad0: 0,
+            pad1: 0,
+            pad2: 0,
         };
         queue.write_buffer(&self.uniform, 0, bytemuck::bytes_of(&frame));
         queue.write_buffer(&self.grid, 0, bytemuck::cast_slice(&[0u32; GRID_HEADER as usize]));
     }
 
     /// The grid's statistics words (`COPY_SRC`): the contacts (one per free particle taking
-    /// part in one, summed over the substeps) and the bounds met, since the last
-    /// [`Self::write_frame`].
+    /// part in one, summed over the substeps), the bounds the points and the triangles met,
+    /// and those the edges met, since the last [`Self::write_frame`].
     pub fn stats(&self) -> &Buffer {
         &self.grid
     }
 
-    /// The bind groups of the eight kernels, in [`EntryPoint::CONTACT`] order.
-    pub fn bind_groups(&self, device: &Device, kernels: &ClothKernels, shared: &SharedBuffers<'_>) -> [BindGroup; 8] {
+    /// The bind groups of the kernels, in [`EntryPoint::CONTACT`] order.
+    pub fn bind_groups(
+        &self,
+        device: &Device,
+        kernels: &ClothKernels,
+        shared: &SharedBuffers<'_>,
+    ) -> [BindGroup; EntryPoint::CONTACT.len()] {
         let resource = |binding: u32| -> &Buffer {
             match binding {
                 0 => shared.frame,
@@ -219,7 +238,7 @@ impl ContactPlan {
     pub fn begin(
         &self,
         kernels: &ClothKernels,
-        groups: &[BindGroup; 8],
+        groups: &[BindGroup; EntryPoint::CONTACT.len()],
         each: &mut impl FnMut(Kernel, &dyn Fn(&mut ComputePass<'_>)),
     ) {
         let size = (self.width_groups, self.rows(self.slots.max(self.buckets)));
@@ -231,27 +250,30 @@ impl ContactPlan {
     }
 
     /// Calls `each` with the dispatches that close a substep, after the integrator: the grid's
-    /// build, then the contacts found and applied.
+    /// build, the points' contacts found and applied, then the edges'.
     pub fn resolve(
         &self,
         kernels: &ClothKernels,
-        groups: &[BindGroup; 8],
+        groups: &[BindGroup; EntryPoint::CONTACT.len()],
         each: &mut impl FnMut(Kernel, &dyn Fn(&mut ComputePass<'_>)),
     ) {
-        let triangles = (self.width_groups, self.rows(self.triangles));
+        let primitives = (self.width_groups, self.rows(self.triangles + self.edges));
         let particles = (self.width_groups, self.rows(self.slots));
-        let sizes = [triangles, (self.blocks, 1), (1, 1), (self.blocks, 1), triangles, particles, particles];
-        let names = [
-            Kernel::ContactCount,
-            Kernel::ContactScan,
-            Kernel::ContactScan,
-            Kernel::ContactScan,
-            Kernel::ContactScatter,
-            Kernel::ContactFind,
-            Kernel::ContactApply,
+        let edges = (self.width_groups, self.rows(self.edges));
+        // Each dispatch: its kernel's place in EntryPoint::CONTACT, its size and its name.
+        let dispatches = [
+            (1, primitives, Kernel::ContactCount),
+            (2, (self.blocks, 1), Kernel::ContactScan),
+            (3, (1, 1), Kernel::ContactScan),
+            (4, (self.blocks, 1), Kernel::ContactScan),
+            (5, primitives, Kernel::ContactScatter),
+            (6, particles, Kernel::ContactFind),
+            (7, particles, Kernel::ContactApply),
+            (8, edges, Kernel::ContactFindEdges),
+            (7, particles, Kernel::ContactApply),
         ];
-        for (k, (size, name)) in sizes.into_iter().zip(names).enumerate() {
-            let (pipeline, group) = (kernels.pipeline(EntryPoint::CONTACT[k + 1]), &groups[k + 1]);
+        for (k, size, name) in dispatches {
+            let (pipeline, group) = (kernels.pipeline(EntryPoint::CONTACT[k]), &groups[k]);
             each(name, &|pass| {
                 pass.set_pipeline(pipeline);
                 pass.set_bind_group(0, group, &[]);

@@ -71,6 +71,7 @@ fn wgsl_is_valid() {
             "contact_scatter",
             "contact_find",
             "contact_apply",
+            "contact_find_edges",
             "air_sample",
             "air_forces",
             "air_kick",
@@ -154,7 +155,20 @@ fn wgsl_structs_match_the_rust_layouts() {
         &module,
         "ContactFrame",
         GpuContactFrame,
-        [triangle_count, buckets, blocks, entry_capacity, inv_cell, grow, dispatch_width, particle_slots]
+        [
+            triangle_count,
+            buckets,
+            blocks,
+            entry_capacity,
+            inv_cell,
+            grow,
+            dispatch_width,
+            particle_slots,
+            edge_count,
+            pad0,
+            pad1,
+            pad2
+        ]
     );
     assert_layout!(&module, "WritebackGroup", GpuWritebackGroup, [first_owner, vertex_count, dispatch_width, pad]);
     assert_layout!(
@@ -243,7 +257,7 @@ fn sizes_are_multiples_of_sixteen() {
     assert_eq!(size_of::<GpuParticle>(), 32);
     assert_eq!(size_of::<GpuBatchCloth>(), 112);
     assert_eq!(size_of::<GpuColourPass>(), 16);
-    assert_eq!(size_of::<GpuContactFrame>(), 32);
+    assert_eq!(size_of::<GpuContactFrame>(), 48);
     assert_eq!(offset_of!(GpuBatchCloth, faults) as u64, GpuBatchCloth::HOST_BYTES);
     assert_eq!(size_of::<GpuBatchFrame>(), 16);
     assert_eq!(size_of::<GpuBatchStep>(), 16);

@@ -1,0 +1,177 @@
+//! Edge against edge: two edges held their thickness apart where they pass close, or put back
+//! on the sides they came from when one went through the other during the substep. Between
+//! the particles of two layers an edge can cross an edge with no particle near a triangle of
+//! the other layer, which point against triangle alone lets through. See the
+//! [module docs](super).
+
+use glam::{Vec3, Vec3A};
+
+use super::{Contact, ContactBody, ContactSolver, MAX_HELD_SCALE, MAX_SPAN};
+
+impl ContactSolver {
+    /// Adds the contacts of edge `e` with the edges after it whose grown boxes its box over
+    /// the substep meets to `found`, each pair once; returns whether a bucket held more than
+    /// [`MAX_CANDIDATES`](super::MAX_CANDIDATES) of them, or the box was wider than
+    /// [`MAX_SPAN`] cells. The boxes are those the points' corrections left; the buckets are
+    /// those of before them, so an edge those corrections moved out of the cells it was entered
+    /// in is not met there.
+    pub(super) fn edge_contacts(&self, e: usize, bodies: &[ContactBody<'_>], found: &mut Vec<Contact>) -> bool {
+        let (_, [a, b]) = self.edges[e];
+        let ends = [a, b].map(|k| Vec3A::from(self.x[k as usize]));
+        let starts = [a, b].map(|k| Vec3A::from(self.prev[k as usize]));
+        let lo = ends[0].min(ends[1]).min(starts[0].min(starts[1]));
+        let hi = ends[0].max(ends[1]).max(starts[0].max(starts[1]));
+        let first = self.triangles.len() as u32;
+        let later = first + e as u32 + 1..first + self.edges.len() as u32;
+        self.grid.visit(lo, hi, MAX_SPAN, later, |f| found.extend(self.edge_contact(bodies, e, (f - first) as usize)))
+    }
+
+    /// The contact of edge `e` with edge `f`, if they share no particle, lay no closer than the
+    /// pair's thickness in their rest shape when they are of one body, and are closer than it
+    /// now or went through each other during the substep.
+    fn edge_contact(&self, bodies: &[ContactBody<'_>], e: usize, f: usize) -> Option<Contact> {
+        let first = self.triangles.len();
+        let ((eb, [a0, a1]), (fb, [b0, b1])) = (self.edges[e], self.edges[f]);
+        if a0 == b0 || a0 == b1 || a1 == b0 || a1 == b1 {
+            return None;
+        }
+        let (e_body, f_body) = (&bodies[eb as usize], &bodies[fb as usize]);
+        if eb != fb && !e_body.layers.interacts_with(f_body.layers) {
+            return None;
+        }
+        let h = 0.5 * (e_body.contact.thickness + f_body.contact.thickness);
+        let ids = [a0, a1, b0, b1];
+        let [p0, p1, q0, q1] = ids.map(|k| self.x[k as usize]);
+        let [r0, r1, s0, s1] = ids.map(|k| self.prev[k as usize]);
+        // Their boxes over the substep within the pair's thickness of each other (the grid's
+        // test grew them by the largest).
+        let (e_lo, e_hi) = (p0.min(p1).min(r0.min(r1)), p0.max(p1).max(r0.max(r1)));
+        let (f_lo, f_hi) = (q0.min(q1).min(s0.min(s1)), q0.max(q1).max(s0.max(s1)));
+        if !((e_lo - h).cmple(f_hi).all() && (e_hi + h).cmpge(f_lo).all()) {
+            return None;
+        }
+        if eb == fb {
+            // Near each other in the rest shape: the cloth's own neighbourhood, not two layers.
+            let ([e_lo, e_hi], [f_lo, f_hi]) = (self.rest_boxes[first + e], self.rest_boxes[first + f]);
+            if (e_lo - h).cmple(f_hi).all() && (e_hi + h).cmpge(f_lo).all() {
+                return None;
+            }
+        }
+        let (s, t) = closest_on_segments(p0, p1, q0, q1);
+        let away = p0.lerp(p1, s) - q0.lerp(q1, t);
+        let d2 = away.length_squared();
+        // A non-finite particle makes no contact.
+        if !d2.is_finite() {
+            return None;
+        }
+        // The sides of each other's lines the edges were on at the start of the substep and are
+        // on now, along the lines' common normal (the one now turned to agree with the one
+        // before, so that a turn of the edges is not taken for a crossing). Edges that changed
+        // sides went through each other (or round an end, closer than the thickness): they go
+        // back to the sides they came from, the thickness apart.
+        let normal_before = common_normal(r0, r1, s0, s1);
+        let normal_now =
+            common_normal(p0, p1, q0, q1).map(|n| if normal_before.is_some_and(|b| b.dot(n) < 0.0) { -n } else { n });
+        let side_before = normal_before.map_or(0.0, |n| (r0 - s0).dot(n));
+        let side_now = normal_now.map_or(0.0, |n| (p0 - q0).dot(n));
+        let through = side_before * side_now < 0.0;
+        let (n, gap, s, t) = if d2 < h * h {
+            let d = d2.sqrt();
+            match normal_now {
+                Some(normal) if through => (normal * side_before.signum(), -side_now.abs(), s, t),
+                _ if d > 1.0e-6 * h => (away / d, d, s, t),
+                Some(normal) if side_before != 0.0 => (normal * side_before.signum(), 0.0, s, t),
+                // Parallel and touching: the point–triangle contacts of their ends hold them.
+                _ => return None,
+            }
+        } else {
+            // Farther than the thickness now: a contact only if they went through each other
+            // during the substep (see `crossed`).
+            let (normal, (s, t)) =
+                normal_now.zip(crossed([r0, r1, s0, s1], [p0, p1, q0, q1], side_before, side_now, h))?;
+            (normal * side_before.signum(), -side_now.abs(), s, t)
+        };
+        let coef = [1.0 - s, s, t - 1.0, -t];
+        let weigh = |w: [f32; 4]| w.iter().zip(&coef).map(|(w, c)| w * c * c).sum::<f32>();
+        let free = ids.map(|k| self.free[k as usize]);
+        let denom = weigh(free);
+        if denom <= 0.0 {
+            return None;
+        }
+        // The held particles' share goes to the others, as for a point and a triangle.
+        let unheld = ids.map(|k| self.free[k as usize] * (1.0 - self.held[k as usize]));
+        let unheld_denom = weigh(unheld);
+        let (w, scale) =
+            if unheld_denom > 0.0 { (unheld, (denom / unheld_denom).min(MAX_HELD_SCALE)) } else { (free, 1.0) };
+        let [u0, u1, v0, v1] = ids.map(|k| self.v[k as usize]);
+        let relative = u0.lerp(u1, s) - v0.lerp(v1, t);
+        let vn = relative.dot(n);
+        let impulse = if vn < 0.0 {
+            let tangential = relative - vn * n;
+            let friction = 0.5 * (e_body.contact.friction + f_body.contact.friction);
+            let speed = tangential.length();
+            let slow = if speed > 0.0 { (friction * -vn / speed).min(1.0) } else { 0.0 };
+            -(vn * n + slow * tangential) / denom * scale
+        } else {
+            Vec3::ZERO
+        };
+        Some(Contact { ids, coef, n, lambda: (h - gap) / denom * scale, impulse, w })
+    }
+}
+
+/// The unit normal of the lines of the edges `p0 p1` and `q0 q1` (their directions' cross
+/// product), or `None` for parallel or degenerate edges.
+fn common_normal(p0: Vec3, p1: Vec3, q0: Vec3, q1: Vec3) -> Option<Vec3> {
+    let (d, e) = (p1 - p0, q1 - q0);
+    let c = d.cross(e);
+    let c2 = c.length_squared();
+    (c2 > 1.0e-8 * d.length_squared() * e.length_squared() && c2.is_finite()).then(|| c / c2.sqrt())
+}
+
+/// Whether edges that went from `before` to `now` (the first edge's ends, then the second's)
+/// over a substep went through each other, given the first edge's sides of the second's line
+/// at the start and the end: the sides differ, and where the lines met (all four ends moving
+/// in straight lines, the lines' turn neglected) the edges were within `h` of each other.
+/// Returns where along each edge they met.
+fn crossed(before: [Vec3; 4], now: [Vec3; 4], side_before: f32, side_now: f32, h: f32) -> Option<(f32, f32)> {
+    // NaN fails too.
+    if side_before * side_now >= 0.0 || side_before.is_nan() || side_now.is_nan() {
+        return None;
+    }
+    let at = side_before / (side_before - side_now);
+    let [p0, p1, q0, q1]: [Vec3; 4] = core::array::from_fn(|k| before[k].lerp(now[k], at));
+    let (s, t) = closest_on_segments(p0, p1, q0, q1);
+    let d2 = p0.lerp(p1, s).distance_squared(q0.lerp(q1, t));
+    (d2 < h * h).then_some((s, t))
+}
+
+/// Where along the segments `p0 p1` and `q0 q1` (0 at the first end, 1 at the second) their
+/// closest points lie: the least distance between two segments, with the ends clamped
+/// (Ericson 2005, "Real-Time Collision Detection", section 5.1.9). A degenerate segment is a
+/// point; parallel segments take the first's first end.
+pub(crate) fn closest_on_segments(p0: Vec3, p1: Vec3, q0: Vec3, q1: Vec3) -> (f32, f32) {
+    let (d, e, r) = (p1 - p0, q1 - q0, p0 - q0);
+    let (a, c, f) = (d.length_squared(), e.length_squared(), e.dot(r));
+    let tiny = f32::EPSILON * a.max(c);
+    if a <= tiny && c <= tiny {
+        return (0.0, 0.0);
+    }
+    if a <= tiny {
+        return (0.0, (f / c).clamp(0.0, 1.0));
+    }
+    let g = d.dot(r);
+    if c <= tiny {
+        return ((-g / a).clamp(0.0, 1.0), 0.0);
+    }
+    let b = d.dot(e);
+    let det = a * c - b * b;
+    let s = if det > 1.0e-6 * a * c { ((b * f - g * c) / det).clamp(0.0, 1.0) } else { 0.0 };
+    let t = (b * s + f) / c;
+    if t < 0.0 {
+        ((-g / a).clamp(0.0, 1.0), 0.0)
+    } else if t > 1.0 {
+        (((b - g) / a).clamp(0.0, 1.0), 1.0)
+    } else {
+        (s, t)
+    }
+}
