@@ -83,9 +83,9 @@
 //! applied the same way: a point put back through a triangle takes its edges back with it, and
 //! the edges' contacts then catch only what the points missed. Averaged together, the two
 //! kinds of contact of one crossing would each pull a particle part of the way (a point
-//! through a pinned sheet ended 1.3 mm above it for a thickness of 10 mm). A particle that moved is
-//! checked against the colliders from where it was, so that contact never pushes cloth through
-//! a collider.
+//! through a pinned sheet ended 1.3 mm above it for a thickness of 10 mm). A particle that
+//! moved is checked against the colliders from where it was, so that contact never pushes
+//! cloth through a collider.
 //!
 //! # Limits
 //!
