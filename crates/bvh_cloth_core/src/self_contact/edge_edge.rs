@@ -6,7 +6,7 @@
 
 use glam::{Vec3, Vec3A};
 
-use super::{Contact, ContactBody, ContactSolver, MAX_HELD_SCALE, MAX_SPAN};
+use super::{Contact, ContactBody, ContactSolver, MAX_SPAN};
 
 impl ContactSolver {
     /// Adds the contacts of edge `e` with the edges after it whose grown boxes its box over
@@ -91,31 +91,10 @@ impl ContactSolver {
                 normal_now.zip(crossed([r0, r1, s0, s1], [p0, p1, q0, q1], side_before, side_now, h))?;
             (normal * side_before.signum(), -side_now.abs(), s, t)
         };
-        let coef = [1.0 - s, s, t - 1.0, -t];
-        let weigh = |w: [f32; 4]| w.iter().zip(&coef).map(|(w, c)| w * c * c).sum::<f32>();
-        let free = ids.map(|k| self.free[k as usize]);
-        let denom = weigh(free);
-        if denom <= 0.0 {
-            return None;
-        }
-        // The held particles' share goes to the others, as for a point and a triangle.
-        let unheld = ids.map(|k| self.free[k as usize] * (1.0 - self.held[k as usize]));
-        let unheld_denom = weigh(unheld);
-        let (w, scale) =
-            if unheld_denom > 0.0 { (unheld, (denom / unheld_denom).min(MAX_HELD_SCALE)) } else { (free, 1.0) };
         let [u0, u1, v0, v1] = ids.map(|k| self.v[k as usize]);
         let relative = u0.lerp(u1, s) - v0.lerp(v1, t);
-        let vn = relative.dot(n);
-        let impulse = if vn < 0.0 {
-            let tangential = relative - vn * n;
-            let friction = 0.5 * (e_body.contact.friction + f_body.contact.friction);
-            let speed = tangential.length();
-            let slow = if speed > 0.0 { (friction * -vn / speed).min(1.0) } else { 0.0 };
-            -(vn * n + slow * tangential) / denom * scale
-        } else {
-            Vec3::ZERO
-        };
-        Some(Contact { ids, coef, n, lambda: (h - gap) / denom * scale, impulse, w })
+        let friction = 0.5 * (e_body.contact.friction + f_body.contact.friction);
+        self.project(ids, [1.0 - s, s, t - 1.0, -t], n, h - gap, relative, friction)
     }
 }
 

@@ -396,6 +396,43 @@ impl ContactSolver {
         clamped
     }
 
+    /// The contact of the particles `ids` whose constraint is `Σ coef_k x_k · n >= h`, short
+    /// of it by `depth`, their relative velocity along the constraint `relative` and their
+    /// friction `friction` (see the [module docs](self)): `None` when no particle of it is free.
+    /// The held particles' share goes to the others, when there are others: the correction is
+    /// scaled so that the free side alone makes the whole of it, at most [`MAX_HELD_SCALE`]
+    /// times its own share.
+    fn project(
+        &self,
+        ids: [u32; 4],
+        coef: [f32; 4],
+        n: Vec3,
+        depth: f32,
+        relative: Vec3,
+        friction: f32,
+    ) -> Option<Contact> {
+        let weigh = |w: [f32; 4]| w.iter().zip(&coef).map(|(w, c)| w * c * c).sum::<f32>();
+        let free = ids.map(|k| self.free[k as usize]);
+        let denom = weigh(free);
+        if denom <= 0.0 {
+            return None;
+        }
+        let unheld = ids.map(|k| self.free[k as usize] * (1.0 - self.held[k as usize]));
+        let unheld_denom = weigh(unheld);
+        let (w, scale) =
+            if unheld_denom > 0.0 { (unheld, (denom / unheld_denom).min(MAX_HELD_SCALE)) } else { (free, 1.0) };
+        let vn = relative.dot(n);
+        let impulse = if vn < 0.0 {
+            let tangential = relative - vn * n;
+            let speed = tangential.length();
+            let slow = if speed > 0.0 { (friction * -vn / speed).min(1.0) } else { 0.0 };
+            -(vn * n + slow * tangential) / denom * scale
+        } else {
+            Vec3::ZERO
+        };
+        Some(Contact { ids, coef, n, lambda: depth / denom * scale, impulse, w })
+    }
+
     /// Copies every body's particles, triangles and edges into the flat arrays; returns the mean edge
     /// length of the triangles as the particles stand.
     fn gather(&mut self, bodies: &[ContactBody<'_>]) -> f32 {

@@ -4,7 +4,7 @@
 
 use glam::{Vec3, Vec3A};
 
-use super::{Contact, ContactBody, ContactSolver, MAX_HELD_SCALE, MAX_PATH_SPAN};
+use super::{Contact, ContactBody, ContactSolver, MAX_PATH_SPAN};
 use crate::mesh::triangles::{closest_point, face_normal};
 
 impl ContactSolver {
@@ -75,34 +75,11 @@ impl ContactSolver {
             (face * side_before.signum(), -side_now.abs(), q)
         };
         let b = barycentric(q, at);
-        let weigh = |w: [f32; 4]| w[0] + w[1] * b[0] * b[0] + w[2] * b[1] * b[1] + w[3] * b[2] * b[2];
-        let ids = [p as u32, corners[0], corners[1], corners[2]];
-        let free = ids.map(|k| self.free[k as usize]);
-        let denom = weigh(free);
-        if denom <= 0.0 {
-            return None;
-        }
-        // The held particles' share goes to the others, when there are others: the correction
-        // is scaled so that the free side alone makes the whole of it, at most MAX_HELD_SCALE
-        // times its own share.
-        let unheld = ids.map(|k| self.free[k as usize] * (1.0 - self.held[k as usize]));
-        let unheld_denom = weigh(unheld);
-        let (w, scale) =
-            if unheld_denom > 0.0 { (unheld, (denom / unheld_denom).min(MAX_HELD_SCALE)) } else { (free, 1.0) };
         let v = corners.map(|c| self.v[c as usize]);
         let relative = self.v[p] - (b[0] * v[0] + b[1] * v[1] + b[2] * v[2]);
-        let vn = relative.dot(n);
-        let impulse = if vn < 0.0 {
-            let tangential = relative - vn * n;
-            let friction = 0.5 * (point_body.contact.friction + tri_body.contact.friction);
-            let speed = tangential.length();
-            let slow = if speed > 0.0 { (friction * -vn / speed).min(1.0) } else { 0.0 };
-            -(vn * n + slow * tangential) / denom * scale
-        } else {
-            Vec3::ZERO
-        };
-        let coef = [1.0, -b[0], -b[1], -b[2]];
-        Some(Contact { ids, coef, n, lambda: (h - gap) / denom * scale, impulse, w })
+        let friction = 0.5 * (point_body.contact.friction + tri_body.contact.friction);
+        let ids = [p as u32, corners[0], corners[1], corners[2]];
+        self.project(ids, [1.0, -b[0], -b[1], -b[2]], n, h - gap, relative, friction)
     }
 }
 

@@ -389,9 +389,41 @@ fn barycentric(q: vec3<f32>, a: vec3<f32>, b: vec3<f32>, c: vec3<f32>) -> vec3<f
     return vec3(1.0 - u - w, u, w);
 }
 
-// The denominator of a contact's projection with weights w (the point's, then the corners').
-fn weigh(w: vec4<f32>, b: vec3<f32>) -> f32 {
-    return w.x + w.y * b.x * b.x + w.z * b.y * b.y + w.w * b.z * b.z;
+// bvh_cloth_core::self_contact::ContactSolver::project, its corrections added to the sums:
+// the contact of particles ids whose constraint sum(coef_k x_k) . n >= h is short by depth,
+// their weights free (1 free, 0 pinned) and held (1 for a particle a collider touched in this
+// substep, which takes no part unless all four did, its share going to the others), their
+// relative velocity along the constraint relative and their friction.
+fn project(ids: vec4<u32>, coef: vec4<f32>, free: vec4<f32>, held: vec4<f32>, n: vec3<f32>, depth: f32, relative: vec3<f32>, friction: f32) {
+    let denom = dot(free, coef * coef);
+    if (denom <= 0.0) {
+        return;
+    }
+    let unheld = free * (vec4(1.0) - held);
+    let unheld_denom = dot(unheld, coef * coef);
+    var w = free;
+    var scale = 1.0;
+    if (unheld_denom > 0.0) {
+        w = unheld;
+        scale = min(denom / unheld_denom, MAX_HELD_SCALE);
+    }
+    let vn = dot(relative, n);
+    var impulse = vec3(0.0);
+    if (vn < 0.0) {
+        let tangential = relative - vn * n;
+        let speed = length(tangential);
+        var slow = 0.0;
+        if (speed > 0.0) {
+            slow = min(friction * -vn / speed, 1.0);
+        }
+        impulse = -(vn * n + slow * tangential) / denom * scale;
+    }
+    let lambda = depth / denom * scale;
+    for (var k = 0u; k < 4u; k++) {
+        if (w[k] > 0.0) {
+            add_correction(ids[k], w[k] * coef[k] * lambda * n, w[k] * coef[k] * impulse);
+        }
+    }
 }
 
 fn add_correction(k: u32, dx: vec3<f32>, dv: vec3<f32>) {
@@ -505,42 +537,12 @@ fn touch(p: u32, pc: u32, me: GpuParticle, t: u32, path_lo: vec3<f32>, path_hi: 
     // Weights 1 free, 0 pinned; a particle a collider touched in this substep (collide's
     // velocity.w) takes no part unless all four did, its share going to the others.
     let free = vec4(me.position.w, ca.position.w, cb.position.w, cc.position.w);
-    let denom = weigh(free, bary);
-    if (denom <= 0.0) {
-        return;
-    }
-    let unheld = free * (vec4(1.0) - vec4(me.velocity.w, ca.velocity.w, cb.velocity.w, cc.velocity.w));
-    let unheld_denom = weigh(unheld, bary);
-    var w = free;
-    var scale = 1.0;
-    if (unheld_denom > 0.0) {
-        w = unheld;
-        scale = min(denom / unheld_denom, MAX_HELD_SCALE);
-    }
+    let held = vec4(me.velocity.w, ca.velocity.w, cb.velocity.w, cc.velocity.w);
     let relative = me.velocity.xyz
         - (bary.x * ca.velocity.xyz + bary.y * cb.velocity.xyz + bary.z * cc.velocity.xyz);
-    let vn = dot(relative, n);
-    var impulse = vec3(0.0);
-    if (vn < 0.0) {
-        let tangential = relative - vn * n;
-        let friction = 0.5 * (cloths[pc].contact_friction + cloths[tc].contact_friction);
-        let speed = length(tangential);
-        var slow = 0.0;
-        if (speed > 0.0) {
-            slow = min(friction * -vn / speed, 1.0);
-        }
-        impulse = -(vn * n + slow * tangential) / denom * scale;
-    }
-    let lambda = (h - gap) / denom * scale;
-    if (w.x > 0.0) {
-        add_correction(p, w.x * lambda * n, w.x * impulse);
-    }
-    let ids = vec3(corners.x, corners.y, corners.z);
-    for (var k = 0u; k < 3u; k++) {
-        if (w[k + 1u] > 0.0) {
-            add_correction(ids[k], -w[k + 1u] * bary[k] * lambda * n, -w[k + 1u] * bary[k] * impulse);
-        }
-    }
+    let friction = 0.5 * (cloths[pc].contact_friction + cloths[tc].contact_friction);
+    let ids = vec4(p, corners.x, corners.y, corners.z);
+    project(ids, vec4(1.0, -bary), free, held, n, h - gap, relative, friction);
 }
 
 @compute @workgroup_size(8, 8, 1)
@@ -784,39 +786,11 @@ fn edge_touch(ep: u32, fp: u32) {
     } else {
         return;
     }
-    let coef = vec4(1.0 - s, s, t - 1.0, -t);
     let free = vec4(s0.position.w, s1.position.w, s2.position.w, s3.position.w);
-    let denom = dot(free, coef * coef);
-    if (denom <= 0.0) {
-        return;
-    }
-    let unheld = free * (vec4(1.0) - vec4(s0.velocity.w, s1.velocity.w, s2.velocity.w, s3.velocity.w));
-    let unheld_denom = dot(unheld, coef * coef);
-    var w = free;
-    var scale = 1.0;
-    if (unheld_denom > 0.0) {
-        w = unheld;
-        scale = min(denom / unheld_denom, MAX_HELD_SCALE);
-    }
+    let held = vec4(s0.velocity.w, s1.velocity.w, s2.velocity.w, s3.velocity.w);
     let relative = mix(s0.velocity.xyz, s1.velocity.xyz, s) - mix(s2.velocity.xyz, s3.velocity.xyz, t);
-    let vn = dot(relative, n);
-    var impulse = vec3(0.0);
-    if (vn < 0.0) {
-        let tangential = relative - vn * n;
-        let friction = 0.5 * (cloths[ec].contact_friction + cloths[fc].contact_friction);
-        let speed = length(tangential);
-        var slow = 0.0;
-        if (speed > 0.0) {
-            slow = min(friction * -vn / speed, 1.0);
-        }
-        impulse = -(vn * n + slow * tangential) / denom * scale;
-    }
-    let lambda = (h - gap) / denom * scale;
-    for (var k = 0u; k < 4u; k++) {
-        if (w[k] > 0.0) {
-            add_correction(ids[k], w[k] * coef[k] * lambda * n, w[k] * coef[k] * impulse);
-        }
-    }
+    let friction = 0.5 * (cloths[ec].contact_friction + cloths[fc].contact_friction);
+    project(ids, vec4(1.0 - s, s, t - 1.0, -t), free, held, n, h - gap, relative, friction);
 }
 
 @compute @workgroup_size(8, 8, 1)
