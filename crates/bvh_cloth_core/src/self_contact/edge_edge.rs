@@ -128,7 +128,7 @@ fn crossed(before: [Vec3; 4], now: [Vec3; 4], side_before: f32, side_now: f32, h
 /// closest points lie: the least distance between two segments, with the ends clamped
 /// (Ericson 2005, "Real-Time Collision Detection", section 5.1.9). A degenerate segment is a
 /// point; parallel segments take the first's first end.
-pub(crate) fn closest_on_segments(p0: Vec3, p1: Vec3, q0: Vec3, q1: Vec3) -> (f32, f32) {
+fn closest_on_segments(p0: Vec3, p1: Vec3, q0: Vec3, q1: Vec3) -> (f32, f32) {
     let (d, e, r) = (p1 - p0, q1 - q0, p0 - q0);
     let (a, c, f) = (d.length_squared(), e.length_squared(), e.dot(r));
     let tiny = f32::EPSILON * a.max(c);
