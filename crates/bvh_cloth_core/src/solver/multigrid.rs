@@ -14,10 +14,14 @@
 //! prolongation, so that `e` solves the Galerkin system `Pᵀ H P e = Pᵀ r` (unsmoothed
 //! aggregation; Vaněk, Mandel and Brezina 1996 for the aggregates). The aggregates are grouped
 //! the same way by their couplings, level after level, down to a couple of dozen nodes solved
-//! exactly (a dense Cholesky factor). One V-cycle, a block Gauss–Seidel sweep before each
-//! restriction and one after each prolongation (forward, then backward, so that the cycle is a
-//! symmetric preconditioner), gives `e`; a line search along `P e` on this substep's quadratic
-//! model, its step clamped to `[0, 1]`, gives the correction.
+//! exactly (a dense Cholesky factor). One V-cycle, a damped block Jacobi step (weight 2/3)
+//! before each restriction and one after each prolongation, gives `e`; a line search along
+//! `P e` on this substep's quadratic model, its step clamped to `[0, 1]`, gives the correction.
+//! Every pass of the cycle updates all the nodes of a level at once from the level's state
+//! before it, and every coarse node gathers what it needs from its own children (the
+//! restriction, the Galerkin product) in a fixed order: no pass depends on the order its nodes
+//! are visited in, so the levels run in parallel and give the same sums on any thread count,
+//! and a GPU can run each pass as one dispatch.
 //!
 //! Two facts keep it cheap:
 //! - A spring inside an aggregate moves its two ends together under `P`, so it adds nothing to
@@ -59,28 +63,31 @@
 //!
 //! | side | RK4 | multigrid, Looper 16 | multigrid, Looper 12 | block descent without tethers |
 //! |---|---|---|---|---|
-//! | 32 | 0.383 m | +0 % | +1 % | +14 % |
-//! | 64 | 0.404 m | +3 % | +1 % | +45 % |
-//! | 128 | 0.435 m | +12 % | +12 % | +134 % |
+//! | 32 | 0.383 m | -1 % | +2 % | +14 % |
+//! | 64 | 0.404 m | +3 % | +5 % | +45 % |
+//! | 128 | 0.435 m | +8 % | +13 % | +134 % |
 //! | 256 | 0.487 m | +5 % | +6 % | +284 % |
 //!
-//! A flag in steady 8 m/s wind flutters at RK4's pace and swing (5.58 Hz and 34.3 mm against
+//! A flag in steady 8 m/s wind flutters at RK4's pace and swing (5.25 Hz and 34.4 mm against
 //! 5.08 Hz and 33.5 mm; block descent at the default, 3.08 Hz and 23.5 mm: the core's test
 //! `the_multigrid_integrators_flag_flutters_like_rk4s`).
 //!
-//! Its p99 structural strain stays within 0.94x to 1.18x of RK4's (1.48x at 512 x 512). At 0.5 s, the bottom of the
-//! swing, the sags are within 2 % of RK4's; what is left at 1 s, near the top of the swing, is
-//! the solve left short of converged by one sweep and one V-cycle.
+//! Its p99 structural strain stays within 0.94x to 1.09x of RK4's at Looper 16 (1.48x at
+//! 512 x 512, whose sag at 1 s is 7.7 % above RK4's: `a_512_cloth_swings_like_rk4_with_the_multigrid_integrator`).
+//! At 0.5 s, the bottom of the swing, the sags are within 3.5 % of RK4's; what is left at 1 s,
+//! near the top of the swing, is mostly BDF2's own step error where the cloth snaps taut (see
+//! the alternatives below).
 //!
-//! Its cost on the 2-core development machine, against block descent at the default Looper 16
-//! (the report's `motion_cost` section, three runs): 1.15x-1.29x at 64 x 64 and 1.24x-1.36x
-//! at 256 x 256 at Looper 12, 1.56x-1.71x and 1.49x-1.86x at Looper 16. Timers in a scratch build put about 40 % of a 256 x 256 tick
-//! at Looper 12 in the correction: the residual (its largest part), the V-cycle, the line
-//! search's curvature and, every twelfth substep, the assembly.
+//! Its cost on the 2-core development machine (an Intel Xeon), against block descent at the
+//! default Looper 16 (the report's `motion_cost` section, two runs): 1.72x-1.75x at 64 x 64 and
+//! 1.67x-1.68x at 256 x 256 at Looper 16, 1.08x-1.17x and 1.30x-1.41x at Looper 12. Timers
+//! in a scratch build put about 40 % of a 256 x 256 tick at Looper 12 in the correction: the
+//! residual (its largest part), the V-cycle, the line search's curvature and, every twelfth
+//! substep, the assembly.
 //!
-//! ## Two alternatives, measured
+//! ## Alternatives, measured
 //! With a scratch program on the same hanging cloth (2026-11-28, the 2-core development
-//! machine), the sag against RK4's over 2 s:
+//! machine), the sag against RK4's over 2 s, unless said:
 //! - **A constant preconditioner.** Each crossing spring's Hessian replaced by `k/2 I` (its
 //!   stretch stiffness spread evenly over the three axes, whatever its direction), so that the
 //!   levels are scalar matrices assembled once, never stale, and the residual, the line search
@@ -92,21 +99,19 @@
 //!   substep, at that price in strain.
 //! - **Two rounds a substep at half the substeps.** Sweep, correct, sweep, correct, at Looper 8,
 //!   which costs what one round at Looper 16 does: the sag at 1 s +1 / +2 / +7 / +5 % off RK4's
-//!   from 32 x 32 to 256 x 256, p99 strain 0.98x-1.12x; one round at Looper 16 gives
-//!   +0 / +3 / +12 / +5 %. Four rounds at Looper 16 still left 128 x 128 8 % off at 1 s, and
-//!   Looper 32 and 64 (one round) 2 % and 1 %: what is left at Looper 16 is mostly BDF2's own
-//!   step error where the cloth snaps taut, not the solve.
-//! - **Damped block Jacobi on the levels** (weight 2/3, one step before each restriction and
-//!   one after each prolongation), which updates every node of a level at once and so needs no
-//!   order and no colouring (one parallel pass, one dispatch on a GPU), in place of the
-//!   Gauss–Seidel sweeps: the sag at 1 s -1 / +3 / +12 / +4 % off RK4's from 32 x 32 to
-//!   256 x 256, p99 strain 0.92x-1.08x, the same as with Gauss–Seidel; at 512 x 512, +9.1 % and
-//!   1.54x (Gauss–Seidel: +8.6 %, 1.48x). But the fast folds with self-contact, where the
-//!   cloth's end state is chaotic, came out otherwise: the bunny at 15 m/s ended with 241
-//!   crossing pairs (weight 0.8: 15 at 7 m/s; two steps: 261 at 15 m/s), where Gauss–Seidel
-//!   ends with none (block descent ends with 16 there). Self-contact tests no edge against an
-//!   edge, and at that speed what gets through flips with any change of rounding; until it
-//!   holds on its own, the levels keep Gauss–Seidel.
+//!   from 32 x 32 to 256 x 256, p99 strain 0.98x-1.12x; one round at Looper 16 gave
+//!   +0 / +3 / +12 / +5 % (both with Gauss–Seidel on the levels, below). Four rounds at
+//!   Looper 16 still left 128 x 128 8 % off at 1 s, and Looper 32 and 64 (one round) 2 % and
+//!   1 %: what is left at Looper 16 is mostly BDF2's own step error where the cloth snaps taut,
+//!   not the solve.
+//! - **Block Gauss–Seidel on the levels** (forward before each restriction, backward after
+//!   each prolongation, so that the cycle stays a symmetric preconditioner), in place of the
+//!   damped Jacobi steps, in the report's `motion` section and the core's `motion` tests
+//!   (2026-11-28): the sag at 1 s +0 / +3 / +12 / +5 % off RK4's from 32 x 32 to 256 x 256 at
+//!   Looper 16, +8.6 % and a p99 strain of 1.48x at 512 x 512, the flag 5.58 Hz and 34.3 mm; and in the fast folds with
+//!   self-contact, 4 pairs of triangles crossing at the end of the bar's at 15 m/s (none with
+//!   Jacobi). A Gauss–Seidel sweep visits the nodes in order: one thread on the CPU, and a
+//!   colouring of every level on a GPU.
 
 use glam::{DVec3, Mat3A, Vec3A};
 use rayon::prelude::*;
@@ -125,6 +130,9 @@ const STALE: f64 = 0.5;
 
 /// Nodes at most on the coarsest level, which is solved exactly.
 const COARSEST: usize = 24;
+
+/// The weight of the levels' damped Jacobi steps.
+const JACOBI: f32 = 2.0 / 3.0;
 
 /// Levels at most below the particles.
 const MAX_LEVELS: usize = 12;
@@ -150,15 +158,21 @@ struct Level {
     k_off: Vec<Mat3A>,
     /// Each node's aggregate on the next level (empty on the coarsest).
     parent: Vec<u32>,
+    /// The nodes of the level above that each node aggregates, CSR (empty on level 1, whose
+    /// nodes are the particles' aggregates): the restriction and the Galerkin product gather
+    /// through them, each coarse node summing its own, in order.
+    child_offsets: Vec<u32>,
+    children: Vec<u32>,
     /// For each off-diagonal block, the block of the next level it adds to, or [`NONE`] when
     /// both nodes share an aggregate (it then adds to the aggregate's diagonal).
     slot: Vec<u32>,
     /// The inverses of the diagonal blocks at the step the level was factored for.
     diag_inv: Vec<Mat3A>,
-    /// The right-hand side, the solution and the residual of this level's V-cycle.
+    /// The right-hand side and the solution of this level's V-cycle, and room for the
+    /// smoothing's next `e`.
     b: Vec<Vec3A>,
     e: Vec<Vec3A>,
-    res: Vec<Vec3A>,
+    scratch: Vec<Vec3A>,
 }
 
 impl Level {
@@ -181,16 +195,20 @@ impl Level {
         Mat3A::from_diagonal(glam::Vec3::splat(damp * self.mass[a])) + h2 * self.k_diag[a]
     }
 
-    /// One block Gauss–Seidel sweep on `A e = b`, forward or backward.
-    fn smooth(&mut self, h2: f32, forward: bool) {
-        let n = self.len();
-        let mut e = core::mem::take(&mut self.e);
-        for step in 0..n {
-            let a = if forward { step } else { n - 1 - step };
-            let rhs = self.b[a] - self.off_product(a, &e, h2);
-            e[a] = self.diag_inv[a] * rhs;
-        }
-        self.e = e;
+    /// One damped block Jacobi step on `A e = b`: every node at once, from the others' `e`
+    /// before the step, `e ← (1 - ω) e + ω D⁻¹ (b - (A - D) e)`.
+    fn smooth(&mut self, h2: f32) {
+        let e = core::mem::take(&mut self.e);
+        let mut next = core::mem::take(&mut self.scratch);
+        next.clear();
+        next.resize(e.len(), Vec3A::ZERO);
+        let this = &*self;
+        next.par_iter_mut().enumerate().with_min_len(MIN_TASK).for_each(|(a, out)| {
+            let rhs = this.b[a] - this.off_product(a, &e, h2);
+            *out = (1.0 - JACOBI) * e[a] + JACOBI * (this.diag_inv[a] * rhs);
+        });
+        self.e = next;
+        self.scratch = e;
     }
 }
 
@@ -725,8 +743,8 @@ impl Multigrid {
             if let Some(dense) = &self.coarsest {
                 dense.solve(&level.b, &mut level.e);
             } else {
-                for sweep in 0..16 {
-                    level.smooth(h2, sweep % 2 == 0);
+                for _ in 0..16 {
+                    level.smooth(h2);
                 }
             }
             return;
@@ -735,30 +753,26 @@ impl Multigrid {
             let level = &mut self.levels[l];
             level.e.clear();
             level.e.resize(level.len(), Vec3A::ZERO);
-            level.smooth(h2, true);
-            let mut res = core::mem::take(&mut level.res);
-            res.clear();
-            res.extend(
-                (0..level.len()).map(|a| {
-                    level.b[a] - level.diag_block(a, damp, h2) * level.e[a] - level.off_product(a, &level.e, h2)
-                }),
-            );
-            level.res = res;
+            level.smooth(h2);
         }
+        // The restriction of the residual `b - A e`: each coarse node gathers its children's.
         let (upper, lower) = self.levels.split_at_mut(l + 1);
         let (level, next) = (&upper[l], &mut lower[0]);
+        let residual =
+            |a: usize| level.b[a] - level.diag_block(a, damp, h2) * level.e[a] - level.off_product(a, &level.e, h2);
         next.b.clear();
         next.b.resize(next.len(), Vec3A::ZERO);
-        for (a, &parent) in level.parent.iter().enumerate() {
-            next.b[parent as usize] += level.res[a];
-        }
+        let (offsets, children) = (&next.child_offsets, &next.children);
+        next.b.par_iter_mut().enumerate().with_min_len(MIN_TASK).for_each(|(c, b)| {
+            *b = children[offsets[c] as usize..offsets[c + 1] as usize].iter().map(|&a| residual(a as usize)).sum();
+        });
         self.v_cycle(l + 1, damp, h2);
         let (upper, lower) = self.levels.split_at_mut(l + 1);
         let (level, next) = (&mut upper[l], &lower[0]);
-        for (a, &parent) in level.parent.iter().enumerate() {
-            level.e[a] += next.e[parent as usize];
-        }
-        level.smooth(h2, false);
+        level.e.par_iter_mut().zip(level.parent.par_iter()).with_min_len(MIN_TASK).for_each(|(e, &parent)| {
+            *e += next.e[parent as usize];
+        });
+        level.smooth(h2);
     }
 }
 
@@ -944,25 +958,38 @@ fn coarsen(fine: &mut Level) -> Option<Level> {
     }
     fine.parent = parent;
     fine.slot = slot;
+    next.child_offsets = member_offsets;
+    next.children = members;
     Some(next)
 }
 
-/// `Pᵀ A P` of `fine` into `coarse`, whose grouping and layout [`coarsen`] found.
+/// `Pᵀ A P` of `fine` into `coarse`, whose grouping and layout [`coarsen`] found: each coarse
+/// node gathers its children's mass, diagonal blocks and off-diagonal blocks into its own row.
 fn galerkin(fine: &Level, coarse: &mut Level) {
-    coarse.mass.fill(0.0);
-    coarse.k_diag.fill(Mat3A::ZERO);
-    coarse.k_off.fill(Mat3A::ZERO);
-    for (a, &c) in fine.parent.iter().enumerate() {
-        let c = c as usize;
-        coarse.mass[c] += fine.mass[a];
-        coarse.k_diag[c] += fine.k_diag[a];
-        for k in fine.offsets[a] as usize..fine.offsets[a + 1] as usize {
-            match fine.slot[k] {
-                NONE => coarse.k_diag[c] += fine.k_off[k],
-                at => coarse.k_off[at as usize] += fine.k_off[k],
+    let Level { mass, k_diag, k_off, offsets, child_offsets, children, .. } = coarse;
+    let mut rows = split_rows(k_off, offsets);
+    let offsets = &*offsets;
+    mass.par_iter_mut()
+        .zip(k_diag.par_iter_mut())
+        .zip(rows.par_iter_mut())
+        .enumerate()
+        .with_min_len(MIN_TASK)
+        .for_each(|(c, ((mass, diag), row))| {
+            let row_start = offsets[c] as usize;
+            (*mass, *diag) = (0.0, Mat3A::ZERO);
+            row.fill(Mat3A::ZERO);
+            for &a in &children[child_offsets[c] as usize..child_offsets[c + 1] as usize] {
+                let a = a as usize;
+                *mass += fine.mass[a];
+                *diag += fine.k_diag[a];
+                for k in fine.offsets[a] as usize..fine.offsets[a + 1] as usize {
+                    match fine.slot[k] {
+                        NONE => *diag += fine.k_off[k],
+                        at => row[at as usize - row_start] += fine.k_off[k],
+                    }
+                }
             }
-        }
-    }
+        });
 }
 
 #[cfg(test)]
