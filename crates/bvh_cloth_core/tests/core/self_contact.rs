@@ -225,6 +225,64 @@ fn everything_at_one_point_is_bounded() {
     assert!(spread > 0.1 * THICKNESS, "the particles did not move apart ({spread} m)");
 }
 
+/// `topology`'s rest positions moved to height `y` (the tests' sheets lie flat).
+fn flat(topology: &ClothTopology, y: f32) -> Vec<Vec3> {
+    topology.rest_positions().iter().map(|p| Vec3::new(p.x, y, p.z)).collect()
+}
+
+/// What one substep of contact left: the stats, the lower body's positions, and the upper
+/// body's positions and velocities.
+struct Substep {
+    stats: bvh_cloth_core::self_contact::ContactStats,
+    lower: Vec<Vec3>,
+    upper: Vec<Vec3>,
+    upper_v: Vec<Vec3>,
+}
+
+/// One [`ContactSolver::resolve`] of two bodies with contact at [`THICKNESS`] and no friction:
+/// `lower` lying flat at rest at `y = 0`, its particles' `free` and `held` masks as given, and
+/// `upper` (every particle free) that went flat from height `from` to height `to` during the
+/// substep, moving at `speed` downwards.
+fn flat_substep(
+    (lower, free, held): (&ClothTopology, &[f32], &[f32]),
+    upper: &ClothTopology,
+    (from, to): (f32, f32),
+    speed: f32,
+) -> Substep {
+    let contact = SelfContact { thickness: THICKNESS, friction: 0.0 };
+    let (lower_prev, upper_prev) = (flat(lower, 0.0), flat(upper, from));
+    let (mut lower_x, mut upper_x) = (lower_prev.clone(), flat(upper, to));
+    let mut lower_v = vec![Vec3::ZERO; lower.len()];
+    let mut upper_v = vec![Vec3::new(0.0, -speed, 0.0); upper.len()];
+    let upper_free = vec![1.0; upper.len()];
+    let stats = ContactSolver::default().resolve(
+        &mut [
+            ContactBody {
+                layers: Default::default(),
+                topology: lower,
+                contact,
+                free,
+                held,
+                prev: &lower_prev,
+                x: &mut lower_x,
+                v: &mut lower_v,
+            },
+            ContactBody {
+                layers: Default::default(),
+                topology: upper,
+                contact,
+                free: &upper_free,
+                held: &[],
+                prev: &upper_prev,
+                x: &mut upper_x,
+                v: &mut upper_v,
+            },
+        ],
+        &[],
+    );
+    Substep { stats, lower: lower_x, upper: upper_x, upper_v }
+}
+
 /// A small sheet that went through a large pinned one during the substep, from 3 mm above to 3
 /// mm below, is put back above it at the thickness; given the same end positions but starting
 /// below, it is held below. The side comes from where the points were, not where they are.
@@ -232,53 +290,16 @@ fn everything_at_one_point_is_bounded() {
 fn a_point_that_went_through_goes_back_to_its_side() {
     let floor = common::grid_topology(1.0, 2, 2);
     let sheet = common::grid_topology(0.1, 2, 2);
-    let contact = SelfContact { thickness: THICKNESS, friction: 0.0 };
-    let pinned = vec![0.0; 4];
-    let free = vec![1.0; 4];
-    let at = |topology: &ClothTopology, y: f32| -> Vec<Vec3> {
-        topology.rest_positions().iter().map(|p| Vec3::new(p.x, y, p.z)).collect()
-    };
     for (from, want_above) in [(0.003, true), (-0.004, false)] {
-        let floor_x = at(&floor, 0.0);
-        let mut floor_now = floor_x.clone();
-        let mut floor_v = vec![Vec3::ZERO; 4];
-        let sheet_prev = at(&sheet, from);
-        let mut sheet_x = at(&sheet, -0.003);
-        let mut sheet_v = vec![Vec3::new(0.0, -1.0, 0.0); 4];
-        let mut solver = ContactSolver::default();
-        solver.resolve(
-            &mut [
-                ContactBody {
-                    layers: Default::default(),
-                    topology: &floor,
-                    contact,
-                    free: &pinned,
-                    held: &[],
-                    prev: &floor_x,
-                    x: &mut floor_now,
-                    v: &mut floor_v,
-                },
-                ContactBody {
-                    layers: Default::default(),
-                    topology: &sheet,
-                    contact,
-                    free: &free,
-                    held: &[],
-                    prev: &sheet_prev,
-                    x: &mut sheet_x,
-                    v: &mut sheet_v,
-                },
-            ],
-            &[],
-        );
-        for p in &sheet_x {
+        let after = flat_substep((&floor, &[0.0; 4], &[]), &sheet, (from, -0.003), 1.0);
+        for p in &after.upper {
             if want_above {
                 assert!((p.y - THICKNESS).abs() < 1e-5, "from above: the point ends at {}", p.y);
             } else {
                 assert!((p.y + THICKNESS).abs() < 1e-5, "from below: the point ends at {}", p.y);
             }
         }
-        assert_eq!(floor_now, floor_x, "the pinned sheet moved");
+        assert_eq!(after.lower, flat(&floor, 0.0), "the pinned sheet moved");
     }
 }
 
@@ -292,69 +313,35 @@ fn a_point_that_went_through_goes_back_to_its_side() {
 #[test]
 fn edges_that_went_through_edges_go_back_to_their_side() {
     let strip = |corners: [[f32; 3]; 4]| {
-        Arc::new(ClothTopology::from_mesh(MeshRef { positions: &corners, indices: Some(&[0, 1, 2, 0, 2, 3]) }).unwrap())
+        ClothTopology::from_mesh(MeshRef { positions: &corners, indices: Some(&[0, 1, 2, 0, 2, 3]) }).unwrap()
     };
     let pinned_strip = strip([[-0.5, 0.0, -0.02], [0.5, 0.0, -0.02], [0.5, 0.0, 0.0], [-0.5, 0.0, 0.0]]);
     let moving_strip = strip([[-0.02, 0.0, -0.5], [0.0, 0.0, -0.5], [0.0, 0.0, 0.5], [-0.02, 0.0, 0.5]]);
-    let contact = SelfContact { thickness: THICKNESS, friction: 0.0 };
-    let at = |topology: &ClothTopology, y: f32| -> Vec<Vec3> {
-        topology.rest_positions().iter().map(|p| Vec3::new(p.x, y, p.z)).collect()
+    // No particle of either strip within 0.4 m of a triangle of the other, where it starts or
+    // where it ends: only edges meet edges.
+    let farthest_reach = |points: &[Vec3], topology: &ClothTopology, at: &[Vec3]| {
+        let triangles = topology.triangles().iter().map(|t| t.map(|k| at[k as usize]));
+        triangles.flat_map(|t| points.iter().map(move |&p| p.distance(closest_point(p, t)))).fold(f32::MAX, f32::min)
     };
+    let floor = flat(&pinned_strip, 0.0);
     for (from, above) in [(0.003, true), (-0.004, false)] {
-        let floor_x = at(&pinned_strip, 0.0);
-        let mut floor_now = floor_x.clone();
-        let mut floor_v = vec![Vec3::ZERO; 4];
-        let strip_prev = at(&moving_strip, from);
-        let mut strip_x = at(&moving_strip, -0.003);
-        let mut strip_v = vec![Vec3::new(0.0, -0.36, 0.0); 4];
-        // No particle of either strip within 0.4 m of a triangle of the other, where it starts
-        // or where it ends: only edges meet edges.
-        let farthest_reach = |points: &[Vec3], topology: &ClothTopology, at: &[Vec3]| {
-            let triangles = topology.triangles().iter().map(|t| t.map(|k| at[k as usize]));
-            triangles
-                .flat_map(|t| points.iter().map(move |&p| p.distance(closest_point(p, t))))
-                .fold(f32::MAX, f32::min)
-        };
-        for points in [&strip_prev, &strip_x] {
-            assert!(farthest_reach(points, &pinned_strip, &floor_x) > 0.4, "a point reaches the pinned strip");
-            assert!(farthest_reach(&floor_x, &moving_strip, points) > 0.4, "a point reaches the moving strip");
+        for points in [flat(&moving_strip, from), flat(&moving_strip, -0.003)] {
+            assert!(farthest_reach(&points, &pinned_strip, &floor) > 0.4, "a point reaches the pinned strip");
+            assert!(farthest_reach(&floor, &moving_strip, &points) > 0.4, "a point reaches the moving strip");
         }
-        let stats = ContactSolver::default().resolve(
-            &mut [
-                ContactBody {
-                    layers: Default::default(),
-                    topology: &pinned_strip,
-                    contact,
-                    free: &[0.0; 4],
-                    held: &[],
-                    prev: &floor_x,
-                    x: &mut floor_now,
-                    v: &mut floor_v,
-                },
-                ContactBody {
-                    layers: Default::default(),
-                    topology: &moving_strip,
-                    contact,
-                    free: &[1.0; 4],
-                    held: &[],
-                    prev: &strip_prev,
-                    x: &mut strip_x,
-                    v: &mut strip_v,
-                },
-            ],
-            &[],
-        );
-        assert!(stats.contacts > 0, "no contact");
-        assert_eq!(floor_now, floor_x, "the pinned strip moved");
+        let after = flat_substep((&pinned_strip, &[0.0; 4], &[]), &moving_strip, (from, -0.003), 0.36);
+        assert!(after.stats.contacts > 0, "no contact");
+        assert_eq!(after.lower, floor, "the pinned strip moved");
         // Each edge contact puts the pair's closest points the thickness apart; the strip's
         // ends, at up to 4% of its length from the middle, take shares of 0.48 to 0.52.
         let sign = if above { 1.0 } else { -1.0 };
-        for p in &strip_x {
+        for p in &after.upper {
             assert!((p.y * sign - THICKNESS).abs() < 0.1 * THICKNESS, "from {from} m: a particle ends at {}", p.y);
         }
         // From above its approach speed (0.36 m/s) is taken off, but for the shares' spread.
         if above {
-            assert!(strip_v.iter().all(|v| v.y.abs() < 0.03), "from {from} m: the strip still approaches: {strip_v:?}");
+            let v = &after.upper_v;
+            assert!(v.iter().all(|v| v.y.abs() < 0.03), "from {from} m: the strip still approaches: {v:?}");
         }
     }
 }
@@ -367,49 +354,18 @@ fn edges_that_went_through_edges_go_back_to_their_side() {
 fn a_particle_a_collider_holds_does_not_yield() {
     let floor = common::grid_topology(1.0, 2, 2);
     let sheet = common::grid_topology(0.1, 2, 2);
-    let contact = SelfContact { thickness: THICKNESS, friction: 0.0 };
-    let free = vec![1.0; 4];
-    let at = |topology: &ClothTopology, y: f32| -> Vec<Vec3> {
-        topology.rest_positions().iter().map(|p| Vec3::new(p.x, y, p.z)).collect()
-    };
     for held in [vec![1.0; 4], vec![]] {
-        let floor_x = at(&floor, 0.0);
-        let mut floor_now = floor_x.clone();
-        let mut floor_v = vec![Vec3::ZERO; 4];
-        let sheet_prev = at(&sheet, 0.004);
-        let mut sheet_x = at(&sheet, 0.002);
-        let mut sheet_v = vec![Vec3::new(0.0, -1.0, 0.0); 4];
-        let mut solver = ContactSolver::default();
-        let floor_body = ContactBody {
-            layers: Default::default(),
-            topology: &floor,
-            contact,
-            free: &free,
-            held: &held,
-            prev: &floor_x,
-            x: &mut floor_now,
-            v: &mut floor_v,
-        };
-        let sheet_body = ContactBody {
-            layers: Default::default(),
-            topology: &sheet,
-            contact,
-            free: &free,
-            held: &[],
-            prev: &sheet_prev,
-            x: &mut sheet_x,
-            v: &mut sheet_v,
-        };
-        let stats = solver.resolve(&mut [floor_body, sheet_body], &[]);
-        assert!(stats.contacts > 0);
-        let gap = sheet_x.iter().map(|p| p.y).fold(f32::INFINITY, f32::min)
-            - floor_now.iter().map(|p| p.y).fold(f32::NEG_INFINITY, f32::max);
+        let after = flat_substep((&floor, &[1.0; 4], &held), &sheet, (0.004, 0.002), 1.0);
+        assert!(after.stats.contacts > 0);
+        let gap = after.upper.iter().map(|p| p.y).fold(f32::INFINITY, f32::min)
+            - after.lower.iter().map(|p| p.y).fold(f32::NEG_INFINITY, f32::max);
         if held.is_empty() {
-            assert!(floor_now.iter().any(|p| p.y < -1e-4), "with nothing held the large sheet yields");
+            assert!(after.lower.iter().any(|p| p.y < -1e-4), "with nothing held the large sheet yields");
         } else {
-            assert_eq!(floor_now, floor_x, "the held sheet moved");
-            assert!(sheet_x.iter().all(|p| (p.y - THICKNESS).abs() < 1e-5), "the small sheet ends at {sheet_x:?}");
-            assert!(sheet_v.iter().all(|v| v.y.abs() < 1e-5), "the small sheet still approaches: {sheet_v:?}");
+            assert_eq!(after.lower, flat(&floor, 0.0), "the held sheet moved");
+            let (x, v) = (&after.upper, &after.upper_v);
+            assert!(x.iter().all(|p| (p.y - THICKNESS).abs() < 1e-5), "the small sheet ends at {x:?}");
+            assert!(v.iter().all(|v| v.y.abs() < 1e-5), "the small sheet still approaches: {v:?}");
         }
         assert!(gap > 0.0, "the sheets cross");
     }
