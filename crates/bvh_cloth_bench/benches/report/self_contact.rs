@@ -1,5 +1,6 @@
-//! The sections `self_contact` and `self_contact_gpu`: a cloth folding over a bar and two
-//! cloths on the bunny, checked with an exact triangle-triangle test, and the cost.
+//! The sections `self_contact` and `self_contact_gpu`: a cloth folding over a bar, two cloths
+//! on the bunny and two cloths started crossed, checked with an exact triangle-triangle test,
+//! and the cost.
 
 use super::*;
 
@@ -8,8 +9,8 @@ pub(crate) const SELF_CONTACT: SelfContact = SelfContact { thickness: 0.008, fri
 
 /// Self-contact on the CPU: two scenes, each with and without contact, checked at the end by an
 /// exact triangle–triangle test between every two triangles sharing no corner and by the least
-/// distance between particles sharing no spring; then the cost of contact in a tick of a
-/// 128 x 128 cloth.
+/// distance between particles sharing no spring; then two cloths started crossed
+/// ([`started_crossed`]); then the cost of contact in a tick of a 128 x 128 cloth.
 pub(crate) fn self_contact(bunny: &ObjMesh, single: &rayon::ThreadPool, threads: usize) {
     const THICKNESS: f32 = SELF_CONTACT.thickness;
     const SECONDS: f32 = 3.0;
@@ -84,6 +85,8 @@ pub(crate) fn self_contact(bunny: &ObjMesh, single: &rayon::ThreadPool, threads:
         );
     }
 
+    started_crossed(&surface);
+
     println!("\n### Cost: a 128 x 128 cloth (1.4 m) resting on the bunny\n");
     println!(
         "The cloth falls 1 s with self-contact, then the same state ticks with and without it, alternating, best of 5 each (ms per 60 Hz tick, Looper 16).\n"
@@ -94,6 +97,51 @@ pub(crate) fn self_contact(bunny: &ObjMesh, single: &rayon::ThreadPool, threads:
     let mut without = with.clone();
     without.set_params(ClothParams { self_contact: None, ..with.params().clone() }).expect("valid parameters");
     print_with_and_without(single, threads, &without, &with, std::slice::from_ref(&surface), 5);
+}
+
+/// Two 32 x 32 cloths (1 m) that start crossed along a line, dropped onto the bunny: one flat,
+/// the other through it at 10 degrees about the line across both middles. Prints the pairs of
+/// triangles between them that intersect, and the closest pair of particles, at the start and
+/// every half second for 1 s, with self-contact and without.
+fn started_crossed(surface: &Collider) {
+    const THICKNESS: f32 = SELF_CONTACT.thickness;
+    println!("\n### Two cloths started crossed\n");
+    println!(
+        "Two 32 x 32 cloths (1 m), one flat 0.2 m above the bunny, the other turned 10 degrees about the line across both middles, so that they cross along it; both fall onto the bunny (exact contact) together (`ClothSim::tick_together`). Between them: the intersecting triangle pairs and the closest pair of particles.\n"
+    );
+    println!("| contact | pairs at 0 s | at 0.5 s | at 1 s | closest pair at 1 s mm | close pairs at 1 s |");
+    println!("|---|---|---|---|---|---|");
+    let top = bvh_cloth_bench::top_of(surface);
+    let grid = Arc::new(ClothTopology::grid(ClothGrid::new(Vec2::ONE, UVec2::splat(32))).expect("a valid grid"));
+    for on in [true, false] {
+        let params = ClothParams { self_contact: on.then_some(SELF_CONTACT), ..Default::default() };
+        let middle = Vec3::new(-0.1, top + 0.2, 0.0);
+        let flat = Affine3A::from_translation(middle);
+        let turned = Affine3A::from_rotation_translation(Quat::from_rotation_z(10f32.to_radians()), middle);
+        let mut a = ClothSim::new(params.clone(), Arc::clone(&grid), flat, &[]).expect("a valid cloth");
+        let mut b = ClothSim::new(params, Arc::clone(&grid), turned, &[]).expect("a valid cloth");
+        let between =
+            |a: &ClothSim, b: &ClothSim| crossing_triangles(&grid, &a.positions(), Some((&grid, &b.positions())));
+        let mut pairs = vec![between(&a, &b)];
+        let mut solver = ContactSolver::default();
+        for _ in 0..2 {
+            for _ in 0..30 {
+                ClothSim::tick_together(&mut [&mut a, &mut b], TICK, std::slice::from_ref(surface), &mut solver);
+            }
+            pairs.push(between(&a, &b));
+        }
+        let (x, y) = (a.positions(), b.positions());
+        let closest = x.iter().flat_map(|p| y.iter().map(move |q| p.distance(*q))).fold(f32::INFINITY, f32::min);
+        println!(
+            "| {} | {} | {} | {} | {:.2} | {} |",
+            if on { "on" } else { "off" },
+            pairs[0],
+            pairs[1],
+            pairs[2],
+            closest * 1e3,
+            close_pairs(&grid, &x, Some(&y), 0.5 * THICKNESS)
+        );
+    }
 }
 
 /// The self-contact cost scene: the bunny at n = 5 with its exact surface, and a 128 x 128
