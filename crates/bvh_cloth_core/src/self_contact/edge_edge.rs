@@ -73,6 +73,11 @@ impl ContactSolver {
         let normal_now =
             common_normal(p0, p1, q0, q1).map(|n| if normal_before.is_some_and(|b| b.dot(n) < 0.0) { -n } else { n });
         let side_before = normal_before.map_or(0.0, |n| (r0 - s0).dot(n));
+        // An edge with an end on the wrong side of the other's body, as `untangle` found them:
+        // the side to go back to is the other one.
+        let wrong = |ends: [u32; 2], body: u32| ends.iter().any(|&k| self.wrong_side[k as usize] == body);
+        let inverted = eb != fb && (wrong([a0, a1], fb) || wrong([b0, b1], eb));
+        let side_before = if inverted { -side_before } else { side_before };
         let side_now = normal_now.map_or(0.0, |n| (p0 - q0).dot(n));
         let through = side_before * side_now < 0.0;
         let (n, gap, s, t) = if d2 < h * h {
@@ -86,7 +91,11 @@ impl ContactSolver {
             }
         } else {
             // Farther than the thickness now: a contact only if they went through each other
-            // during the substep (see `crossed`).
+            // during the substep (see `crossed`); edges taken back through meet when they come
+            // within the thickness.
+            if inverted {
+                return None;
+            }
             let (normal, (s, t)) =
                 normal_now.zip(crossed([r0, r1, s0, s1], [p0, p1, q0, q1], side_before, side_now, h))?;
             (normal * side_before.signum(), -side_now.abs(), s, t)

@@ -57,6 +57,11 @@ impl ContactSolver {
         let face = face_normal(at);
         let before = corners.map(|c| self.prev[c as usize]);
         let side_before = face_normal(before).map_or(0.0, |n| (self.prev[p] - before[0]).dot(n));
+        // A point on the wrong side of another body, or a triangle of the wrong side of the
+        // point's body, as `untangle` found them: the side to go back to is the other one.
+        let wrong = |k: u32, body: u32| self.wrong_side[k as usize] == body;
+        let inverted = pb != tb && (wrong(p as u32, tb) || corners.iter().any(|&c| wrong(c, pb)));
+        let side_before = if inverted { -side_before } else { side_before };
         let side_now = face.map_or(0.0, |n| (xp - at[0]).dot(n));
         let through = side_before * side_now < 0.0;
         let (n, gap, q) = if d2 < h * h {
@@ -70,7 +75,11 @@ impl ContactSolver {
             (n, gap, q)
         } else {
             // Farther than the thickness now: a contact only if the point's path went through
-            // the triangle during the substep (see `crossed`).
+            // the triangle during the substep (see `crossed`); a point taken back through
+            // meets it when it comes within the thickness.
+            if inverted {
+                return None;
+            }
             let (face, q) = face.zip(crossed(self.prev[p], xp, before, at, side_before, side_now, h))?;
             (face * side_before.signum(), -side_now.abs(), q)
         };

@@ -1,0 +1,156 @@
+//! Two cloths that already cross: which particles lie on the wrong side of the other cloth,
+//! so that their contacts with it take them back through (a global intersection analysis after
+//! Baraff, Witkin and Kass 2003, "Untangling Cloth", for two bodies). See the
+//! [module docs](super).
+
+use std::collections::HashMap;
+
+use glam::Vec3A;
+use rayon::prelude::*;
+
+use super::{ContactBody, ContactSolver, MAX_SPAN};
+use crate::mesh::triangles::triangles_intersect;
+
+/// No body: a particle on the right side of every other.
+pub(super) const NO_BODY: u32 = u32::MAX;
+
+impl ContactSolver {
+    /// Marks in `wrong_side` (by flat particle index) the particles that lie on the wrong side
+    /// of another body at the substep's start, with that body's index ([`NO_BODY`] for the
+    /// others); returns how many it marked.
+    ///
+    /// For every two bodies whose triangles intersect there: the triangles of each that meet
+    /// the other cut it, and its other triangles fall into the parts the cuts leave, joined
+    /// across shared edges. A cut that parts a body leaves its largest part on the right side
+    /// and the rest, through the other body, on the wrong side; of the two bodies, the one with
+    /// the fewer triangles on the wrong side is the one taken back. Its particles there (the
+    /// corners of wrong-side triangles that are no corner of a right-side one) are marked.
+    /// Where neither body is parted (each cut leaves it whole, as where only an edge of each
+    /// passes through the other), nothing is marked.
+    pub(super) fn find_wrong_sides(&mut self, bodies: &[ContactBody<'_>]) -> usize {
+        self.wrong_side.clear();
+        self.wrong_side.resize(self.x.len(), NO_BODY);
+        if bodies.len() < 2 {
+            return 0;
+        }
+        let count = self.triangles.len() as u32;
+        let corners = |t: u32| self.triangles[t as usize].1.map(|k| self.prev[k as usize]);
+        // Every pair of triangles of two bodies that meet each other, once.
+        let pairs: Vec<(u32, u32)> = (0..count)
+            .into_par_iter()
+            .flat_map_iter(|t| {
+                let (tb, _) = self.triangles[t as usize];
+                let at = corners(t);
+                let lo = Vec3A::from(at[0].min(at[1]).min(at[2]));
+                let hi = Vec3A::from(at[0].max(at[1]).max(at[2]));
+                let mut met = Vec::new();
+                self.grid.visit(lo, hi, MAX_SPAN, t + 1..count, |u| {
+                    let (ub, _) = self.triangles[u as usize];
+                    if ub != tb
+                        && bodies[tb as usize].layers.interacts_with(bodies[ub as usize].layers)
+                        && triangles_intersect(at, corners(u))
+                    {
+                        met.push((t, u));
+                    }
+                });
+                met
+            })
+            .collect();
+        // Each pair of bodies that cross, and the triangles of each that the other cuts.
+        let mut crossing: HashMap<(u32, u32), (Vec<u32>, Vec<u32>)> = HashMap::new();
+        for &(t, u) in &pairs {
+            let (tb, ub) = (self.triangles[t as usize].0, self.triangles[u as usize].0);
+            let ((a, ta), (b, ub_t)) = if tb < ub { ((tb, t), (ub, u)) } else { ((ub, u), (tb, t)) };
+            let cuts = crossing.entry((a, b)).or_default();
+            cuts.0.push(ta);
+            cuts.1.push(ub_t);
+        }
+        let mut pairs_of_bodies: Vec<_> = crossing.into_iter().collect();
+        pairs_of_bodies.sort_unstable_by_key(|(bodies, _)| *bodies);
+        let mut marked = 0;
+        for ((a, b), (cut_a, cut_b)) in pairs_of_bodies {
+            let parts = [self.wrong_part(a, &cut_a), self.wrong_part(b, &cut_b)];
+            let chosen = match parts {
+                [Some(pa), Some(pb)] => Some(if pa.len() <= pb.len() { (pa, b) } else { (pb, a) }),
+                [Some(pa), None] => Some((pa, b)),
+                [None, Some(pb)] => Some((pb, a)),
+                [None, None] => None,
+            };
+            if let Some((particles, other)) = chosen {
+                for k in particles {
+                    if self.wrong_side[k as usize] == NO_BODY {
+                        self.wrong_side[k as usize] = other;
+                        marked += 1;
+                    }
+                }
+            }
+        }
+        marked
+    }
+
+    /// The particles of body `body` on the wrong side of the body whose cuts of it are `cut`
+    /// (flat triangle indices): those of the parts the cuts leave besides the largest; `None`
+    /// when the cuts leave the body in one part.
+    fn wrong_part(&self, body: u32, cut: &[u32]) -> Option<Vec<u32>> {
+        // The body's triangles, flat indices, in order.
+        let first = self.triangles.partition_point(|&(b, _)| b < body);
+        let last = self.triangles.partition_point(|&(b, _)| b <= body);
+        let triangles = &self.triangles[first..last];
+        let mut is_cut = vec![false; triangles.len()];
+        for &t in cut {
+            is_cut[t as usize - first] = true;
+        }
+        // The triangles on each edge, and the parts by a flood over shared edges.
+        let mut sides: HashMap<[u32; 2], Vec<u32>> = HashMap::new();
+        for (t, (_, c)) in triangles.iter().enumerate() {
+            for [p, q] in [[c[0], c[1]], [c[1], c[2]], [c[2], c[0]]] {
+                sides.entry([p.min(q), p.max(q)]).or_default().push(t as u32);
+            }
+        }
+        const UNSET: u32 = u32::MAX;
+        let mut part = vec![UNSET; triangles.len()];
+        let mut sizes = Vec::new();
+        let mut stack = Vec::new();
+        for seed in 0..triangles.len() {
+            if is_cut[seed] || part[seed] != UNSET {
+                continue;
+            }
+            let id = sizes.len() as u32;
+            sizes.push(0usize);
+            part[seed] = id;
+            stack.push(seed as u32);
+            while let Some(t) = stack.pop() {
+                sizes[id as usize] += 1;
+                let c = triangles[t as usize].1;
+                for [p, q] in [[c[0], c[1]], [c[1], c[2]], [c[2], c[0]]] {
+                    for &u in &sides[&[p.min(q), p.max(q)]] {
+                        if !is_cut[u as usize] && part[u as usize] == UNSET {
+                            part[u as usize] = id;
+                            stack.push(u);
+                        }
+                    }
+                }
+            }
+        }
+        if sizes.is_empty() {
+            return None;
+        }
+        let largest = (0..sizes.len()).max_by_key(|&k| (sizes[k], usize::MAX - k)).unwrap_or(0) as u32;
+        let mut right = std::collections::HashSet::new();
+        for (t, (_, c)) in triangles.iter().enumerate() {
+            if part[t] == largest {
+                right.extend(c.iter().copied());
+            }
+        }
+        let mut wrong: Vec<u32> = triangles
+            .iter()
+            .enumerate()
+            .filter(|&(t, _)| part[t] != largest)
+            .flat_map(|(_, (_, c))| c.iter().copied())
+            .filter(|k| !right.contains(k))
+            .collect();
+        wrong.sort_unstable();
+        wrong.dedup();
+        (!wrong.is_empty()).then_some(wrong)
+    }
+}
