@@ -106,7 +106,9 @@
 //! 0 and 0 pairs of triangles intersecting at 0, 0.5 and 1 s (123 at 1 s without it; the core's
 //! `two_cloths_started_crossed_come_apart`). Where no cut parts either body (two cloths
 //! interlocked like two slotted cards, each passing through the other's edge), nothing is
-//! taken back. The GPU backend does not untangle yet.
+//! taken back. While no two bodies cross, the test is made once every sixteen resolutions (a
+//! tick at Looper 16), so that two cloths something forces through each other are found within
+//! a tick. The GPU backend does not untangle yet.
 //!
 //! # Limits
 //!
@@ -299,6 +301,8 @@ pub struct ContactSolver {
     /// For each particle, the other body it lies on the wrong side of at the substep's start
     /// (`untangle::NO_BODY` for none): its contacts with that body take it back through.
     wrong_side: Vec<u32>,
+    /// Resolutions left before the next test for crossing bodies (`untangle`).
+    untangle_wait: u32,
     /// Each particle's summed corrections and the number of contacts it took part in.
     dx: Vec<Vec3>,
     dv: Vec<Vec3>,
