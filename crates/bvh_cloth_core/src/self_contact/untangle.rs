@@ -26,13 +26,13 @@ impl ContactSolver {
     ///
     /// For every two bodies whose triangles intersect there: the triangles of each that meet
     /// the other cut it, and its other triangles fall into the parts the cuts leave, joined
-    /// across shared edges. A cut that parts a body leaves its largest part on the right side
-    /// and the rest, through the other body, on the wrong side; of the two bodies, the one with
-    /// the fewer triangles on the wrong side is the one taken back. Its particles there (the
-    /// corners of wrong-side triangles that are no corner of a right-side one) are marked.
-    /// Where neither body is parted (each cut leaves it whole, as where only an edge of each
-    /// passes through the other), nothing is marked. After a test that finds no two bodies
-    /// crossing, the next [`UNTANGLE_EVERY`] - 1 resolutions skip it.
+    /// across shared edges. The largest part lies on the right side of the other body; the
+    /// corners of the other parts' triangles and of the cut triangles that are no corner of a
+    /// triangle of the largest part lie through it, on the wrong side. Of the two bodies, the
+    /// one with fewer particles on the wrong side is taken back: those particles are marked.
+    /// Where neither body has any (each cut leaves all its corners on the largest part, as
+    /// where only an edge of each passes through the other), nothing is marked. After a test
+    /// that finds no two bodies crossing, the next [`UNTANGLE_EVERY`] - 1 resolutions skip it.
     pub(super) fn find_wrong_sides(&mut self, bodies: &[ContactBody<'_>]) -> usize {
         self.wrong_side.clear();
         self.wrong_side.resize(self.x.len(), NO_BODY);
@@ -103,8 +103,9 @@ impl ContactSolver {
     }
 
     /// The particles of body `body` on the wrong side of the body whose cuts of it are `cut`
-    /// (flat triangle indices): those of the parts the cuts leave besides the largest; `None`
-    /// when the cuts leave the body in one part.
+    /// (flat triangle indices): the corners of the cut triangles and of the parts the cuts
+    /// leave besides the largest, less the corners of the largest part's triangles; `None` for
+    /// none.
     fn wrong_part(&self, body: u32, cut: &[u32]) -> Option<Vec<u32>> {
         // The body's triangles, flat indices, in order.
         let first = self.triangles.partition_point(|&(b, _)| b < body);
