@@ -9,6 +9,7 @@ use glam::Vec3A;
 use rayon::prelude::*;
 
 use super::{ContactBody, ContactSolver, MAX_SPAN};
+use crate::cloth::topology::ClothTopology;
 use crate::mesh::triangles::triangles_intersect;
 
 /// No body: a particle on the right side of every other.
@@ -83,7 +84,8 @@ impl ContactSolver {
         pairs_of_bodies.sort_unstable_by_key(|(bodies, _)| *bodies);
         let mut marked = 0;
         for ((a, b), (cut_a, cut_b)) in pairs_of_bodies {
-            let parts = [self.wrong_part(a, &cut_a), self.wrong_part(b, &cut_b)];
+            let shape = |body: u32| bodies[body as usize].topology;
+            let parts = [self.wrong_part(a, shape(a), &cut_a), self.wrong_part(b, shape(b), &cut_b)];
             let chosen = match parts {
                 [Some(pa), Some(pb)] => Some(if pa.len() <= pb.len() { (pa, b) } else { (pb, a) }),
                 [Some(pa), None] => Some((pa, b)),
@@ -102,26 +104,21 @@ impl ContactSolver {
         marked
     }
 
-    /// The particles of body `body` on the wrong side of the body whose cuts of it are `cut`
-    /// (flat triangle indices): the corners of the cut triangles and of the parts the cuts
-    /// leave besides the largest, less the corners of the largest part's triangles; `None` for
-    /// none.
-    fn wrong_part(&self, body: u32, cut: &[u32]) -> Option<Vec<u32>> {
-        // The body's triangles, flat indices, in order.
+    /// The particles of body `body` (whose shape is `topology`) on the wrong side of the body
+    /// whose cuts of it are `cut` (flat triangle indices): the corners of the cut triangles and
+    /// of the parts the cuts leave besides the largest, less the corners of the largest part's
+    /// triangles; `None` for none.
+    fn wrong_part(&self, body: u32, topology: &ClothTopology, cut: &[u32]) -> Option<Vec<u32>> {
+        // The body's first triangle and first particle (flat indices): its triangles and
+        // particles are in the topology's order from there.
         let first = self.triangles.partition_point(|&(b, _)| b < body);
-        let last = self.triangles.partition_point(|&(b, _)| b <= body);
-        let triangles = &self.triangles[first..last];
+        let first_particle = self.owner.partition_point(|&(b, _)| b < body) as u32;
+        let triangles = topology.triangles();
         let mut is_cut = vec![false; triangles.len()];
         for &t in cut {
             is_cut[t as usize - first] = true;
         }
-        // The triangles on each edge, and the parts by a flood over shared edges.
-        let mut sides: HashMap<[u32; 2], Vec<u32>> = HashMap::new();
-        for (t, (_, c)) in triangles.iter().enumerate() {
-            for [p, q] in [[c[0], c[1]], [c[1], c[2]], [c[2], c[0]]] {
-                sides.entry([p.min(q), p.max(q)]).or_default().push(t as u32);
-            }
-        }
+        // The parts: a flood over the triangles that share an edge (two corners) with each.
         const UNSET: u32 = u32::MAX;
         let mut part = vec![UNSET; triangles.len()];
         let mut sizes = Vec::new();
@@ -136,9 +133,10 @@ impl ContactSolver {
             stack.push(seed as u32);
             while let Some(t) = stack.pop() {
                 sizes[id as usize] += 1;
-                let c = triangles[t as usize].1;
+                let c = triangles[t as usize];
                 for [p, q] in [[c[0], c[1]], [c[1], c[2]], [c[2], c[0]]] {
-                    for &u in &sides[&[p.min(q), p.max(q)]] {
+                    let beside = topology.triangles_of(q as usize);
+                    for &u in topology.triangles_of(p as usize).iter().filter(|u| beside.contains(u)) {
                         if !is_cut[u as usize] && part[u as usize] == UNSET {
                             part[u as usize] = id;
                             stack.push(u);
@@ -147,25 +145,17 @@ impl ContactSolver {
                 }
             }
         }
-        if sizes.is_empty() {
-            return None;
-        }
-        let largest = (0..sizes.len()).max_by_key(|&k| (sizes[k], usize::MAX - k)).unwrap_or(0) as u32;
-        let mut right = std::collections::HashSet::new();
-        for (t, (_, c)) in triangles.iter().enumerate() {
-            if part[t] == largest {
-                right.extend(c.iter().copied());
+        let largest = (0..sizes.len()).max_by_key(|&k| (sizes[k], usize::MAX - k))? as u32;
+        // Each particle: a corner of the largest part, and a corner of the rest.
+        let (mut right, mut rest) = (vec![false; topology.len()], vec![false; topology.len()]);
+        for (c, &part) in triangles.iter().zip(&part) {
+            let side = if part == largest { &mut right } else { &mut rest };
+            for &k in c {
+                side[k as usize] = true;
             }
         }
-        let mut wrong: Vec<u32> = triangles
-            .iter()
-            .enumerate()
-            .filter(|&(t, _)| part[t] != largest)
-            .flat_map(|(_, (_, c))| c.iter().copied())
-            .filter(|k| !right.contains(k))
-            .collect();
-        wrong.sort_unstable();
-        wrong.dedup();
+        let wrong: Vec<u32> =
+            (0..topology.len()).filter(|&k| rest[k] && !right[k]).map(|k| first_particle + k as u32).collect();
         (!wrong.is_empty()).then_some(wrong)
     }
 }
