@@ -11,8 +11,8 @@ use bvh_cloth_core::backend::MAX_ITERATIONS;
 use bvh_cloth_core::backend::particle_spacing;
 
 use crate::{
-    ActiveClothBackend, Aerodynamics, AmbientWind, AutoCollider, Cloth, ClothSettings, ClothShape, ClothSimulation,
-    ClothStats, ColliderContact, ColliderStatus, Integrator, ResetCloth, SelfContact,
+    Aerodynamics, AmbientWind, AutoCollider, Cloth, ClothSettings, ClothShape, ClothSimulation, ClothStats,
+    ColliderContact, ColliderStatus, Integrator, ResetCloth, SelfContact,
 };
 
 /// Adds the panel (and [`EguiPlugin`] if the app has none).
@@ -41,12 +41,11 @@ fn cloth_panel(
     mut contexts: EguiContexts,
     mut settings: ResMut<ClothSettings>,
     mut wind: ResMut<AmbientWind>,
-    (stats, active): (Res<ClothStats>, Option<Res<ActiveClothBackend>>),
+    stats: Res<ClothStats>,
     mut cloths: Query<(Entity, &mut Cloth, Option<&ClothSimulation>)>,
     mut colliders: Query<(Entity, &mut AutoCollider, &ColliderStatus)>,
     mut resets: MessageWriter<ResetCloth>,
 ) -> Result {
-    let on_gpu = active.is_some_and(|a| *a == ActiveClothBackend::Gpu);
     egui::Window::new("Cloth").default_width(280.0).show(contexts.ctx_mut()?, |ui| {
         ui.label(format!("Backend: {}", stats.backend));
         ui.label(format!(
@@ -134,13 +133,7 @@ fn cloth_panel(
                     if ui.radio(descent, "Block descent").clicked() && !descent {
                         c.params.integrator = Integrator::BLOCK_DESCENT;
                     }
-                    let multigrid = c.params.integrator == Integrator::Multigrid;
-                    let radio = ui
-                        .add_enabled(!on_gpu, egui::RadioButton::new(multigrid, "Multigrid (CPU)"))
-                        .on_disabled_hover_text("The GPU backend does not run the multigrid integrator yet");
-                    if radio.clicked() {
-                        c.params.integrator = Integrator::Multigrid;
-                    }
+                    ui.radio_value(&mut c.params.integrator, Integrator::Multigrid, "Multigrid");
                 });
                 if let Integrator::BlockDescent { iterations } = &mut c.params.integrator {
                     ui.add(egui::Slider::new(iterations, 1..=MAX_ITERATIONS).text("Iterations per substep"));

@@ -26,6 +26,7 @@ fn values() -> Vec<(&'static str, Value)> {
         ("UNTETHERED", U32(core::UNTETHERED)),
         ("INTEGRATOR_EULER", U32(layout::INTEGRATOR_EULER)),
         ("INTEGRATOR_BLOCK_DESCENT", U32(layout::INTEGRATOR_BLOCK_DESCENT)),
+        ("INTEGRATOR_MULTIGRID", U32(layout::INTEGRATOR_MULTIGRID)),
         ("SHAPE_SPHERES", U32(layout::SHAPE_SPHERES)),
         ("SHAPE_TRIANGLES", U32(layout::SHAPE_TRIANGLES)),
         ("SHAPE_SPHERE", kind(Primitive::Sphere { radius: 1.0 })),
@@ -50,6 +51,15 @@ fn values() -> Vec<(&'static str, Value)> {
         ("MAX_HELD_SCALE", F32(core::MAX_HELD_SCALE)),
         ("CONTACT_TRIANGLE_WORDS", U32(layout::CONTACT_TRIANGLE_WORDS as u32)),
         ("NO_CORNER", U32(layout::NO_CORNER)),
+        ("NO_NODE", U32(core::NO_NODE)),
+        ("REASSEMBLE_EVERY", U32(core::REASSEMBLE_EVERY)),
+        ("STALE_CURVATURE", F32(core::STALE_CURVATURE as f32)),
+        ("JACOBI_WEIGHT", F32(core::JACOBI_WEIGHT)),
+        ("COARSEST_SMOOTHING", U32(core::COARSEST_SMOOTHING)),
+        ("DENSE_ORDER", U32(3 * core::DENSE_NODES as u32)),
+        ("MULTIGRID_NODE_WORDS", U32(layout::MULTIGRID_NODE_WORDS)),
+        ("MULTIGRID_NODE_VALUES", U32(layout::MULTIGRID_NODE_VALUES)),
+        ("MULTIGRID_SPRING_VALUES", U32(layout::MULTIGRID_SPRING_VALUES)),
     ]
 }
 

@@ -36,13 +36,18 @@ pub const NO_CLOTH: u32 = u32::MAX;
 pub const INTEGRATOR_RK4: u32 = 0;
 /// [`GpuBatchCloth::integrator`] of semi-implicit Euler.
 pub const INTEGRATOR_EULER: u32 = 1;
-/// [`GpuBatchCloth::integrator`] of block descent.
+/// [`GpuBatchCloth::integrator`] of block descent. It and [`INTEGRATOR_MULTIGRID`] run the
+/// block-descent kernels; the integrators below it the explicit ones.
 pub const INTEGRATOR_BLOCK_DESCENT: u32 = 2;
+/// [`GpuBatchCloth::integrator`] of the multigrid integrator: block descent's kernels with one
+/// sweep, BDF2 and the multigrid correction (`multigrid.wgsl`).
+pub const INTEGRATOR_MULTIGRID: u32 = 3;
 
 /// One cloth of a batch: where its data lies in the shared buffers, and its constants for the
-/// coming ticks. An array of these is one storage buffer. 112 bytes; the host writes the
+/// coming ticks. An array of these is one storage buffer. 128 bytes; the host writes the
 /// first [`Self::HOST_BYTES`], up to the count of quarantined particles, which the kernels add
-/// to and the host reads and clears, and the drift, which only the kernels write.
+/// to and the host reads and clears; the drift and the multigrid integrator's step and history
+/// flag follow, which the kernels write (the host sets the flag when it replaces a state).
 #[repr(C)]
 #[derive(Clone, Copy, Debug, Default, PartialEq, Pod, Zeroable)]
 pub struct GpuBatchCloth {
@@ -88,11 +93,23 @@ pub struct GpuBatchCloth {
     /// Block descent's drift of the centre of mass in this substep (`xyz`, metres), which the
     /// kernels compute and read; the host never writes it.
     pub drift: [f32; 4],
+    /// The multigrid integrator's substep length in seconds (`h`, or `2h/3` for a BDF2
+    /// substep), which `mg_begin` writes in every substep; the host never writes it.
+    pub step: f32,
+    /// Nonzero when BDF2 may not build on the cloth's last substep: a collider or the
+    /// quarantine moved a particle in it (`vbd_finish` sets it), or the host replaced its state
+    /// or its substep length; `mg_begin` clears it.
+    pub broken: u32,
+    /// Unused.
+    pub pad: [u32; 2],
 }
 
 impl GpuBatchCloth {
-    /// Bytes of a [`GpuBatchCloth`] the host writes: everything but the fault count.
+    /// Bytes of a [`GpuBatchCloth`] the host writes: everything up to the fault count.
     pub const HOST_BYTES: u64 = 92;
+
+    /// Where [`Self::broken`] lies in the struct, in bytes.
+    pub const BROKEN_OFFSET: u64 = core::mem::offset_of!(GpuBatchCloth, broken) as u64;
 
     /// The constants of a cloth with `params` on `topology`, whose particles and spring ends
     /// start at the given indices, for `substeps` substeps of `h` seconds per tick (as a held
@@ -119,8 +136,8 @@ impl GpuBatchCloth {
             integrator: match params.integrator {
                 Integrator::Rk4 => INTEGRATOR_RK4,
                 Integrator::SemiImplicitEuler => INTEGRATOR_EULER,
-                // The multigrid integrator runs on the CPU only; here it is block descent.
-                Integrator::BlockDescent { .. } | Integrator::Multigrid => INTEGRATOR_BLOCK_DESCENT,
+                Integrator::BlockDescent { .. } => INTEGRATOR_BLOCK_DESCENT,
+                Integrator::Multigrid => INTEGRATOR_MULTIGRID,
             },
             iterations: match params.integrator {
                 Integrator::BlockDescent { iterations } => iterations,
@@ -136,6 +153,9 @@ impl GpuBatchCloth {
             filters: params.layers.filters,
             faults: 0,
             drift: [0.0; 4],
+            step: h,
+            broken: 1,
+            pad: [0; 2],
         }
     }
 }
@@ -569,12 +589,12 @@ impl GpuMeshWriteback {
 }
 
 /// The particles of `sim` in GPU layout: `position.w` is 1 for a free particle and 0 for a
-/// held one.
+/// held one, `velocity.w` 1 where a collider touched it in the last substep.
 pub fn gpu_particles(sim: &ClothSim) -> Vec<GpuParticle> {
     (0..sim.len())
         .map(|i| GpuParticle {
             position: sim.position(i).extend(if sim.is_pinned(i) { 0.0 } else { 1.0 }).to_array(),
-            velocity: sim.velocity(i).extend(0.0).to_array(),
+            velocity: sim.velocity(i).extend(if sim.touched(i) { 1.0 } else { 0.0 }).to_array(),
         })
         .collect()
 }
@@ -649,3 +669,110 @@ pub struct GpuRefitParams {
 pub fn gpu_joint_matrix(matrix: &Affine3A) -> [[f32; 4]; 4] {
     Mat4::from(*matrix).to_cols_array_2d()
 }
+
+/// One cloth's multigrid correction (`multigrid.wgsl`), indexed like the [`GpuBatchCloth`]
+/// array: where its hierarchy lies in the multigrid buffers, what the host sets, and the state
+/// the kernels keep between substeps. A cloth without the correction has `levels` 0. 96 bytes.
+#[repr(C)]
+#[derive(Clone, Copy, Debug, Default, PartialEq, Pod, Zeroable)]
+pub struct GpuMultigridCloth {
+    /// Levels of the hierarchy (0: no correction for this cloth).
+    pub levels: u32,
+    /// The first of the cloth's level-1 nodes, and how many there are.
+    pub node_start: u32,
+    /// See [`Self::node_start`].
+    pub node_count: u32,
+    /// The first node of the cloth's coarsest level, and how many it has.
+    pub coarsest_start: u32,
+    /// See [`Self::coarsest_start`].
+    pub coarsest_count: u32,
+    /// The first of the cloth's crossing springs in the spring list, and how many.
+    pub crossing_start: u32,
+    /// See [`Self::crossing_start`].
+    pub crossing_count: u32,
+    /// Where the cloth's particles' aggregates start in the index buffer.
+    pub aggregate_start: u32,
+    /// Where the coarsest level's dense factor starts in the value buffer (`vec4` entries),
+    /// and its order (`3 x coarsest_count`; 0 when the coarsest level is smoothed instead).
+    pub dense_start: u32,
+    /// See [`Self::dense_start`].
+    pub dense_order: u32,
+    /// The kernels': 1 while the cloth runs the current substep.
+    pub running: u32,
+    /// The host's: 1 when the cloth is too stiff for BDF2 (every substep is then implicit
+    /// Euler, and assembles the levels).
+    pub stiff: u32,
+    /// The kernels': substeps since the levels were assembled, and whether this substep
+    /// assembles and factors them.
+    pub age: u32,
+    /// See [`Self::age`].
+    pub assemble: u32,
+    /// See [`Self::age`].
+    pub refactor: u32,
+    /// 1 while the coarsest level's dense factor is valid.
+    pub dense_ok: u32,
+    /// This substep's `1 + c h` and `h²`, and those the levels are factored for.
+    pub damp: f32,
+    /// See [`Self::damp`].
+    pub h2: f32,
+    /// See [`Self::damp`].
+    pub factored_damp: f32,
+    /// See [`Self::damp`].
+    pub factored_h2: f32,
+    /// This substep's step along the correction (the line search's).
+    pub alpha: f32,
+    /// Unused.
+    pub pad_a: u32,
+    /// Unused.
+    pub pad_b: u32,
+    /// Unused.
+    pub pad_c: u32,
+}
+
+/// One dispatch of the multigrid correction (a uniform at a dynamic offset): the range of
+/// threads, the level, and where each section of the multigrid buffers starts. 48 bytes.
+#[repr(C)]
+#[derive(Clone, Copy, Debug, Default, PartialEq, Pod, Zeroable)]
+pub struct GpuMultigridPass {
+    /// The first node (or spring, or cloth) of the dispatch, and how many.
+    pub start: u32,
+    /// See [`Self::start`].
+    pub count: u32,
+    /// Threads along `x`: a thread's index is `y * width + x`.
+    pub width: u32,
+    /// The level the dispatch works on (0 is level 1, the aggregates of particles).
+    pub level: u32,
+    /// Where the blocks', the shares' and the springs' words start in the index buffer.
+    pub block_words: u32,
+    /// See [`Self::block_words`].
+    pub share_words: u32,
+    /// See [`Self::block_words`].
+    pub spring_words: u32,
+    /// Unused.
+    pub pad_a: u32,
+    /// Where the nodes', the blocks' and the crossing springs' values start in the value
+    /// buffer (`vec4` entries).
+    pub node_values: u32,
+    /// See [`Self::node_values`].
+    pub block_values: u32,
+    /// See [`Self::node_values`].
+    pub spring_values: u32,
+    /// Unused.
+    pub pad_b: u32,
+}
+
+/// `u32` words per node at the start of the multigrid index buffer: its off-diagonal blocks
+/// (a range), its children (a range of the index buffer), its aggregate on the next level, its
+/// cloth, its shares of the crossing springs and its inner springs (ranges; level 1 only), and
+/// its level.
+pub const MULTIGRID_NODE_WORDS: u32 = 12;
+
+/// `vec4` values per node in the multigrid value buffer: its masses (`x` assembled, `y` this
+/// substep's free mass, `z` 1 when a collider holds one of its particles), its stiffness
+/// block and its diagonal block's inverse (each symmetric: the diagonal, then `xy`, `xz`,
+/// `yz`), its right-hand side, and its solutions on the way down and up the V-cycle.
+pub const MULTIGRID_NODE_VALUES: u32 = 8;
+
+/// `vec4` values per crossing spring: its force on its first end, its direction and clamped
+/// stretch, and its Hessian (symmetric, as a node's blocks).
+pub const MULTIGRID_SPRING_VALUES: u32 = 4;

@@ -33,10 +33,10 @@
 //! The crate's modules stand on floors, each importing only from those below it (the core's
 //! `tests/core/house.rs` checks it): [`layout`] (the buffers' structs) and `buffer`;
 //! `constants` (the WGSL constants written from the core); `kernels` (the entry points,
-//! their bind group layouts and pipelines); `colliders` (the colliders' trees and a skinned
-//! collider's refit), `readback`, `stages` (the air and self-contact, each with its buffers
-//! and dispatches) and [`headless`] (a device with the kernels, for tests and benchmarks);
-//! and `batch` on top (`allocation` of the shared buffers,
+//! their bind group layouts and pipelines); [`headless`] (a device with the kernels, for tests
+//! and benchmarks); `colliders` (the colliders' trees and a skinned collider's refit),
+//! `readback` and `stages` (the air, self-contact and the multigrid correction, each with its
+//! buffers and dispatches); and `batch` on top (`allocation` of the shared buffers,
 //! `bind_groups`, the tick's `schedule` and each cloth's `writeback`).
 
 #![deny(missing_docs)]

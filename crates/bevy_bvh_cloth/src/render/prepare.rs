@@ -197,15 +197,7 @@ pub(super) fn prepare_cloths(
         }
         render.ticks_run += u64::from(world.ticks);
         batch.set_params(&queue, render.id, &cloth.params, world.tick_seconds.max(f32::MIN_POSITIVE));
-        let multigrid = cloth.params.integrator == Integrator::Multigrid;
-        if multigrid && !render.multigrid {
-            warn!(
-                "Cloth on {}: Integrator::Multigrid runs on the CPU backend only; the GPU steps it as block \
-                 descent with one sweep and its tethers",
-                cloth.entity
-            );
-        }
-        render.multigrid = multigrid;
+        render.multigrid = cloth.params.integrator == Integrator::Multigrid;
         render.self_contact = cloth.params.self_contact.is_some();
         render.aerodynamics = cloth.params.aerodynamics.is_active();
         batch.set_anchor_targets(render.id, &cloth.anchor_targets);
@@ -314,5 +306,17 @@ pub(super) fn prepare_cloth_bind_groups(
         }
         Some(_) => {}
         None => world.air_refused = false,
+    }
+    match batch.multigrid_error() {
+        Some(error) if !world.multigrid_refused => {
+            let entities: Vec<Entity> = world.cloths.iter().filter(|(_, c)| c.multigrid).map(|(e, _)| *e).collect();
+            error!(
+                "Cloths on {entities:?}: the multigrid correction cannot run on this device ({error}); on the GPU \
+                 they step as block descent with one sweep (ClothBackend::Cpu runs it)"
+            );
+            world.multigrid_refused = true;
+        }
+        Some(_) => {}
+        None => world.multigrid_refused = false,
     }
 }

@@ -50,8 +50,7 @@ pub(super) struct RenderCloth {
     /// Whether its parameters ask for self-contact, and for drag or lift.
     pub(super) self_contact: bool,
     pub(super) aerodynamics: bool,
-    /// Whether its parameters ask for [`Integrator::Multigrid`](bvh_cloth_core::Integrator),
-    /// which the GPU steps as block descent (said once each time they start to).
+    /// Whether its parameters ask for [`Integrator::Multigrid`](bvh_cloth_core::Integrator).
     pub(super) multigrid: bool,
 }
 
@@ -97,6 +96,8 @@ pub(crate) struct GpuClothWorld {
     pub(super) contact_refused: bool,
     /// The air's buffer did not fit the device: said once, until it fits again.
     pub(super) air_refused: bool,
+    /// The multigrid correction's buffers did not fit the device: said once, until they fit.
+    pub(super) multigrid_refused: bool,
 }
 
 /// A skinned collider refitted on the GPU: its skin, its refit, and where the refit was bound

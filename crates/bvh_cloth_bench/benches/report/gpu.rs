@@ -76,6 +76,7 @@ pub(crate) fn kernel_column(kernel: Kernel) -> usize {
         | Kernel::ContactApply
         | Kernel::ContactFindEdges => 6,
         Kernel::AirSample | Kernel::AirForces | Kernel::AirKick => 7,
+        Kernel::Multigrid => 8,
     }
 }
 
@@ -133,16 +134,16 @@ pub(crate) fn print_kernel_share(gpu: &Gpu, c: &Collider, cloth: &ClothSim, kern
 
 /// GPU ms of one 60 Hz tick of `cloths` (one batch, colliding with `c`) by kernel, in
 /// [`kernel_column`] order, and in all: medians of the ticks of [`timed_ticks`].
-pub(crate) fn kernel_ms(gpu: &Gpu, c: &Collider, cloths: &[ClothSim]) -> Option<([f64; 8], f64)> {
+pub(crate) fn kernel_ms(gpu: &Gpu, c: &Collider, cloths: &[ClothSim]) -> Option<([f64; 9], f64)> {
     timed_ticks(gpu, c, cloths).as_deref().map(by_column)
 }
 
 /// The medians of timed ticks summed by [`kernel_column`], and of their totals.
-fn by_column(ticks: &[Vec<(Kernel, f64)>]) -> ([f64; 8], f64) {
-    let samples: Vec<[f64; 8]> = ticks
+fn by_column(ticks: &[Vec<(Kernel, f64)>]) -> ([f64; 9], f64) {
+    let samples: Vec<[f64; 9]> = ticks
         .iter()
         .map(|tick| {
-            let mut ms = [0.0f64; 8];
+            let mut ms = [0.0f64; 9];
             for &(kernel, t) in tick {
                 ms[kernel_column(kernel)] += t;
             }

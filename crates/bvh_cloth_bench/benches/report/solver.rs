@@ -113,8 +113,8 @@ pub(crate) fn solver(single: &rayon::ThreadPool, threads: usize) {
     }
 }
 
-/// Big cloth on the GPU: RK4 against block descent per tick on the dragon at n = 16 (the
-/// `solver_gpu` section, after `solver`).
+/// Big cloth on the GPU: RK4, block descent and the multigrid integrator per tick on the dragon
+/// at n = 16 (the `solver_gpu` section, after `solver`).
 pub(crate) fn solver_on_gpu(meshes: &[ObjMesh], gpu: Option<&Gpu>) {
     println!("\n### Big cloth on the GPU: ms per 60 Hz tick on the dragon at n = 16, Looper 16\n");
     let Some(gpu) = gpu else {
@@ -126,22 +126,26 @@ pub(crate) fn solver_on_gpu(meshes: &[ObjMesh], gpu: Option<&Gpu>) {
     let timed = gpu.device.features().contains(wgpu::Features::TIMESTAMP_QUERY);
     let clock = if timed { "GPU ms (timestamps)" } else { "ms (wall)" };
     println!(
-        "| cloth | RK4 substeps | RK4 {clock} | block descent substeps | block descent {clock} | of it vbd_solve | speed-up |"
+        "| cloth | RK4 substeps | RK4 {clock} | block descent substeps | block descent {clock} | of it vbd_solve | \
+         speed-up | multigrid {clock} | of it the correction | multigrid / block descent |"
     );
-    println!("|---|---|---|---|---|---|---|");
+    println!("|---|---|---|---|---|---|---|---|---|---|");
     for &size in sizes {
         let rk4 = cloth_above(&dragon, size, Integrator::Rk4);
         let descent = cloth_above(&dragon, size, Integrator::BLOCK_DESCENT);
-        let tick = |cloth: &ClothSim| match kernel_ms(gpu, &dragon, std::slice::from_ref(cloth)) {
-            Some((column, total)) => (total, format!("{:.3}", column[4])),
+        let multigrid = cloth_above(&dragon, size, Integrator::Multigrid);
+        let tick = |cloth: &ClothSim, part: usize| match kernel_ms(gpu, &dragon, std::slice::from_ref(cloth)) {
+            Some((column, total)) => (total, format!("{:.3}", column[part])),
             None => (gpu_sim_frame_ms(gpu, std::slice::from_ref(&dragon), cloth, 1), "-".into()),
         };
-        let ((rk_ms, _), (bd_ms, solve)) = (tick(&rk4), tick(&descent));
+        let ((rk_ms, _), (bd_ms, solve)) = (tick(&rk4, 4), tick(&descent, 4));
+        let (mg_ms, correction) = tick(&multigrid, kernel_column(Kernel::Multigrid));
         println!(
-            "| {size}x{size} | {} | {rk_ms:.3} | {} | {bd_ms:.3} | {solve} | {:.1}x |",
+            "| {size}x{size} | {} | {rk_ms:.3} | {} | {bd_ms:.3} | {solve} | {:.1}x | {mg_ms:.3} | {correction} | {:.2}x |",
             rk4.substeps(TICK),
             descent.substeps(TICK),
-            rk_ms / bd_ms
+            rk_ms / bd_ms,
+            mg_ms / bd_ms
         );
     }
     if gpu.is_software() {

@@ -359,6 +359,12 @@ impl ClothSim {
         self.free[i] == 0.0
     }
 
+    /// Whether a collider touched particle `i` in the last substep's response (the block-descent
+    /// integrators leave such a particle out of the next substep's multigrid correction).
+    pub fn touched(&self, i: usize) -> bool {
+        self.held.get(i).is_some_and(|&h| h != 0.0)
+    }
+
     /// Mass of particle `i` in kilograms.
     pub fn particle_mass(&self, i: usize) -> f32 {
         self.params.mass * self.topology.mass_share()[i]

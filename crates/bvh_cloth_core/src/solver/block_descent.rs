@@ -146,12 +146,13 @@ use std::sync::atomic::{AtomicUsize, Ordering};
 use glam::{Vec3, Vec3A};
 use rayon::prelude::*;
 
+use crate::cloth::colouring::ParticleColouring;
 use crate::cloth::grid::SpringEnd;
 use crate::cloth::tethers::TetherSet;
 use crate::cloth::topology::ClothTopology;
 use crate::colliders::collision::ColliderFrame;
 use crate::solver::forces::ForceModel;
-use crate::solver::multigrid::Multigrid;
+use crate::solver::multigrid::{Multigrid, MultigridCorrection};
 
 /// Particles one rayon task updates at least: below that, a pass is not split, since a fork
 /// and join costs more than the updates it would share (a 64x64 cloth's colours are not split).
@@ -370,6 +371,94 @@ impl BlockDescent {
         self.any_contact_moved = true;
     }
 
+    /// The substep's start, inertial targets and first iterate of every particle: BDF2's when
+    /// `bdf2` (its history allows), else implicit Euler's for a substep of `h` seconds.
+    fn predict(&mut self, model: &ForceModel, free: &[f32], h: f32, bdf2: bool) {
+        let step = if bdf2 { h * (2.0 / 3.0) } else { h };
+        let kicked = core::mem::take(&mut self.kicked);
+        let Self { x, v, accel, start, target, v_prev, lag, unkicked, .. } = self;
+        let uniform = Vec3A::from(model.uniform_accel);
+        let axis = AccelAxis::new(uniform);
+        let damp = 1.0 + model.damping * step;
+        let inv_damp = 1.0 / damp;
+        let before_kick: &[Vec3A] = if kicked { unkicked } else { &[] };
+        x.par_iter_mut()
+            .zip(v.par_iter_mut())
+            .zip(start.par_iter_mut())
+            .zip(v_prev.par_iter_mut())
+            .zip(lag.par_iter_mut())
+            .zip(target.par_iter_mut())
+            .zip(accel.par_iter())
+            .zip(free.par_iter())
+            .enumerate()
+            .with_min_len(MIN_TASK)
+            .for_each(|(i, (((((((x, v), start), v_prev), lag), target), &estimate), &free))| {
+                let (x0, v0) = (*x, *v);
+                // The velocity before the kick, and the kick `h a_air`, which BDF2 takes as
+                // `ĥ a_air`.
+                let unkicked = before_kick.get(i).copied().unwrap_or(v0);
+                let v_hat =
+                    if bdf2 { unkicked + (unkicked - *v_prev) / 3.0 + (v0 - unkicked) * (2.0 / 3.0) } else { v0 };
+                *lag = if bdf2 { (x0 - *start) / 3.0 } else { Vec3A::ZERO };
+                // A pinned particle keeps its velocity.
+                (*start, *v_prev, *v) = (x0, unkicked, if free == 0.0 { v0 } else { v_hat });
+                if free == 0.0 {
+                    (*target, *x) = (Vec3A::ZERO, Vec3A::ZERO);
+                } else if bdf2 {
+                    *target = *lag * damp + step * v_hat + (step * step) * uniform;
+                    *x = *lag + first_iterate(v_hat, step, inv_damp, axis.dir * estimate);
+                } else {
+                    *target = h * v0 + (h * h) * uniform;
+                    *x = first_iterate(v0, h, inv_damp, axis.dir * estimate);
+                }
+            });
+    }
+
+    /// `iterations` Gauss–Seidel sweeps over the colours on the substep of `step` seconds that
+    /// [`Self::predict`] began: each particle's displacement in `x`.
+    fn sweep(
+        &mut self,
+        topology: &ClothTopology,
+        colouring: &ParticleColouring,
+        model: &ForceModel,
+        free: &[f32],
+        step: f32,
+        iterations: u32,
+    ) {
+        let Self { x, start, target, moved, .. } = self;
+        let inv_share = topology.inv_mass_share();
+        for _ in 0..iterations {
+            for k in 0..colouring.len() {
+                let colour = colouring.colour(k);
+                moved.resize(colour.len(), Vec3A::ZERO);
+                let current: &[Vec3A] = x;
+                colour.par_chunks(WIDTH).zip(moved.par_chunks_mut(WIDTH)).with_min_len(MIN_TASK / WIDTH).for_each(
+                    |(ids, out)| {
+                        // A short last chunk repeats its last particle in the spare lanes.
+                        let ids: [usize; WIDTH] = core::array::from_fn(|l| ids[l.min(ids.len() - 1)] as usize);
+                        let new = descend_lanes(
+                            model,
+                            step,
+                            ids.map(|i| inv_share[i]),
+                            ids.map(|i| topology.springs_of(i)),
+                            ids.map(|i| current[i]),
+                            ids.map(|i| start[i]),
+                            ids.map(|i| target[i]),
+                            start,
+                            current,
+                        );
+                        for (l, out) in out.iter_mut().enumerate() {
+                            *out = if free[ids[l]] != 0.0 { new[l] } else { current[ids[l]] };
+                        }
+                    },
+                );
+                for (&i, &p) in colour.iter().zip(moved.iter()) {
+                    x[i as usize] = p;
+                }
+            }
+        }
+    }
+
     /// Sizes the buffers for `n` particles.
     pub(crate) fn resize(&mut self, n: usize) {
         if self.x.len() != n {
@@ -406,78 +495,17 @@ impl BlockDescent {
         // BDF2 (`x = x̂ + ĥ v`, `v = v̂ + ĥ a` with `ĥ = 2h/3`, `x̂ = (4x⁰ - x⁻¹)/3` and
         // `v̂ = (4v⁰ - v⁻¹)/3`) is implicit Euler's minimisation with `ĥ` for `h` and `x̂`, `v̂`
         // for the start: only the targets and the first iterate change.
-        let stiff = bdf2_stiffness(model, topology, h) > BDF2_STIFFNESS_LIMIT;
+        let stiff = bdf2_is_stiff(model, topology, h);
         let bdf2 = matches!(solve, Solve::Multigrid) && self.history == Some(h) && !stiff;
         let step = if bdf2 { h * (2.0 / 3.0) } else { h };
-        let kicked = core::mem::take(&mut self.kicked);
         let contact_moved = core::mem::take(&mut self.any_contact_moved);
-        let Self { x, v, accel, start, target, moved, v_prev, lag, history, multigrid, unkicked, .. } = self;
-        let uniform = Vec3A::from(model.uniform_accel);
-        let axis = AccelAxis::new(uniform);
+        self.predict(model, free, h, bdf2);
+        self.sweep(topology, colouring, model, free, step, iterations);
         let damp = 1.0 + model.damping * step;
         let inv_damp = 1.0 / damp;
-        let before_kick: &[Vec3A] = if kicked { unkicked } else { &[] };
-        x.par_iter_mut()
-            .zip(v.par_iter_mut())
-            .zip(start.par_iter_mut())
-            .zip(v_prev.par_iter_mut())
-            .zip(lag.par_iter_mut())
-            .zip(target.par_iter_mut())
-            .zip(accel.par_iter())
-            .zip(free.par_iter())
-            .enumerate()
-            .with_min_len(MIN_TASK)
-            .for_each(|(i, (((((((x, v), start), v_prev), lag), target), &estimate), &free))| {
-                let (x0, v0) = (*x, *v);
-                // The velocity before the kick, and the kick `h a_air`, which BDF2 takes as
-                // `ĥ a_air`.
-                let unkicked = before_kick.get(i).copied().unwrap_or(v0);
-                let v_hat =
-                    if bdf2 { unkicked + (unkicked - *v_prev) / 3.0 + (v0 - unkicked) * (2.0 / 3.0) } else { v0 };
-                *lag = if bdf2 { (x0 - *start) / 3.0 } else { Vec3A::ZERO };
-                // A pinned particle keeps its velocity.
-                (*start, *v_prev, *v) = (x0, unkicked, if free == 0.0 { v0 } else { v_hat });
-                if free == 0.0 {
-                    (*target, *x) = (Vec3A::ZERO, Vec3A::ZERO);
-                } else if bdf2 {
-                    *target = *lag * damp + step * v_hat + (step * step) * uniform;
-                    *x = *lag + first_iterate(v_hat, step, inv_damp, axis.dir * estimate);
-                } else {
-                    *target = h * v0 + (h * h) * uniform;
-                    *x = first_iterate(v0, h, inv_damp, axis.dir * estimate);
-                }
-            });
-        let inv_share = topology.inv_mass_share();
-        for _ in 0..iterations {
-            for k in 0..colouring.len() {
-                let colour = colouring.colour(k);
-                moved.resize(colour.len(), Vec3A::ZERO);
-                let current: &[Vec3A] = x;
-                colour.par_chunks(WIDTH).zip(moved.par_chunks_mut(WIDTH)).with_min_len(MIN_TASK / WIDTH).for_each(
-                    |(ids, out)| {
-                        // A short last chunk repeats its last particle in the spare lanes.
-                        let ids: [usize; WIDTH] = core::array::from_fn(|l| ids[l.min(ids.len() - 1)] as usize);
-                        let new = descend_lanes(
-                            model,
-                            step,
-                            ids.map(|i| inv_share[i]),
-                            ids.map(|i| topology.springs_of(i)),
-                            ids.map(|i| current[i]),
-                            ids.map(|i| start[i]),
-                            ids.map(|i| target[i]),
-                            start,
-                            current,
-                        );
-                        for (l, out) in out.iter_mut().enumerate() {
-                            *out = if free[ids[l]] != 0.0 { new[l] } else { current[ids[l]] };
-                        }
-                    },
-                );
-                for (&i, &p) in colour.iter().zip(moved.iter()) {
-                    x[i as usize] = p;
-                }
-            }
-        }
+        let uniform = Vec3A::from(model.uniform_accel);
+        let axis = AccelAxis::new(uniform);
+        let Self { x, v, accel, start, target, lag, history, multigrid, .. } = self;
         if let Solve::Multigrid = solve {
             if contact_moved {
                 // The particles to leave alone: those a collider held, and those contact moved.
@@ -551,6 +579,43 @@ impl BlockDescent {
         *history = (quarantined == 0 && touched_any.into_inner() == 0).then_some(h);
         quarantined
     }
+}
+
+impl MultigridCorrection {
+    /// The hierarchy the multigrid integrator builds for a cloth at positions `x` with
+    /// velocities `v` (nothing held but its pins, `free[i]` 0 for a pinned particle; `held[i]`
+    /// 1 for a particle a collider touched in the last substep) in its first substep of `h`
+    /// seconds: its aggregates grouped by the springs after that substep's implicit Euler
+    /// prediction and sweep, as [`MultigridCorrection::new`] takes the rest.
+    pub fn for_first_substep(
+        topology: &ClothTopology,
+        model: &ForceModel,
+        free: &[f32],
+        held: &[f32],
+        h: f32,
+        x: &[Vec3A],
+        v: &[Vec3A],
+    ) -> Self {
+        let mut descent = BlockDescent::default();
+        descent.resize(x.len());
+        descent.x.copy_from_slice(x);
+        descent.v.copy_from_slice(v);
+        let mut multigrid = Multigrid::default();
+        if let Ok(colouring) = topology.colouring() {
+            descent.predict(model, free, h, false);
+            descent.sweep(topology, colouring, model, free, h, 1);
+            multigrid.build(topology, model, free, held, &descent.start, &descent.x);
+        }
+        Self::with_hierarchy(topology, model, free, multigrid)
+    }
+}
+
+/// Whether the multigrid integrator steps a cloth of `topology` under `model` by implicit Euler
+/// in every substep of `h` seconds, its springs too stiff for BDF2 (`(2h/3)² k_max / m_min`
+/// beyond 400),
+/// and assembles its levels in every one.
+pub fn bdf2_is_stiff(model: &ForceModel, topology: &ClothTopology, h: f32) -> bool {
+    bdf2_stiffness(model, topology, h) > BDF2_STIFFNESS_LIMIT
 }
 
 /// `(2h/3)² k_max / m_min` for a substep of `h` seconds: BDF2's stiffness in units of its step.

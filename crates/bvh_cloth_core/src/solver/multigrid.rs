@@ -54,6 +54,22 @@
 //! Every quantity is in the sweep's units: divided by the cloth's mass and multiplied by `h²`,
 //! so a particle's mass is its mass share and a spring's stiffness `h² k / M`.
 //!
+//! The aggregates are found once for a cloth's pins and springs, in its first multigrid
+//! substep, and the coarse levels grouped by the springs after that substep's sweep (the
+//! strongest couplings then: a spring stretched towards a pin couples more than one at rest).
+//! [`MultigridCorrection::for_first_substep`] builds the same hierarchy from a cloth's state,
+//! which is how the GPU backend gets it.
+//!
+//! ## On the GPU
+//! `bvh_cloth_gpu` runs the same correction for every multigrid cloth of a batch
+//! (`multigrid.wgsl`): the host uploads the hierarchy's structure once ([`MultigridLayout`]),
+//! level `l` of every cloth together, and each pass above is one dispatch over a level's nodes
+//! (or over the crossing springs, or the particles), the dense factor and solve and the line
+//! search one workgroup per cloth. The kernels keep the levels, decide when to assemble and
+//! factor them, and choose BDF2 or implicit Euler per substep as this module does; they sum
+//! in the same order, in f32 where the dense factor and the line search's sums are f64 here.
+//! A substep's correction is `8 + 4 (L - 1)` dispatches for `L` levels.
+//!
 //! ## What it buys
 //! The hanging cloth of the core's `motion` tests (1 m, pinned at its first row's corners,
 //! dropped flat, the default parameters but the integrator), its sag at 1 s against RK4's at
@@ -347,8 +363,10 @@ impl Groups {
 /// levels, and when they were last assembled.
 #[derive(Clone, Debug, Default)]
 pub(crate) struct Multigrid {
-    /// The pinned mask the aggregates were built for (`free`, copied).
+    /// The pinned mask (`free`, copied) and the springs' stiffnesses the aggregates were built
+    /// for.
     built_for: Vec<f32>,
+    built_k: [f32; 3],
     groups: Groups,
     /// Level 1 (the aggregates of particles) and below; the levels below 1 are grouped by the
     /// couplings of the first assembly after the aggregates are found.
@@ -368,6 +386,169 @@ pub(crate) struct Multigrid {
     any_held: Vec<bool>,
     /// Level 1's residual.
     residual: Vec<Vec3A>,
+}
+
+/// The correction of one cloth as a backend sees it: the hierarchy built at a cloth's
+/// positions ([`Self::new`]), its structure for upload ([`Self::layout`]), and the CPU's
+/// correction ([`Self::correct`]), the reference the GPU's kernels are compared with.
+#[derive(Clone, Debug)]
+pub struct MultigridCorrection {
+    topology: ClothTopology,
+    model: ForceModel,
+    free: Vec<f32>,
+    inner: Multigrid,
+}
+
+/// A spring as the correction's kernels read it: its two particles (relative to the cloth),
+/// `k / M` before the step's `h²`, and its rest length.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct LayoutSpring {
+    /// The spring's two particles; a crossing spring's first lies in an aggregate.
+    pub ends: [u32; 2],
+    /// Its stiffness over the cloth's mass.
+    pub stiffness: f32,
+    /// Its rest length.
+    pub rest: f32,
+}
+
+/// One level of the hierarchy's structure: the rows of its off-diagonal blocks (CSR), where
+/// each block adds on the next level, each node's aggregate on the next level, and each node's
+/// children on the level above (level 1's children are the aggregates' particles).
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct LevelLayout {
+    /// Row `a`'s blocks are `offsets[a]..offsets[a + 1]`, block `k` couples `a` to `cols[k]`.
+    pub offsets: Vec<u32>,
+    /// The node each off-diagonal block couples its row to.
+    pub cols: Vec<u32>,
+    /// For each block, the block of the next level it adds to, or [`NO_NODE`] when both nodes
+    /// share an aggregate (empty on the coarsest level).
+    pub slot: Vec<u32>,
+    /// Each node's aggregate on the next level (empty on the coarsest).
+    pub parent: Vec<u32>,
+    /// Node `c`'s children are `children[child_offsets[c]..child_offsets[c + 1]]`: particles
+    /// on level 1, nodes of the level above below it.
+    pub child_offsets: Vec<u32>,
+    /// The children, in the order the gathers sum them.
+    pub children: Vec<u32>,
+}
+
+/// The structure of a cloth's hierarchy, indices relative to the cloth and to each level.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct MultigridLayout {
+    /// Each particle's aggregate (level 1's node), [`NO_NODE`] for a pinned particle.
+    pub aggregate: Vec<u32>,
+    /// The springs that cross aggregates (or end at a pinned particle), each once, then the
+    /// springs inside aggregates; [`Self::crossing_count`] of them are crossing.
+    pub springs: Vec<LayoutSpring>,
+    /// How many of [`Self::springs`] cross.
+    pub crossing_count: usize,
+    /// Level 1 node `a`'s shares of the crossing springs are
+    /// `shares[share_offsets[a]..share_offsets[a + 1]]`: the spring, which end lies in `a`
+    /// (0 or 1), and the off-diagonal block of its row it adds to ([`NO_NODE`] when the other
+    /// end is pinned).
+    pub share_offsets: Vec<u32>,
+    /// See [`Self::share_offsets`].
+    pub shares: Vec<[u32; 3]>,
+    /// Level 1 node `a`'s inner springs are `springs[inner_offsets[a]..inner_offsets[a + 1]]`
+    /// (offsets into [`Self::springs`], past the crossing ones).
+    pub inner_offsets: Vec<u32>,
+    /// Level 1 (the aggregates of particles), then each coarser level.
+    pub levels: Vec<LevelLayout>,
+}
+
+/// No node: a pinned particle's aggregate, a block inside one aggregate.
+pub const NO_NODE: u32 = NONE;
+
+/// Substeps a coarse hierarchy is kept before it is assembled again.
+pub const REASSEMBLE_EVERY: u32 = REASSEMBLE;
+
+/// How far the kept levels' curvature may drift from the substep's before they are assembled
+/// again, as a fraction of it.
+pub const STALE_CURVATURE: f64 = STALE;
+
+/// The weight of the levels' damped Jacobi steps.
+pub const JACOBI_WEIGHT: f32 = JACOBI;
+
+/// Smoothing steps on a coarsest level too large for the dense solve.
+pub const COARSEST_SMOOTHING: u32 = 16;
+
+/// Nodes at most on a coarsest level that is factored.
+pub const DENSE_NODES: usize = 4 * COARSEST;
+
+impl MultigridCorrection {
+    /// Builds the hierarchy of `topology` with the forces of `model`, for the pins of `free`
+    /// (0 for a pinned particle) and the held particles of `held` (1 for a particle a collider
+    /// touched), its coarse levels grouped by the springs at the positions `start + d`.
+    pub fn new(
+        topology: &ClothTopology,
+        model: &ForceModel,
+        free: &[f32],
+        held: &[f32],
+        start: &[Vec3A],
+        d: &[Vec3A],
+    ) -> Self {
+        let mut inner = Multigrid::default();
+        inner.build(topology, model, free, held, start, d);
+        Self { topology: topology.clone(), model: *model, free: free.to_vec(), inner }
+    }
+
+    /// A correction over a hierarchy built elsewhere
+    /// ([`MultigridCorrection::for_first_substep`], with block descent's first sweep).
+    pub(crate) fn with_hierarchy(topology: &ClothTopology, model: &ForceModel, free: &[f32], inner: Multigrid) -> Self {
+        Self { topology: topology.clone(), model: *model, free: free.to_vec(), inner }
+    }
+
+    /// The hierarchy's structure.
+    pub fn layout(&self) -> MultigridLayout {
+        let groups = &self.inner.groups;
+        let mut springs: Vec<LayoutSpring> = groups.crossing.iter().map(LayoutSpring::from).collect();
+        let crossing_count = springs.len();
+        springs.extend(groups.inner.iter().map(LayoutSpring::from));
+        let levels = self
+            .inner
+            .levels
+            .iter()
+            .enumerate()
+            .map(|(l, level)| LevelLayout {
+                offsets: level.offsets.clone(),
+                cols: level.cols.clone(),
+                slot: level.slot.clone(),
+                parent: level.parent.clone(),
+                child_offsets: if l == 0 { groups.member_offsets.clone() } else { level.child_offsets.clone() },
+                children: if l == 0 { groups.members.clone() } else { level.children.clone() },
+            })
+            .collect();
+        MultigridLayout {
+            aggregate: groups.agg.clone(),
+            springs,
+            crossing_count,
+            share_offsets: groups.crossing_offsets.clone(),
+            shares: groups.crossings.iter().map(|c| [c.spring, c.side, c.slot]).collect(),
+            inner_offsets: groups.inner_offsets.iter().map(|&o| o + crossing_count as u32).collect(),
+            levels,
+        }
+    }
+
+    /// Corrects the sweep's displacements `d` of a substep of `h` seconds, as the multigrid
+    /// integrator does (`start` the substep's start, `target` the inertial target less it,
+    /// `held[i]` 1 for a particle to leave alone); `assemble` assembles the levels at `d` first.
+    pub fn correct(
+        &mut self,
+        held: &[f32],
+        h: f32,
+        d: &mut [Vec3A],
+        start: &[Vec3A],
+        target: &[Vec3A],
+        assemble: bool,
+    ) {
+        self.inner.correct(&self.topology, &self.model, &self.free, held, h, d, start, target, assemble);
+    }
+}
+
+impl From<&Spring> for LayoutSpring {
+    fn from(s: &Spring) -> Self {
+        Self { ends: s.ends, stiffness: s.stiffness, rest: s.rest }
+    }
 }
 
 impl Multigrid {
@@ -391,8 +572,8 @@ impl Multigrid {
         target: &[Vec3A],
         stiff: bool,
     ) {
-        if self.built_for.as_slice() != free {
-            self.aggregate(topology, model, free);
+        if self.built_for.as_slice() != free || self.built_k != model.k_over_mass {
+            self.build(topology, model, free, held, start, d);
         }
         if self.groups.len() == 0 {
             return;
@@ -444,12 +625,30 @@ impl Multigrid {
         });
     }
 
+    /// Groups the particles, and the coarse levels by the springs at `start + d`, assembling
+    /// the levels there.
+    pub(crate) fn build(
+        &mut self,
+        topology: &ClothTopology,
+        model: &ForceModel,
+        free: &[f32],
+        held: &[f32],
+        start: &[Vec3A],
+        d: &[Vec3A],
+    ) {
+        self.aggregate(topology, model, free);
+        if self.groups.len() > 0 {
+            self.assemble(topology, held, start, d);
+        }
+    }
+
     /// Groups the free particles into aggregates of structural and shear neighbours, lists the
     /// springs that cross them and those inside them, and lays out level 1's off-diagonal
     /// blocks.
     fn aggregate(&mut self, topology: &ClothTopology, model: &ForceModel, free: &[f32]) {
         let n = topology.len();
         self.built_for = free.to_vec();
+        self.built_k = model.k_over_mass;
         self.levels.clear();
         self.coarsest = None;
         self.factored_for = None;

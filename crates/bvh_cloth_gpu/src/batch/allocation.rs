@@ -65,6 +65,10 @@ impl Buffers {
     }
 }
 
+/// Where the kernels' part of a [`GpuBatchCloth`] that a rebuild carries over starts: past the
+/// fault count, which starts again from zero.
+const KERNEL_KEPT: u64 = core::mem::offset_of!(GpuBatchCloth, drift) as u64;
+
 impl ClothBatch {
     /// Writes slot `index`'s shape, constants and pending state at the given starts.
     pub(super) fn place(
@@ -114,12 +118,18 @@ impl ClothBatch {
                 u64::from(particle_start) * size_of::<GpuParticle>() as u64,
                 bytemuck::cast_slice(&state),
             );
+            // A new cloth has no BDF2 history.
+            queue.write_buffer(
+                &b.cloth_constants,
+                index as u64 * size_of::<GpuBatchCloth>() as u64 + GpuBatchCloth::BROKEN_OFFSET,
+                bytemuck::bytes_of(&1u32),
+            );
         }
     }
 
     /// New buffers with the live cloths packed from the start, each about twice what they
-    /// use; the live cloths' state copied over on the GPU. The fault counts start again from
-    /// zero.
+    /// use; the live cloths' state (with block descent's and BDF2's history) copied over on the
+    /// GPU. The fault counts start again from zero.
     pub(super) fn rebuild(&mut self, device: &Device, queue: &Queue) -> Result<(), KernelError> {
         let (n, e, s) = self.slots.iter().flatten().fold((0u64, 0u64, 0u64), |(n, e, s), slot| {
             (n + slot.topology.len() as u64, e + u64::from(slot.ends_len()), s + u64::from(slot.surface_len()))
@@ -148,9 +158,13 @@ impl ClothBatch {
             let Some(slot) = self.slots[index].as_ref() else { continue };
             let (len, ends, surface) = (slot.topology.len() as u32, slot.ends_len(), slot.surface_len());
             if slot.pending_state.is_none() {
-                // The state, and block descent's acceleration estimates (kept in the inertial
-                // target's buffer between substeps).
-                for (from, to) in [(&old.base, &self.buffers.base), (&old.stage_b, &self.buffers.stage_b)] {
+                // The state, block descent's acceleration estimates and BDF2's history (kept in
+                // the substep start's and the inertial target's buffers between substeps).
+                for (from, to) in [
+                    (&old.base, &self.buffers.base),
+                    (&old.stage_a, &self.buffers.stage_a),
+                    (&old.stage_b, &self.buffers.stage_b),
+                ] {
                     encoder.copy_buffer_to_buffer(
                         from,
                         u64::from(slot.particle_start) * particle_size,
@@ -159,6 +173,11 @@ impl ClothBatch {
                         u64::from(len) * particle_size,
                     );
                 }
+                // The kernels' part of its constants past the fault count (the drift, and the
+                // multigrid integrator's step and BDF2 flag): a cloth keeps its index.
+                let at = index as u64 * size_of::<GpuBatchCloth>() as u64 + KERNEL_KEPT;
+                let kept = size_of::<GpuBatchCloth>() as u64 - KERNEL_KEPT;
+                encoder.copy_buffer_to_buffer(&old.cloth_constants, at, &self.buffers.cloth_constants, at, kept);
             }
             self.place(queue, index, used.0, used.1, used.2);
             used = (used.0 + len, used.1 + ends, used.2 + surface);
@@ -172,6 +191,7 @@ impl ClothBatch {
         self.descent = None;
         self.contact = None;
         self.air = None;
+        self.multigrid = None;
         Ok(())
     }
 

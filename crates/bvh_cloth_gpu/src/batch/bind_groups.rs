@@ -7,10 +7,13 @@ use std::sync::Arc;
 use bvh_cloth_core::backend::AirModel;
 
 use crate::layout::GpuAirCloth;
-use crate::layout::{GpuBatchCloth, GpuBatchFrame, GpuBatchStep, GpuColourPass, INTEGRATOR_BLOCK_DESCENT};
+use crate::layout::{
+    GpuBatchCloth, GpuBatchFrame, GpuBatchStep, GpuColourPass, INTEGRATOR_BLOCK_DESCENT, INTEGRATOR_MULTIGRID,
+};
 use bvh_cloth_core::ClothTopology;
 use bvh_cloth_core::backend::MAX_COLOURS;
 use bvh_cloth_core::backend::MAX_ITERATIONS;
+use bvh_cloth_core::backend::MultigridCorrection;
 use bvh_cloth_core::backend::ParticleColouring;
 use bvh_cloth_core::backend::shared_substeps;
 use wgpu::{BindGroup, Buffer, BufferUsages, Device, Queue};
@@ -19,9 +22,10 @@ use crate::buffer::UNIFORM_STRIDE;
 use crate::colliders::GpuColliders;
 use crate::kernels::{ClothKernels, EntryPoint, WORKGROUP_SIZE};
 use crate::stages::air::{AirFrame, AirPlan};
+use crate::stages::multigrid::{MultigridCloth, MultigridPlan};
 use crate::stages::self_contact::{ContactCloth, ContactPlan, SharedBuffers};
 
-use super::{ClothBatch, Slot};
+use super::{ClothBatch, MultigridStage, Slot};
 
 /// This frame's anchor targets: tick `k`'s start at `k * stride` bytes.
 #[derive(Debug)]
@@ -51,6 +55,8 @@ pub(super) struct Groups {
     pub(super) contact: Option<[BindGroup; EntryPoint::CONTACT.len()]>,
     /// Aerodynamics' kernels, when a cloth has drag or lift.
     pub(super) air: Option<[BindGroup; 4]>,
+    /// The multigrid correction's kernels, when a cloth has it.
+    pub(super) multigrid: Option<BindGroup>,
 }
 
 /// One colour of the colour list: where it starts, how many particles it has, and the
@@ -83,9 +89,10 @@ impl ClothBatch {
     pub fn prepare(&mut self, device: &Device, queue: &Queue, kernels: &ClothKernels, colliders: &GpuColliders) {
         self.prepare_contact(device, queue);
         self.prepare_air(device, queue);
-        let explicit = |slot: &&Slot| slot.constants.integrator != INTEGRATOR_BLOCK_DESCENT;
+        let explicit = |slot: &&Slot| slot.constants.integrator < INTEGRATOR_BLOCK_DESCENT;
         self.substeps =
             self.slots.iter().flatten().filter(explicit).map(|slot| slot.constants.substeps).max().unwrap_or(0);
+        self.prepare_multigrid(device, queue);
         self.prepare_descent(device, queue);
         self.write_anchor_targets(device, queue);
         let width = self.workgroups.0 * WORKGROUP_SIZE;
@@ -189,7 +196,7 @@ impl ClothBatch {
         for (index, slot) in self.slots.iter().enumerate() {
             let Some(slot) = slot.as_ref().filter(|slot| active(slot)) else { continue };
             frame.substeps = frame.substeps.max(slot.constants.substeps);
-            frame.explicit |= slot.constants.integrator != INTEGRATOR_BLOCK_DESCENT;
+            frame.explicit |= slot.constants.integrator < INTEGRATOR_BLOCK_DESCENT;
             for (k, words) in frame.ticks.iter_mut().enumerate() {
                 let time = start + k as f64 * tick_seconds;
                 let model = AirModel::new(slot.aerodynamics, slot.mass, &slot.wind, time);
@@ -231,7 +238,7 @@ impl ClothBatch {
             .iter()
             .enumerate()
             .filter_map(|(index, slot)| Some((index as u32, slot.as_ref()?)))
-            .filter(|(_, slot)| slot.constants.integrator == INTEGRATOR_BLOCK_DESCENT)
+            .filter(|(_, slot)| slot.constants.integrator >= INTEGRATOR_BLOCK_DESCENT)
             .filter_map(|(index, slot)| Some((index, slot, slot.topology.colouring().ok()?)))
             .collect();
         let cloths: Vec<(u32, u32, usize)> = descent
@@ -281,6 +288,69 @@ impl ClothBatch {
         }
         queue.write_buffer(&self.colour_passes, 0, &bytes);
         self.descent = Some(DescentPlan { cloths, colours: ranges, iterations, substeps, free_bodies });
+    }
+
+    /// Builds the multigrid correction's plan when the multigrid cloths, where they lie, their
+    /// pins or their stiffness changed. When it would not fit the device, they run as block
+    /// descent with one sweep ([`ClothBatch::multigrid_error`]).
+    pub(super) fn prepare_multigrid(&mut self, device: &Device, queue: &Queue) {
+        let mut key = Vec::new();
+        for (index, slot) in self.slots.iter_mut().enumerate() {
+            let Some(slot) = slot.as_mut().filter(|s| s.constants.integrator == INTEGRATOR_MULTIGRID) else { continue };
+            let hierarchy = slot.multigrid();
+            key.push((index as u32, slot.particle_start, Arc::as_ptr(&hierarchy) as usize, slot.stiff));
+        }
+        let failed = self.multigrid.as_ref().is_some_and(|stage| stage.key == key && stage.plan.is_none());
+        if failed {
+            // The cloths keep stepping as block descent until the set changes.
+            for (index, slot) in self.slots.iter_mut().enumerate() {
+                let Some(slot) = slot.as_mut().filter(|s| s.constants.integrator == INTEGRATOR_MULTIGRID) else {
+                    continue;
+                };
+                slot.constants.integrator = INTEGRATOR_BLOCK_DESCENT;
+                queue.write_buffer(
+                    &self.buffers.cloth_constants,
+                    index as u64 * size_of::<GpuBatchCloth>() as u64,
+                    &bytemuck::bytes_of(&slot.constants)[..GpuBatchCloth::HOST_BYTES as usize],
+                );
+            }
+            return;
+        }
+        if key.is_empty() {
+            self.multigrid = None;
+            self.multigrid_error = None;
+            return;
+        }
+        if self.multigrid.as_ref().is_some_and(|stage| stage.key == key) {
+            return;
+        }
+        let hierarchies: Vec<Arc<MultigridCorrection>> = key
+            .iter()
+            .map(|&(index, ..)| {
+                Arc::clone(self.slots[index as usize].as_ref().and_then(|s| s.multigrid.as_ref()).expect("built above"))
+            })
+            .collect();
+        let layouts: Vec<_> = hierarchies.iter().map(|h| h.layout()).collect();
+        let cloths: Vec<MultigridCloth<'_>> = key
+            .iter()
+            .zip(&layouts)
+            .map(|(&(slot, particle_start, _, stiff), layout)| MultigridCloth { slot, particle_start, layout, stiff })
+            .collect();
+        let plan = match MultigridPlan::new(device, &cloths, self.buffers.cloths) {
+            Ok(plan) => Some(plan),
+            Err(error) => {
+                self.multigrid_error = Some(error);
+                None
+            }
+        };
+        if plan.is_some() {
+            self.multigrid_error = None;
+        }
+        self.multigrid = Some(MultigridStage { key, plan });
+        self.groups = None;
+        if self.multigrid_error.is_some() {
+            self.prepare_multigrid(device, queue);
+        }
     }
 
     pub(super) fn write_anchor_targets(&mut self, device: &Device, queue: &Queue) {
@@ -453,9 +523,8 @@ impl ClothBatch {
                 buffer(21, &b.stage_b),
             ],
         });
-        // The prediction's bindings but the inertial target, and the per-block sums (as the
-        // kernels' layouts say).
-        let drift_entries = [&predict_entries[..6], &[buffer(48, &b.drift_blocks)]].concat();
+        // The prediction's bindings and the per-block sums (as the kernels' layouts say).
+        let drift_entries = [&predict_entries[..], &[buffer(48, &b.drift_blocks)]].concat();
         let drift = [0, 1].map(|level| {
             device.create_bind_group(&wgpu::BindGroupDescriptor {
                 label: Some("bvh_cloth_vbd_drift"),
@@ -470,6 +539,7 @@ impl ClothBatch {
                 info: &b.info,
                 cloths: &b.cloth_constants,
                 colliders: (&colliders.0, &colliders.1),
+                inertial: &b.stage_b,
             };
             plan.bind_groups(device, kernels, &shared)
         });
@@ -486,6 +556,31 @@ impl ClothBatch {
             };
             plan.bind_groups(device, kernels, &shared)
         });
-        Groups { colliders, anchors, stages, last, predict, solve, finish, drift, apply_anchors, contact, air }
+        let multigrid = self.multigrid.as_ref().and_then(|stage| stage.plan.as_ref()).map(|plan| {
+            let shared = crate::stages::multigrid::SharedBuffers {
+                frame: &self.frame,
+                steps: &self.steps,
+                info: &b.info,
+                cloths: &b.cloth_constants,
+                iterate: &b.base,
+                substep_start: &b.stage_a,
+                inertial: &b.stage_b,
+            };
+            plan.bind_group(device, kernels, &shared)
+        });
+        Groups {
+            colliders,
+            anchors,
+            stages,
+            last,
+            predict,
+            solve,
+            finish,
+            drift,
+            apply_anchors,
+            contact,
+            air,
+            multigrid,
+        }
     }
 }

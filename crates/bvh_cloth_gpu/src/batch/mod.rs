@@ -18,14 +18,16 @@ use bvh_cloth_core::backend::AirSource;
 use bvh_cloth_core::backend::MAX_COLOURS;
 use bvh_cloth_core::backend::MAX_ITERATIONS;
 use bvh_cloth_core::backend::TetherSet;
+use bvh_cloth_core::backend::{ForceModel, MultigridCorrection, bdf2_is_stiff};
 use bvh_cloth_core::{
-    Aerodynamics, ClothError, ClothParams, ClothSim, ClothTopology, Integrator, Vec3, Wind, WindSource,
+    Aerodynamics, ClothError, ClothParams, ClothSim, ClothTopology, Integrator, Vec3, Vec3A, Wind, WindSource,
 };
 use wgpu::{Buffer, BufferUsages, Device, Queue};
 
 use crate::buffer::UNIFORM_STRIDE;
 use crate::kernels::{ClothKernels, KernelError};
 use crate::stages::air::AirPlan;
+use crate::stages::multigrid::MultigridPlan;
 use crate::stages::self_contact::ContactPlan;
 
 /// A cloth in a [`ClothBatch`], valid until it is removed.
@@ -63,6 +65,15 @@ struct Slot {
     free_body: bool,
     /// Each particle's nearest pin and rest distance ([`ClothSim::tethers`]).
     tethers: Arc<TetherSet>,
+    /// The positions, velocities and collider flags it was added with: a multigrid cloth's
+    /// hierarchy is grouped by its springs after a first substep from there.
+    added: Arc<(Vec<Vec3A>, Vec<Vec3A>, Vec<f32>)>,
+    /// The multigrid correction's hierarchy for the current pins, once a multigrid cloth needs it.
+    multigrid: Option<Arc<MultigridCorrection>>,
+    /// Whether its springs are too stiff for BDF2 at its substep length (multigrid only).
+    stiff: bool,
+    /// Its forces under its last parameters.
+    model: ForceModel,
 }
 
 impl Slot {
@@ -79,6 +90,29 @@ impl Slot {
     fn tether_start(&self) -> u32 {
         self.ends_start + self.topology.spring_ends().len() as u32
     }
+
+    /// The multigrid hierarchy for the current pins and springs, built on first need as the
+    /// CPU builds it in the cloth's first multigrid substep, from the state it was added with.
+    fn multigrid(&mut self) -> Arc<MultigridCorrection> {
+        let Self { topology, pins, added, model, constants, multigrid, .. } = self;
+        Arc::clone(multigrid.get_or_insert_with(|| {
+            let mut free = vec![1.0; topology.len()];
+            for &p in pins.iter() {
+                free[p as usize] = 0.0;
+            }
+            let (x, v, held) = &**added;
+            Arc::new(MultigridCorrection::for_first_substep(topology, model, &free, held, constants.h, x, v))
+        }))
+    }
+}
+
+/// The multigrid correction's plan and what it was built for: per multigrid cloth its slot,
+/// first particle, hierarchy and stiffness.
+#[derive(Debug)]
+struct MultigridStage {
+    key: Vec<(u32, u32, usize, bool)>,
+    /// `None` when the plan would not fit the device ([`ClothBatch::multigrid_error`]).
+    plan: Option<MultigridPlan>,
 }
 
 /// Every cloth on the GPU in one batch: shared, packed buffers, and one dispatch per integrator
@@ -141,6 +175,10 @@ pub struct ClothBatch {
     /// Aerodynamics' buffers, `None` while no cloth has drag or lift; the wind sources; and
     /// the wind clock of the coming frame: the first tick's time, the tick length, the ticks.
     air: Option<AirPlan>,
+    /// The multigrid correction of the multigrid cloths, `None` while there is none; and why
+    /// they run as block descent instead, if they do.
+    multigrid: Option<MultigridStage>,
+    multigrid_error: Option<KernelError>,
     wind_sources: Vec<AirSource>,
     wind_clock: (f64, f64, u32),
     /// Workgroups of the integrator dispatches, and the batch's substeps per tick for the
@@ -198,6 +236,8 @@ impl ClothBatch {
             contact_error: None,
             air_error: None,
             air: None,
+            multigrid: None,
+            multigrid_error: None,
             wind_sources: Vec::new(),
             wind_clock: (0.0, 0.0, 1),
             workgroups: (1, 1),
@@ -231,6 +271,14 @@ impl ClothBatch {
             wind: *sim.wind(),
             free_body: sim.is_free_body(),
             tethers: Arc::clone(sim.tethers()),
+            added: Arc::new((
+                (0..sim.len()).map(|i| Vec3A::from(sim.position(i))).collect(),
+                (0..sim.len()).map(|i| Vec3A::from(sim.velocity(i))).collect(),
+                (0..sim.len()).map(|i| f32::from(u8::from(sim.touched(i)))).collect(),
+            )),
+            multigrid: None,
+            stiff: false,
+            model: ForceModel::new(sim.params()),
         };
         let e = slot.ends_len();
         let index = match self.slots.iter().position(Option::is_none) {
@@ -321,13 +369,19 @@ impl ClothBatch {
         let params = &resolved;
         let substeps = params.substeps(tick_seconds, &slot.topology).min(MAX_SUBSTEPS);
         let h = tick_seconds / substeps as f32;
+        let before = (slot.constants.h, slot.constants.integrator, slot.constants.k_over_mass);
         slot.constants = GpuBatchCloth::new(params, &slot.topology, slot.particle_start, slot.ends_start, substeps, h);
+        slot.model = ForceModel::new(params);
+        slot.stiff = params.integrator == Integrator::Multigrid && bdf2_is_stiff(&slot.model, &slot.topology, h);
+        // New springs need a new hierarchy, and BDF2 no history from another substep length.
+        if before.2 != slot.constants.k_over_mass {
+            slot.multigrid = None;
+        }
+        let broken = before.0 != h || before.1 != slot.constants.integrator;
         slot.constants.free_body = u32::from(slot.free_body);
         slot.constants.tether_start = slot.tether_start();
         slot.constants.tether_scale = match (params.integrator, params.tethers) {
-            (Integrator::BlockDescent { .. } | Integrator::Multigrid, Some(tethers)) if !slot.tethers.is_empty() => {
-                1.0 + tethers.slack
-            }
+            (Integrator::BlockDescent { .. }, Some(tethers)) if !slot.tethers.is_empty() => 1.0 + tethers.slack,
             _ => 0.0,
         };
         slot.own_substeps = substeps;
@@ -339,6 +393,15 @@ impl ClothBatch {
             u64::from(id.0) * size_of::<GpuBatchCloth>() as u64,
             &bytemuck::bytes_of(&slot.constants)[..GpuBatchCloth::HOST_BYTES as usize],
         );
+        if broken {
+            self.break_history(queue, id);
+        }
+    }
+
+    /// Starts a multigrid cloth's BDF2 again from implicit Euler: its state or substep changed.
+    fn break_history(&self, queue: &Queue, id: ClothId) {
+        let at = u64::from(id.0) * size_of::<GpuBatchCloth>() as u64 + GpuBatchCloth::BROKEN_OFFSET;
+        queue.write_buffer(&self.buffers.cloth_constants, at, bytemuck::bytes_of(&1u32));
     }
 
     /// Sets `id`'s ambient wind (see [`bvh_cloth_core::air`]); only a cloth with drag
@@ -419,7 +482,9 @@ impl ClothBatch {
             (slot.pins, slot.tethers) = old;
             return Err(error);
         }
+        self.break_history(queue, id);
         let slot = self.slots[id.0 as usize].as_mut().expect("the slot is there");
+        slot.multigrid = None;
         let share = slot.topology.mass_share();
         slot.free_body = slot.pins.iter().all(|&i| share[i as usize] == 0.0);
         let particle = |i: u32| u64::from(slot.particle_start + i) * size_of::<GpuParticle>() as u64;
@@ -452,6 +517,13 @@ impl ClothBatch {
             bytemuck::cast_slice(&particles[..count]),
         );
         queue.write_buffer(&self.buffers.cloth_constants, self.faults_offset(id), bytemuck::bytes_of(&0u32));
+        self.break_history(queue, id);
+    }
+
+    /// Why the batch's multigrid cloths run as block descent with one sweep, if they do: the
+    /// correction's buffers would not fit the device.
+    pub fn multigrid_error(&self) -> Option<&KernelError> {
+        self.multigrid_error.as_ref()
     }
 
     /// Why the batch's cloths with drag or lift run without them, if they do: the buffer of

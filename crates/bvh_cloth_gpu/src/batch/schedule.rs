@@ -152,9 +152,9 @@ impl ClothBatch {
         });
     }
 
-    /// Calls `each` with substep `k` of block descent: the prediction (after the air kick in a
-    /// batch with aerodynamics), the sweeps colour by colour, and the finish with the collision
-    /// response.
+    /// Calls `each` with substep `k` of block descent: the multigrid cloths' choice of step,
+    /// the prediction (after the air kick in a batch with aerodynamics), the sweeps colour by
+    /// colour, the multigrid correction, and the finish with the collision response.
     pub(super) fn dispatch_descent(
         &self,
         kernels: &ClothKernels,
@@ -166,6 +166,10 @@ impl ClothBatch {
     ) {
         let (x, y) = self.workgroups;
         let offset = [(u64::from(3 * k) * UNIFORM_STRIDE) as u32];
+        let multigrid = self.multigrid.as_ref().and_then(|stage| stage.plan.as_ref()).zip(groups.multigrid.as_ref());
+        if let Some((plan, group)) = multigrid {
+            plan.begin(kernels, group, k, each);
+        }
         match air {
             Some((air, air_groups)) => air.predict(kernels, air_groups, self.workgroups, k, each),
             None => each(Kernel::VbdPredict, &|pass| {
@@ -184,6 +188,9 @@ impl ClothBatch {
                     pass.dispatch_workgroups(range.workgroups.0, range.workgroups.1, 1);
                 });
             }
+        }
+        if let Some((plan, group)) = multigrid {
+            plan.correct(kernels, group, k, self.workgroups, each);
         }
         if plan.free_bodies {
             let cloths = self.slots.len() as u32;

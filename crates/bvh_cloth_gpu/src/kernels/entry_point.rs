@@ -61,11 +61,35 @@ pub enum EntryPoint {
     AirForces,
     /// `air_kick`: each particle's velocity changed by its triangles' drag and lift.
     AirKick,
+    /// `mg_begin`: the multigrid correction's substep: its step, and whether it assembles and factors.
+    MgBegin,
+    /// `mg_springs`: each crossing spring's force, direction and stretch (and Hessian at an assembly).
+    MgSprings,
+    /// `mg_residual`: level 1's residual (and its matrix at an assembly).
+    MgResidual,
+    /// `mg_galerkin`: a coarser level's matrix gathered from its children, at an assembly.
+    MgGalerkin,
+    /// `mg_factor`: the diagonal blocks' inverses, when the step or the levels changed.
+    MgFactor,
+    /// `mg_dense_factor`: the coarsest level's Cholesky factor, one workgroup per cloth.
+    MgDenseFactor,
+    /// `mg_smooth_down`: a level's damped Jacobi step from zero, on the way down the V-cycle.
+    MgSmoothDown,
+    /// `mg_restrict`: the residual restricted to the next level.
+    MgRestrict,
+    /// `mg_coarsest`: the coarsest level's solve, one workgroup per cloth.
+    MgCoarsest,
+    /// `mg_smooth_up`: the prolongation and a damped Jacobi step, on the way up.
+    MgSmoothUp,
+    /// `mg_line_search`: the step along the correction, one workgroup per cloth.
+    MgLineSearch,
+    /// `mg_apply`: each particle's share of the correction.
+    MgApply,
 }
 
 impl EntryPoint {
     /// Every entry point, in order.
-    pub const ALL: [Self; 26] = [
+    pub const ALL: [Self; 38] = [
         Self::NodeUpdate,
         Self::NodeUpdateFinal,
         Self::VbdPredict,
@@ -92,6 +116,18 @@ impl EntryPoint {
         Self::AirSample,
         Self::AirForces,
         Self::AirKick,
+        Self::MgBegin,
+        Self::MgSprings,
+        Self::MgResidual,
+        Self::MgGalerkin,
+        Self::MgFactor,
+        Self::MgDenseFactor,
+        Self::MgSmoothDown,
+        Self::MgRestrict,
+        Self::MgCoarsest,
+        Self::MgSmoothUp,
+        Self::MgLineSearch,
+        Self::MgApply,
     ];
 
     /// A skinned collider's refit, in the order it runs.
@@ -116,6 +152,22 @@ impl EntryPoint {
     /// every substep, and `air_kick` for the explicit integrators' cloths. Block descent's
     /// cloths take their kick in `vbd_predict_air`.
     pub const AIR: [Self; 3] = [Self::AirSample, Self::AirForces, Self::AirKick];
+
+    /// The multigrid correction's entry points.
+    pub const MULTIGRID: [Self; 12] = [
+        Self::MgBegin,
+        Self::MgSprings,
+        Self::MgResidual,
+        Self::MgGalerkin,
+        Self::MgFactor,
+        Self::MgDenseFactor,
+        Self::MgSmoothDown,
+        Self::MgRestrict,
+        Self::MgCoarsest,
+        Self::MgSmoothUp,
+        Self::MgLineSearch,
+        Self::MgApply,
+    ];
 
     /// The entry point's name in the WGSL.
     pub const fn name(self) -> &'static str {
@@ -146,6 +198,18 @@ impl EntryPoint {
             Self::AirSample => "air_sample",
             Self::AirForces => "air_forces",
             Self::AirKick => "air_kick",
+            Self::MgBegin => "mg_begin",
+            Self::MgSprings => "mg_springs",
+            Self::MgResidual => "mg_residual",
+            Self::MgGalerkin => "mg_galerkin",
+            Self::MgFactor => "mg_factor",
+            Self::MgDenseFactor => "mg_dense_factor",
+            Self::MgSmoothDown => "mg_smooth_down",
+            Self::MgRestrict => "mg_restrict",
+            Self::MgCoarsest => "mg_coarsest",
+            Self::MgSmoothUp => "mg_smooth_up",
+            Self::MgLineSearch => "mg_line_search",
+            Self::MgApply => "mg_apply",
         }
     }
 }
@@ -189,9 +253,8 @@ pub(super) fn descriptors() -> [KernelDescriptor; EntryPoint::ALL.len()] {
         storage(20, false),
         storage(21, false),
     ];
-    // Both levels of the drift sums: the prediction's bindings but the inertial target, and
-    // the per-block sums.
-    let drift = [&predict[..6], &[storage(48, false)]].concat();
+    // Both levels of the drift sums: the prediction's bindings and the per-block sums.
+    let drift = [&predict[..], &[storage(48, false)]].concat();
     // The air's two substep kernels bind the same buffers: the forces and the kick.
     let air_substep = vec![
         frame,
@@ -206,6 +269,24 @@ pub(super) fn descriptors() -> [KernelDescriptor; EntryPoint::ALL.len()] {
     let contact = |point: EntryPoint, mut layout: Vec<BindGroupLayoutEntry>| {
         layout.insert(0, entry(35, BufferBindingType::Uniform, false));
         KernelDescriptor { entry: point, file: "self_contact.wgsl", layout }
+    };
+    // Every multigrid kernel binds the same buffers: block descent's state, and the hierarchy.
+    let multigrid = |point: EntryPoint| KernelDescriptor {
+        entry: point,
+        file: "multigrid.wgsl",
+        layout: vec![
+            frame,
+            step,
+            storage(6, true),
+            storage(8, false),
+            storage(19, false),
+            storage(20, false),
+            storage(21, false),
+            storage(49, true),
+            storage(50, false),
+            storage(51, false),
+            entry(52, BufferBindingType::Uniform, true),
+        ],
     };
     let refit = |point: EntryPoint| KernelDescriptor {
         entry: point,
@@ -361,6 +442,7 @@ pub(super) fn descriptors() -> [KernelDescriptor; EntryPoint::ALL.len()] {
                 storage(38, false),
                 storage(39, false),
                 storage(40, false),
+                storage(21, false),
             ],
         ),
         contact(
@@ -389,5 +471,17 @@ pub(super) fn descriptors() -> [KernelDescriptor; EntryPoint::ALL.len()] {
         },
         KernelDescriptor { entry: EntryPoint::AirForces, file: "air.wgsl", layout: air_substep.clone() },
         KernelDescriptor { entry: EntryPoint::AirKick, file: "air.wgsl", layout: air_substep },
+        multigrid(EntryPoint::MgBegin),
+        multigrid(EntryPoint::MgSprings),
+        multigrid(EntryPoint::MgResidual),
+        multigrid(EntryPoint::MgGalerkin),
+        multigrid(EntryPoint::MgFactor),
+        multigrid(EntryPoint::MgDenseFactor),
+        multigrid(EntryPoint::MgSmoothDown),
+        multigrid(EntryPoint::MgRestrict),
+        multigrid(EntryPoint::MgCoarsest),
+        multigrid(EntryPoint::MgSmoothUp),
+        multigrid(EntryPoint::MgLineSearch),
+        multigrid(EntryPoint::MgApply),
     ]
 }

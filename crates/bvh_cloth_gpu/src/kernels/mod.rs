@@ -51,6 +51,8 @@ pub enum Kernel {
     /// `vbd_predict_air`: block descent's prediction after the air kick of its cloths in the
     /// wind, in a batch with aerodynamics.
     VbdPredictAir,
+    /// One of the multigrid correction's kernels (`mg_*`).
+    Multigrid,
 }
 
 /// The kernels' WGSL files, in the order [`shader_source`] joins them: the shared types, the
@@ -58,7 +60,7 @@ pub enum Kernel {
 /// directives (`#define_import_path`, `#import`) for engines that compose shaders that way;
 /// with them goes the module of the constants shared with the core,
 /// [`shared_constants`](crate::shared_constants), written from the Rust side.
-pub const SHADER_FILES: [(&str, &str); 12] = [
+pub const SHADER_FILES: [(&str, &str); 13] = [
     ("types.wgsl", include_str!("../shaders/types.wgsl")),
     ("springs.wgsl", include_str!("../shaders/springs.wgsl")),
     ("primitives.wgsl", include_str!("../shaders/primitives.wgsl")),
@@ -71,6 +73,7 @@ pub const SHADER_FILES: [(&str, &str); 12] = [
     ("skin_refit.wgsl", include_str!("../shaders/skin_refit.wgsl")),
     ("self_contact.wgsl", include_str!("../shaders/self_contact.wgsl")),
     ("air.wgsl", include_str!("../shaders/air.wgsl")),
+    ("multigrid.wgsl", include_str!("../shaders/multigrid.wgsl")),
 ];
 
 /// The kernels as one WGSL module: the shared constants ([`crate::shared_constants`]) and

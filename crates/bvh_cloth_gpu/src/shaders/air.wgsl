@@ -252,7 +252,7 @@ fn air_kick_of(i: u32, c: u32, velocity: vec3<f32>) -> vec3<f32> {
 fn air_kick(@builtin(global_invocation_id) id: vec3<u32>) {
     let i = thread_index(id, frame.dispatch_width);
     let c = air_cloth(i);
-    if (c == NO_CLOTH || step.substep >= cloths[c].substeps || cloths[c].integrator == INTEGRATOR_BLOCK_DESCENT) {
+    if (c == NO_CLOTH || step.substep >= cloths[c].substeps || cloths[c].integrator >= INTEGRATOR_BLOCK_DESCENT) {
         return;
     }
     let me = air_particles[i];

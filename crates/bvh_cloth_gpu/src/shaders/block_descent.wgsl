@@ -1,10 +1,11 @@
 // Vertex block descent (bvh_cloth_core::solver::block_descent), per substep for every block-descent
-// cloth of the batch:
+// and multigrid cloth of the batch:
 // - vbd_predict, one thread per particle slot: keeps the substep's start state, the inertial
 //   target less the start, h v + h^2 g, and the first iterate as a displacement from the start,
 //   (h v + h^2 a) / (1 + c h), with a the particle's estimate of the acceleration it follows
 //   (the sweeps solve for displacements, so that f32 keeps them whatever the coordinates'
-//   magnitude); in a batch with aerodynamics,
+//   magnitude); for a multigrid cloth's BDF2 substep (mg_begin, before it, chose the step), the
+//   same from BDF2's start and velocity; in a batch with aerodynamics,
 //   vbd_predict_air instead, which first gives a cloth in the wind its kick (air.wgsl);
 // - vbd_solve, one dispatch per iteration and colour, one thread per particle of that colour in
 //   the batch's colour list: one Newton step on the particle's block of the incremental
@@ -13,20 +14,34 @@
 // - for a batch with a cloth that nothing holds, vbd_drift_blocks (one workgroup per 64 particle
 //   slots) and vbd_drift (one workgroup per cloth): the drift of each such cloth's centre of
 //   mass, summed in two levels;
-// - vbd_finish, one thread per particle slot: the drift taken back, x = x0 + d, v = d / h,
+// - for a multigrid cloth, the correction of multigrid.wgsl;
+// - vbd_finish, one thread per particle slot: the drift taken back, x = x0 + d, v = d / h (BDF2:
+//   (d - lag) / h),
 //   quarantine, the collision response from x0 to x, as node_update_final does, and the
 //   particle's acceleration estimate for the next substep.
 // Cloths of other integrators, and cloths past their own substeps or iterations, sit out.
+
+#define_import_path bvh_cloth::block_descent
 
 #import bvh_cloth::types::{GpuParticle, ColourPass, frame, step, thread_index, all_finite}
 #import bvh_cloth::springs::{particle_info, ends, cloths}
 #import bvh_cloth::collision::collide
 #import bvh_cloth::air::{air_cloth, air_kick_of}
-#import bvh_cloth::constants::{NO_CLOTH, UNTETHERED, INTEGRATOR_BLOCK_DESCENT}
+#import bvh_cloth::constants::{NO_CLOTH, UNTETHERED, INTEGRATOR_BLOCK_DESCENT, INTEGRATOR_MULTIGRID}
 
-@group(0) @binding(19) var<storage, read_write> iterate: array<GpuParticle>;       // the state; during the sweeps, d = x - x0 in position.xyz
-@group(0) @binding(20) var<storage, read_write> substep_start: array<GpuParticle>; // x0, v0
-@group(0) @binding(21) var<storage, read_write> inertial: array<GpuParticle>;      // y - x0 in position.xyz, the estimate in velocity.x
+// Between substeps iterate holds the state; during one, d = x - x0 in position.xyz and the
+// velocity before the air's kick in velocity.xyz. substep_start holds x0 and the substep's
+// starting velocity v^ (v0, or BDF2's (4 v0 - v-1) / 3), w the collider flag of v0. inertial
+// holds y - x0 in position.xyz during a substep, and between substeps the acceleration
+// estimate in velocity.x and (the multigrid integrator's BDF2) the last start's velocity
+// before its kick in velocity.yzw.
+// inertial's position.w between substeps: self-contact moved the particle after the last one
+// (contact_apply), so the multigrid correction leaves it alone in the next.
+const CONTACT_MOVED: f32 = 2.0;
+
+@group(0) @binding(19) var<storage, read_write> iterate: array<GpuParticle>;
+@group(0) @binding(20) var<storage, read_write> substep_start: array<GpuParticle>;
+@group(0) @binding(21) var<storage, read_write> inertial: array<GpuParticle>;
 @group(0) @binding(48) var<storage, read_write> drift_blocks: array<vec4<f32>>;   // per 64 slots: sum of m (d - d*), sum of m
 @group(0) @binding(22) var<storage, read> colour_list: array<u32>;                 // particles, colour by colour
 @group(0) @binding(25) var<uniform> colour_pass: ColourPass;
@@ -37,10 +52,24 @@ fn descent_cloth(i: u32) -> u32 {
         return NO_CLOTH;
     }
     let c = particle_info[i].w;
-    if (c == NO_CLOTH || step.substep >= cloths[c].substeps || cloths[c].integrator != INTEGRATOR_BLOCK_DESCENT) {
+    if (c == NO_CLOTH || step.substep >= cloths[c].substeps || cloths[c].integrator < INTEGRATOR_BLOCK_DESCENT) {
         return NO_CLOTH;
     }
     return c;
+}
+
+// The length of cloth c's substep: the multigrid integrator's own (mg_begin writes it: h, or
+// 2h/3 for a BDF2 substep), h for block descent.
+fn substep_length(c: u32) -> f32 {
+    if (cloths[c].integrator == INTEGRATOR_MULTIGRID) {
+        return cloths[c].step;
+    }
+    return cloths[c].h;
+}
+
+// Whether cloth c's substep is BDF2 (bvh_cloth_core::solver::block_descent's multigrid integrator).
+fn bdf2(c: u32) -> bool {
+    return cloths[c].integrator == INTEGRATOR_MULTIGRID && cloths[c].step != cloths[c].h;
 }
 
 // The direction of cloth c's uniform acceleration (zero when it has none) and its size:
@@ -54,33 +83,51 @@ fn accel_axis(c: u32) -> vec4<f32> {
     return vec4(0.0);
 }
 
-// 1 / (1 + c h) of cloth c.
+// 1 / (1 + c h) of cloth c, for its substep's length.
 fn inverse_damping(c: u32) -> f32 {
-    return 1.0 / (1.0 + cloths[c].damping * cloths[c].h);
+    return 1.0 / (1.0 + cloths[c].damping * substep_length(c));
 }
 
-// The substep's start of particle i of block-descent cloth c, whose state is `me`.
-fn predict(i: u32, c: u32, me: GpuParticle) {
-    // The acceleration the particle followed in its last substep (vbd_finish), before the
-    // target overwrites it.
+// The substep's start of particle i of block-descent cloth c, whose state is `me` and whose
+// velocity before the air's kick was `unkicked`.
+fn predict(i: u32, c: u32, me: GpuParticle, unkicked: vec3<f32>) {
+    // The acceleration the particle followed in its last substep and the velocity before that
+    // substep's kick (vbd_finish), and that substep's start, before they are overwritten.
     let estimate = inertial[i].velocity.x;
-    substep_start[i] = me;
+    let unkicked_before = inertial[i].velocity.yzw;
+    let contact_moved = inertial[i].position.w == CONTACT_MOVED;
+    let start_before = substep_start[i].position.xyz;
     let free = me.position.w;
-    let h = cloths[c].h;
+    let h = substep_length(c);
+    // BDF2 is implicit Euler's minimisation with its start x^ = (4 x0 - x-1) / 3, held as the
+    // lag x^ - x0, and v^ = (4 v0 - v-1) / 3 (the kick over 2h/3, not h).
+    var v_hat = me.velocity.xyz;
+    var lag = vec3(0.0);
+    if (bdf2(c)) {
+        v_hat = unkicked + (unkicked - unkicked_before) / 3.0 + (me.velocity.xyz - unkicked) * (2.0 / 3.0);
+        lag = (me.position.xyz - start_before) / 3.0;
+    }
+    var start = me;
+    if (free != 0.0) {
+        // The multigrid correction leaves alone what a collider held or contact moved.
+        start.velocity = vec4(v_hat, select(me.velocity.w, 1.0, contact_moved));
+    }
+    substep_start[i] = start;
     // bvh_cloth_core::solver::block_descent::first_iterate: a falling particle starts where gravity
     // takes it, one at rest where it was.
     var x = vec3(0.0);
     var y = vec3(0.0);
     if (free != 0.0) {
-        y = h * me.velocity.xyz + (h * h) * cloths[c].uniform_accel.xyz;
+        let damp = 1.0 + cloths[c].damping * h;
+        y = lag * damp + h * v_hat + (h * h) * cloths[c].uniform_accel.xyz;
         let accel = accel_axis(c).xyz * estimate;
-        x = (h * me.velocity.xyz + (h * h) * accel) * inverse_damping(c);
+        x = lag + (h * v_hat + (h * h) * accel) * inverse_damping(c);
     }
     var goal: GpuParticle;
     goal.position = vec4(y, free);
     goal.velocity = vec4(0.0);
     inertial[i] = goal;
-    iterate[i] = GpuParticle(vec4(x, free), me.velocity);
+    iterate[i] = GpuParticle(vec4(x, free), vec4(unkicked, me.velocity.w));
 }
 
 @compute @workgroup_size(8, 8, 1)
@@ -90,7 +137,8 @@ fn vbd_predict(@builtin(global_invocation_id) id: vec3<u32>) {
     if (c == NO_CLOTH) {
         return;
     }
-    predict(i, c, iterate[i]);
+    let me = iterate[i];
+    predict(i, c, me, me.velocity.xyz);
 }
 
 // vbd_predict after the aerodynamic kick of a free particle of a cloth with drag or lift (what
@@ -103,10 +151,11 @@ fn vbd_predict_air(@builtin(global_invocation_id) id: vec3<u32>) {
         return;
     }
     var me = iterate[i];
+    let unkicked = me.velocity.xyz;
     if (me.position.w != 0.0 && air_cloth(i) != NO_CLOTH) {
         me.velocity = vec4(me.velocity.xyz + air_kick_of(i, c, me.velocity.xyz), me.velocity.w);
     }
-    predict(i, c, me);
+    predict(i, c, me, unkicked);
 }
 
 // bvh_cloth_core::solver::block_descent::descend: the new displacement of particle i (of cloth c)
@@ -115,7 +164,7 @@ fn descend(i: u32, c: u32, x: vec3<f32>, start: vec3<f32>, goal: vec3<f32>) -> v
     let info = particle_info[i];
     let first = cloths[c].particle_start;
     let first_end = cloths[c].ends_start;
-    let h = cloths[c].h;
+    let h = substep_length(c);
     let h2 = h * h;
     let ch = cloths[c].damping * h;
     var g = (x - goal) + ch * x;
@@ -198,7 +247,7 @@ fn sum_lanes(lane: u32) -> vec4<f32> {
 }
 
 // Particle i's term of cloth c's centre-of-mass drift, m (d - d*) and m, with m its mass share, d
-// its displacement and d* = (h v0 + h^2 g) / (1 + c h)
+// its displacement and d* = (y - x0) / (1 + c h), y its inertial target
 // (bvh_cloth_core::solver::block_descent::centre_of_mass_drift);
 // zero for a held particle.
 fn drift_term(i: u32, c: u32) -> vec4<f32> {
@@ -206,10 +255,7 @@ fn drift_term(i: u32, c: u32) -> vec4<f32> {
     if (me.position.w == 0.0) {
         return vec4(0.0);
     }
-    let b = substep_start[i];
-    let h = cloths[c].h;
-    let fall = (h * h) * cloths[c].uniform_accel.xyz;
-    let off = me.position.xyz - (h * b.velocity.xyz + fall) * inverse_damping(c);
+    let off = me.position.xyz - inertial[i].position.xyz * inverse_damping(c);
     // A particle that went non-finite is quarantined after the sums (vbd_finish); it must not
     // carry the rest of the cloth with it.
     if (!all_finite(off)) {
@@ -299,16 +345,23 @@ fn vbd_finish(@builtin(global_invocation_id) id: vec3<u32>) {
         iterate[i] = b;
         return;
     }
+    let unkicked = out.velocity.xyz;
     // The springs are internal forces: a cloth that nothing holds keeps the centre of mass
     // that inertia, damping and the uniform acceleration give it.
     var d = out.position.xyz;
     if (cloths[c].free_body != 0u) {
         d = d - cloths[c].drift.xyz;
     }
-    let h = cloths[c].h;
+    let h = substep_length(c);
     let inv_h = 1.0 / h;
+    // BDF2's lag, from the target predict built with it: v = (d - lag) / h.
+    var lag = vec3(0.0);
+    if (bdf2(c)) {
+        let damp = 1.0 + cloths[c].damping * h;
+        lag = (inertial[i].position.xyz - h * b.velocity.xyz - (h * h) * cloths[c].uniform_accel.xyz) / damp;
+    }
     out.position = vec4(b.position.xyz + d, out.position.w);
-    out.velocity = vec4(d * inv_h, 0.0);
+    out.velocity = vec4((d - lag) * inv_h, 0.0);
     // bvh_cloth_core::cloth::tethers: beyond its tether's reach of its pin (held, so at the substep's
     // start), a particle loses its velocity away from the pin.
     let scale = cloths[c].tether_scale;
@@ -327,15 +380,22 @@ fn vbd_finish(@builtin(global_invocation_id) id: vec3<u32>) {
     }
     // Quarantine, as node_update_final: a particle whose substep went non-finite keeps its last
     // finite state, at rest.
+    var quarantined = false;
     if (!(all_finite(out.position.xyz) && all_finite(out.velocity.xyz))) {
         out.position = b.position;
         out.velocity = vec4(0.0);
         atomicAdd(&cloths[c].faults, 1u);
+        quarantined = true;
     }
     let done = collide(b.position.xyz, out, vec2(cloths[c].memberships, cloths[c].filters));
     iterate[i] = done;
+    // A collider or the quarantine moved the particle by more than the springs: BDF2 starts
+    // again from implicit Euler in the next substep.
+    if (cloths[c].integrator == INTEGRATOR_MULTIGRID && (quarantined || done.velocity.w != 0.0)) {
+        atomicStore(&cloths[c].broken, 1u);
+    }
     // bvh_cloth_core::solver::block_descent::AccelAxis::estimate.
     let axis = accel_axis(c);
     let along = dot(done.velocity.xyz / inverse_damping(c) - b.velocity.xyz, axis.xyz) / h;
-    inertial[i].velocity = vec4(clamp(along, 0.0, axis.w), 0.0, 0.0, 0.0);
+    inertial[i].velocity = vec4(clamp(along, 0.0, axis.w), unkicked);
 }

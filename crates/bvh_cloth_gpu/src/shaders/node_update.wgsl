@@ -18,7 +18,7 @@ fn active_cloth(i: u32) -> u32 {
         return NO_CLOTH;
     }
     let c = particle_info[i].w;
-    if (c == NO_CLOTH || step.substep >= cloths[c].substeps || cloths[c].integrator == INTEGRATOR_BLOCK_DESCENT) {
+    if (c == NO_CLOTH || step.substep >= cloths[c].substeps || cloths[c].integrator >= INTEGRATOR_BLOCK_DESCENT) {
         return NO_CLOTH;
     }
     return c;

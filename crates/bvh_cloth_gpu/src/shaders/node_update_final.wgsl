@@ -19,7 +19,7 @@ fn node_update_final(@builtin(global_invocation_id) id: vec3<u32>) {
         return;
     }
     let c = particle_info[i].w;
-    if (c == NO_CLOTH || step.substep >= cloths[c].substeps || cloths[c].integrator == INTEGRATOR_BLOCK_DESCENT) {
+    if (c == NO_CLOTH || step.substep >= cloths[c].substeps || cloths[c].integrator >= INTEGRATOR_BLOCK_DESCENT) {
         return;
     }
     let b = state[i];

@@ -43,7 +43,8 @@
 #import bvh_cloth::types::{GpuParticle, thread_index, all_finite}
 #import bvh_cloth::springs::{particle_info, cloths}
 #import bvh_cloth::collision::{collide, closest_on_triangle, layers_meet}
-#import bvh_cloth::constants::{NO_CLOTH, NO_CORNER, MAX_CANDIDATES, MAX_SPAN, MAX_PATH_SPAN, MAX_HELD_SCALE, CONTACT_TRIANGLE_WORDS}
+#import bvh_cloth::block_descent::{inertial, CONTACT_MOVED}
+#import bvh_cloth::constants::{NO_CLOTH, INTEGRATOR_MULTIGRID, NO_CORNER, MAX_CANDIDATES, MAX_SPAN, MAX_PATH_SPAN, MAX_HELD_SCALE, CONTACT_TRIANGLE_WORDS}
 
 struct ContactFrame {
     triangle_count: u32,
@@ -630,6 +631,12 @@ fn contact_apply(@builtin(global_invocation_id) id: vec3<u32>) {
     // Held by a collider in the integrator's response, as the edges' contacts weigh it.
     done.velocity.w = me.velocity.w;
     contact_state[i] = done;
+    // bvh_cloth_core::solver::block_descent's moved_by_contact: a multigrid cloth's BDF2 starts
+    // again, and its next correction leaves the particle where the sweep puts it.
+    if (cloths[c].integrator == INTEGRATOR_MULTIGRID) {
+        atomicStore(&cloths[c].broken, 1u);
+        inertial[i].position.w = CONTACT_MOVED;
+    }
 }
 
 // bvh_cloth_core::self_contact::edge_edge::closest_on_segments: where along the segments p0 p1

@@ -58,6 +58,9 @@ struct BatchCloth {
     filters: u32,
     faults: atomic<u32>,
     drift: vec4<f32>,
+    step: f32,
+    broken: atomic<u32>,
+    pad: vec2<u32>,
 }
 
 struct ColourPass {

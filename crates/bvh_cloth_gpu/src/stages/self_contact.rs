@@ -48,6 +48,8 @@ pub(crate) struct SharedBuffers<'a> {
     pub info: &'a Buffer,
     pub cloths: &'a Buffer,
     pub colliders: (&'a Buffer, &'a Buffer),
+    /// Block descent's inertial targets, where a multigrid cloth's particle is marked as moved.
+    pub inertial: &'a Buffer,
 }
 
 /// The contact buffers of a batch, written for one set of contact cloths.
@@ -210,6 +212,7 @@ impl ContactPlan {
                 37 => &self.triangle_words,
                 38 => &self.grid,
                 39 => &self.sums,
+                21 => shared.inertial,
                 40 => shared.particles,
                 other => unreachable!("no contact kernel binds {other}"),
             }

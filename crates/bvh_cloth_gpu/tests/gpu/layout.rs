@@ -9,7 +9,8 @@ use bvh_cloth_core::backend::SkinPoint;
 use bvh_cloth_core::{BvhNode, Sphere, Vec3};
 use bvh_cloth_gpu::layout::{
     GpuAirCloth, GpuBatchCloth, GpuBatchFrame, GpuBatchStep, GpuBatchWriteback, GpuCollider, GpuColourPass,
-    GpuContactFrame, GpuMeshWriteback, GpuParticle, GpuRefitParams, GpuSkinVertex, GpuWritebackGroup,
+    GpuContactFrame, GpuMeshWriteback, GpuMultigridCloth, GpuMultigridPass, GpuParticle, GpuRefitParams, GpuSkinVertex,
+    GpuWritebackGroup,
 };
 use bvh_cloth_gpu::{SHADER_FILES, shader_source};
 use naga::valid::{Capabilities, ValidationFlags, Validator};
@@ -75,11 +76,25 @@ fn wgsl_is_valid() {
             "air_sample",
             "air_forces",
             "air_kick",
+            "mg_begin",
+            "mg_springs",
+            "mg_residual",
+            "mg_galerkin",
+            "mg_factor",
+            "mg_dense_factor",
+            "mg_smooth_down",
+            "mg_restrict",
+            "mg_coarsest",
+            "mg_smooth_up",
+            "mg_line_search",
+            "mg_apply",
         ]
     );
     for entry in &module.entry_points {
-        // The refit's kernels, the prefix sum's and the drift sums run one row of 64 threads.
+        // The refit's kernels, the prefix sum's, the drift sums and the multigrid's per-cloth
+        // kernels run one row of 64 threads.
         let size = if entry.name.contains("refit")
+            || ["mg_dense_factor", "mg_coarsest", "mg_line_search"].contains(&entry.name.as_str())
             || entry.name.ends_with("_leaves")
             || entry.name.starts_with("skin")
             || entry.name.contains("_scan_")
@@ -124,7 +139,60 @@ fn wgsl_structs_match_the_rust_layouts() {
             memberships,
             filters,
             faults,
-            drift
+            drift,
+            step,
+            broken,
+            pad
+        ]
+    );
+    assert_layout!(
+        &module,
+        "MultigridCloth",
+        GpuMultigridCloth,
+        [
+            levels,
+            node_start,
+            node_count,
+            coarsest_start,
+            coarsest_count,
+            crossing_start,
+            crossing_count,
+            aggregate_start,
+            dense_start,
+            dense_order,
+            running,
+            stiff,
+            age,
+            assemble,
+            refactor,
+            dense_ok,
+            damp,
+            h2,
+            factored_damp,
+            factored_h2,
+            alpha,
+            pad_a,
+            pad_b,
+            pad_c
+        ]
+    );
+    assert_layout!(
+        &module,
+        "MultigridPass",
+        GpuMultigridPass,
+        [
+            start,
+            count,
+            width,
+            level,
+            block_words,
+            share_words,
+            spring_words,
+            pad_a,
+            node_values,
+            block_values,
+            spring_values,
+            pad_b
         ]
     );
     assert_layout!(
@@ -255,7 +323,9 @@ fn wgsl_structs_match_the_rust_layouts() {
 #[test]
 fn sizes_are_multiples_of_sixteen() {
     assert_eq!(size_of::<GpuParticle>(), 32);
-    assert_eq!(size_of::<GpuBatchCloth>(), 112);
+    assert_eq!(size_of::<GpuBatchCloth>(), 128);
+    assert_eq!(size_of::<GpuMultigridCloth>(), 96);
+    assert_eq!(size_of::<GpuMultigridPass>(), 48);
     assert_eq!(size_of::<GpuColourPass>(), 16);
     assert_eq!(size_of::<GpuContactFrame>(), 48);
     assert_eq!(offset_of!(GpuBatchCloth, faults) as u64, GpuBatchCloth::HOST_BYTES);
