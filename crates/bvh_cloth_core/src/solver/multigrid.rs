@@ -95,8 +95,8 @@
 //! the alternatives below).
 //!
 //! Its cost on the 2-core development machine (an Intel Xeon), against block descent at the
-//! default Looper 16 (the report's `motion_cost` section, two runs): 1.72x-1.75x at 64 x 64 and
-//! 1.67x-1.68x at 256 x 256 at Looper 16, 1.08x-1.17x and 1.30x-1.41x at Looper 12. Timers
+//! default Looper 16 (the report's `motion_cost` section, four runs): 1.54x-1.75x at 64 x 64
+//! and 1.56x-1.68x at 256 x 256 at Looper 16, 1.08x-1.24x and 1.23x-1.41x at Looper 12. Timers
 //! in a scratch build put about 40 % of a 256 x 256 tick at Looper 12 in the correction: the
 //! residual (its largest part), the V-cycle, the line search's curvature and, every twelfth
 //! substep, the assembly.
@@ -128,6 +128,15 @@
 //!   self-contact, 4 pairs of triangles crossing at the end of the bar's at 15 m/s (none with
 //!   Jacobi). A Gauss–Seidel sweep visits the nodes in order: one thread on the CPU, and a
 //!   colouring of every level on a GPU.
+//! - **Coarse levels grouped by the springs at rest**, at the substep's start rather than after
+//!   its sweep (so that a host could build them from the cloth's shape alone), in the core's
+//!   `motion` tests (2026-11-29): 32 x 32 to 128 x 128 at 1 s -1.0 / +3.0 / +11.7 % off RK4's
+//!   (after the sweep: -1.0 / +2.7 / +7.6 %), 512 x 512 +9.2 % with a p99 strain of 1.55x, and
+//!   the fast folds with self-contact ended with pairs crossing. At rest every structural
+//!   spring couples its ends alike and ties decide the grouping; after the sweep the springs
+//!   that carry the load to the pins are the stronger. The integrator's figures depend that much
+//!   on the grouping: a grouping good by construction, rather than by which ties the first
+//!   sweep breaks, is open.
 
 use glam::{DVec3, Mat3A, Vec3A};
 use rayon::prelude::*;
