@@ -131,12 +131,13 @@
 //! - **Coarse levels grouped by the springs at rest**, at the substep's start rather than after
 //!   its sweep (so that a host could build them from the cloth's shape alone), in the core's
 //!   `motion` tests (2026-11-29): 32 x 32 to 128 x 128 at 1 s -1.0 / +3.0 / +11.7 % off RK4's
-//!   (after the sweep: -1.0 / +2.7 / +7.6 %), 512 x 512 +9.2 % with a p99 strain of 1.55x, and
-//!   the fast folds with self-contact ended with pairs crossing. At rest every structural
-//!   spring couples its ends alike and ties decide the grouping; after the sweep the springs
-//!   that carry the load to the pins are the stronger. The integrator's figures depend that much
-//!   on the grouping: a grouping good by construction, rather than by which ties the first
-//!   sweep breaks, is open.
+//!   (after the sweep: -1.0 / +2.7 / +7.6 %); with the levels' numbers also kept from the
+//!   substep's start for the first 12 substeps, 512 x 512 ended +9.2 % off with a p99 strain of
+//!   1.55x, and the fast folds with self-contact ended with pairs crossing. At rest every
+//!   structural spring couples its ends alike and ties decide the grouping; after the sweep
+//!   the springs that carry the load to the pins are the stronger. The integrator's figures
+//!   depend that much on the grouping: a grouping good by construction, rather than by which
+//!   ties the first sweep breaks, is open.
 
 use glam::{DVec3, Mat3A, Vec3A};
 use rayon::prelude::*;
