@@ -721,12 +721,13 @@ pub struct GpuMultigridCloth {
     pub factored_h2: f32,
     /// This substep's step along the correction (the line search's).
     pub alpha: f32,
+    /// The cloth's first chunk of level-1 nodes in the chunk table (the line search's first
+    /// level sums each chunk), and how many it has.
+    pub chunk_start: u32,
+    /// See [`Self::chunk_start`].
+    pub chunk_count: u32,
     /// Unused.
-    pub pad_a: u32,
-    /// Unused.
-    pub pad_b: u32,
-    /// Unused.
-    pub pad_c: u32,
+    pub pad: u32,
 }
 
 /// One dispatch of the multigrid correction (a uniform at a dynamic offset): the range of
@@ -742,14 +743,16 @@ pub struct GpuMultigridPass {
     pub width: u32,
     /// The level the dispatch works on (0 is level 1, the aggregates of particles).
     pub level: u32,
-    /// Where the blocks', the shares' and the springs' words start in the index buffer.
+    /// Where the blocks', the shares', the springs' and the chunks' words start in the index
+    /// buffer.
     pub block_words: u32,
     /// See [`Self::block_words`].
     pub share_words: u32,
     /// See [`Self::block_words`].
     pub spring_words: u32,
-    /// Unused.
-    pub pad_a: u32,
+    /// Where the chunk table (per chunk its first level-1 node and its count, up to 64) starts
+    /// in the index buffer.
+    pub chunk_words: u32,
     /// Where the nodes', the blocks' and the crossing springs' values start in the value
     /// buffer (`vec4` entries).
     pub node_values: u32,
@@ -757,8 +760,8 @@ pub struct GpuMultigridPass {
     pub block_values: u32,
     /// See [`Self::node_values`].
     pub spring_values: u32,
-    /// Unused.
-    pub pad_b: u32,
+    /// Where the chunks' sums start in the value buffer.
+    pub chunk_values: u32,
 }
 
 /// `u32` words per node at the start of the multigrid index buffer: its off-diagonal blocks

@@ -68,7 +68,7 @@
 //! search one workgroup per cloth. The kernels keep the levels, decide when to assemble and
 //! factor them, and choose BDF2 or implicit Euler per substep as this module does; they sum
 //! in the same order, in f32 where the dense factor and the line search's sums are f64 here.
-//! A substep's correction is `8 + 4 (L - 1)` dispatches for `L` levels.
+//! A substep's correction is `9 + 4 (L - 1)` dispatches for `L` levels.
 //!
 //! ## What it buys
 //! The hanging cloth of the core's `motion` tests (1 m, pinned at its first row's corners,

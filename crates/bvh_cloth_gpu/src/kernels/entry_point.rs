@@ -81,6 +81,8 @@ pub enum EntryPoint {
     MgCoarsest,
     /// `mg_smooth_up`: the prolongation and a damped Jacobi step, on the way up.
     MgSmoothUp,
+    /// `mg_line_chunks`: the line search's sums over chunks of 64 nodes.
+    MgLineChunks,
     /// `mg_line_search`: the step along the correction, one workgroup per cloth.
     MgLineSearch,
     /// `mg_apply`: each particle's share of the correction.
@@ -89,7 +91,7 @@ pub enum EntryPoint {
 
 impl EntryPoint {
     /// Every entry point, in order.
-    pub const ALL: [Self; 38] = [
+    pub const ALL: [Self; 39] = [
         Self::NodeUpdate,
         Self::NodeUpdateFinal,
         Self::VbdPredict,
@@ -126,6 +128,7 @@ impl EntryPoint {
         Self::MgRestrict,
         Self::MgCoarsest,
         Self::MgSmoothUp,
+        Self::MgLineChunks,
         Self::MgLineSearch,
         Self::MgApply,
     ];
@@ -154,7 +157,7 @@ impl EntryPoint {
     pub const AIR: [Self; 3] = [Self::AirSample, Self::AirForces, Self::AirKick];
 
     /// The multigrid correction's entry points.
-    pub const MULTIGRID: [Self; 12] = [
+    pub const MULTIGRID: [Self; 13] = [
         Self::MgBegin,
         Self::MgSprings,
         Self::MgResidual,
@@ -165,6 +168,7 @@ impl EntryPoint {
         Self::MgRestrict,
         Self::MgCoarsest,
         Self::MgSmoothUp,
+        Self::MgLineChunks,
         Self::MgLineSearch,
         Self::MgApply,
     ];
@@ -208,6 +212,7 @@ impl EntryPoint {
             Self::MgRestrict => "mg_restrict",
             Self::MgCoarsest => "mg_coarsest",
             Self::MgSmoothUp => "mg_smooth_up",
+            Self::MgLineChunks => "mg_line_chunks",
             Self::MgLineSearch => "mg_line_search",
             Self::MgApply => "mg_apply",
         }
@@ -481,6 +486,7 @@ pub(super) fn descriptors() -> [KernelDescriptor; EntryPoint::ALL.len()] {
         multigrid(EntryPoint::MgRestrict),
         multigrid(EntryPoint::MgCoarsest),
         multigrid(EntryPoint::MgSmoothUp),
+        multigrid(EntryPoint::MgLineChunks),
         multigrid(EntryPoint::MgLineSearch),
         multigrid(EntryPoint::MgApply),
     ]

@@ -230,7 +230,7 @@ fn vbd_solve(@builtin(global_invocation_id) id: vec3<u32>) {
     iterate[i].position = vec4(x, me.position.w);
 }
 
-// Sums of the drift terms of the 64 threads of a workgroup.
+// Sums of the 64 threads of a workgroup: the drift terms, and the multigrid line search's.
 var<workgroup> drift_sums: array<vec4<f32>, 64>;
 
 // The sum of every lane's drift_sums entry, for every lane: a tree over the workgroup. Call it

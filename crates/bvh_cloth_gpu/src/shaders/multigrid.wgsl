@@ -15,8 +15,9 @@
 //   mg_restrict (each coarse node gathers its children's residuals); mg_coarsest, one
 //   workgroup per cloth (the dense solve, or smoothing when the level has no factor); per level
 //   up, mg_smooth_up (the prolongation and a damped Jacobi step in one);
-// - mg_line_search, one workgroup per cloth: the step along P e on the substep's quadratic
-//   model, and whether the kept levels have gone stale;
+// - mg_line_chunks, one workgroup per chunk of 64 of a cloth's level-1 nodes, and
+//   mg_line_search, one workgroup per cloth: the step along P e on the substep's quadratic
+//   model, summed in two levels, and whether the kept levels have gone stale;
 // - mg_apply, one thread per particle slot: d += alpha e of its aggregate.
 // Every thread sums what it gathers in the order the CPU reference does; the f32 sums of the
 // line search and the dense factor (f64 on the CPU) are the only differences.
@@ -24,7 +25,7 @@
 #import bvh_cloth::types::{GpuParticle, frame, step, thread_index, all_finite}
 #import bvh_cloth::springs::{particle_info, cloths}
 #import bvh_cloth::constants::{NO_CLOTH, INTEGRATOR_MULTIGRID, NO_NODE, REASSEMBLE_EVERY, STALE_CURVATURE, JACOBI_WEIGHT, COARSEST_SMOOTHING, DENSE_ORDER, MULTIGRID_NODE_WORDS, MULTIGRID_NODE_VALUES, MULTIGRID_SPRING_VALUES}
-#import bvh_cloth::block_descent::{iterate, substep_start, inertial}
+#import bvh_cloth::block_descent::{iterate, substep_start, inertial, drift_sums, sum_lanes}
 
 struct MultigridCloth {
     levels: u32,
@@ -48,9 +49,9 @@ struct MultigridCloth {
     factored_damp: f32,
     factored_h2: f32,
     alpha: f32,
-    pad_a: u32,
-    pad_b: u32,
-    pad_c: u32,
+    chunk_start: u32,
+    chunk_count: u32,
+    pad: u32,
 }
 
 struct MultigridPass {
@@ -61,11 +62,11 @@ struct MultigridPass {
     block_words: u32,
     share_words: u32,
     spring_words: u32,
-    pad_a: u32,
+    chunk_words: u32,
     node_values: u32,
     block_values: u32,
     spring_values: u32,
-    pad_b: u32,
+    chunk_values: u32,
 }
 
 @group(0) @binding(49) var<storage, read> mg_index: array<u32>;
@@ -444,7 +445,6 @@ fn dense_set(c: u32, r: u32, col: u32, value: f32) {
 var<workgroup> wg_order: u32;
 var<workgroup> wg_failed: u32;
 var<workgroup> wg_vector: array<f32, DENSE_ORDER>;
-var<workgroup> wg_sums: array<vec4<f32>, 64>;
 
 // Entry (r, col), both 0 to 2, of the symmetric block `m` (its diagonal, then xy, xz, yz).
 fn block_entry(m: array<vec4<f32>, 2>, r: u32, col: u32) -> f32 {
@@ -709,9 +709,66 @@ fn spring_term(c: u32, s: Spring, axis: vec4<f32>, h2: f32) -> f32 {
     return s.stiffness * h2 * (axis.w * dot(de, de) + (1.0 - axis.w) * along * along);
 }
 
-// The line search, one workgroup per cloth: alpha = r.e / (Pe)^T H (Pe), with H at this
-// substep's displacements, clamped to [0, 1] (0 when the sums are not finite); and the kept
-// levels' curvature along e against the substep's, which marks them stale.
+// Node a's terms of the line search: x r.e; y the substep's curvature (its free mass, its inner
+// springs where a collider holds one end, and the crossing springs whose first end lies in it);
+// z the kept levels' curvature.
+fn line_terms(a: u32) -> vec4<f32> {
+    let node = node_info(a);
+    let c = node.cloth;
+    let damp = mg_cloths[c].damp;
+    let h2 = mg_cloths[c].h2;
+    let e = mg_values[node_value(a, V_UP)].xyz;
+    let masses = mg_values[node_value(a, V_MASS)];
+    let block = diagonal_block(a, damp, h2);
+    var terms = vec4(
+        dot(mg_values[node_value(a, V_B)].xyz, e),
+        damp * masses.y * dot(e, e),
+        dot(sym_mul(block[0], block[1], e) + off_product(node, h2, V_UP, false), e),
+        0.0,
+    );
+    if (masses.z != 0.0) {
+        for (var k = node.inner_start; k < node.inner_end; k++) {
+            let s = spring(k);
+            terms.y += spring_term(c, s, spring_axis(s.rest, spring_delta(s)), h2);
+        }
+    }
+    for (var k = node.share_start; k < node.share_end; k++) {
+        let w = mg_pass.share_words + 4u * k;
+        if (mg_index[w + 1u] == 0u) {
+            let index = mg_index[w];
+            terms.y += spring_term(c, spring(index), mg_values[spring_value(index) + 1u], h2);
+        }
+    }
+    return terms;
+}
+
+// The line search's first level, one workgroup per chunk (up to 64 of one cloth's level-1
+// nodes, from the chunk table): the chunk's sums of line_terms.
+@compute @workgroup_size(64, 1, 1)
+fn mg_line_chunks(
+    @builtin(workgroup_id) group: vec3<u32>,
+    @builtin(num_workgroups) groups: vec3<u32>,
+    @builtin(local_invocation_index) lane: u32,
+) {
+    let chunk = group.y * groups.x + group.x;
+    var terms = vec4(0.0);
+    if (chunk < mg_pass.count) {
+        let first = mg_index[mg_pass.chunk_words + 2u * chunk];
+        let count = mg_index[mg_pass.chunk_words + 2u * chunk + 1u];
+        if (lane < count && corrected(node_info(first).cloth)) {
+            terms = line_terms(first + lane);
+        }
+    }
+    drift_sums[lane] = terms;
+    let total = sum_lanes(lane);
+    if (lane == 0u && chunk < mg_pass.count) {
+        mg_values[mg_pass.chunk_values + chunk] = total;
+    }
+}
+
+// The line search's second level, one workgroup per cloth: alpha = r.e / (Pe)^T H (Pe), with H
+// at this substep's displacements, clamped to [0, 1] (0 when the sums are not finite); and the
+// kept levels' curvature along e against the substep's, which marks them stale.
 @compute @workgroup_size(64, 1, 1)
 fn mg_line_search(@builtin(workgroup_id) group: vec3<u32>, @builtin(local_invocation_index) lane: u32) {
     let c = group.x;
@@ -725,42 +782,14 @@ fn mg_line_search(@builtin(workgroup_id) group: vec3<u32>, @builtin(local_invoca
     if (workgroupUniformLoad(&wg_order) == 0u) {
         return;
     }
-    let damp = mg_cloths[c].damp;
-    let h2 = mg_cloths[c].h2;
-    // x: r.e, y: the substep's curvature, z: the kept levels' curvature.
     var sums = vec4(0.0);
-    let first = mg_cloths[c].node_start;
-    for (var n = lane; n < mg_cloths[c].node_count; n += 64u) {
-        let a = first + n;
-        let node = node_info(a);
-        let e = mg_values[node_value(a, V_UP)].xyz;
-        let masses = mg_values[node_value(a, V_MASS)];
-        let block = diagonal_block(a, damp, h2);
-        sums.x += dot(mg_values[node_value(a, V_B)].xyz, e);
-        sums.z += dot(sym_mul(block[0], block[1], e) + off_product(node, h2, V_UP, false), e);
-        sums.y += damp * masses.y * dot(e, e);
-        if (masses.z != 0.0) {
-            for (var k = node.inner_start; k < node.inner_end; k++) {
-                let s = spring(k);
-                sums.y += spring_term(c, s, spring_axis(s.rest, spring_delta(s)), h2);
-            }
-        }
+    let first = mg_cloths[c].chunk_start;
+    for (var k = lane; k < mg_cloths[c].chunk_count; k += 64u) {
+        sums += mg_values[mg_pass.chunk_values + first + k];
     }
-    let springs = mg_cloths[c].crossing_start;
-    for (var k = lane; k < mg_cloths[c].crossing_count; k += 64u) {
-        let index = springs + k;
-        sums.y += spring_term(c, spring(index), mg_values[spring_value(index) + 1u], h2);
-    }
-    wg_sums[lane] = sums;
-    for (var width = 32u; width > 0u; width >>= 1u) {
-        workgroupBarrier();
-        if (lane < width) {
-            wg_sums[lane] += wg_sums[lane + width];
-        }
-    }
-    workgroupBarrier();
+    drift_sums[lane] = sums;
+    let total = sum_lanes(lane);
     if (lane == 0u) {
-        let total = wg_sums[0];
         let along = total.x;
         let curvature = total.y;
         let kept = total.z;

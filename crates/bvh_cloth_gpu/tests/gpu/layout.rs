@@ -86,6 +86,7 @@ fn wgsl_is_valid() {
             "mg_restrict",
             "mg_coarsest",
             "mg_smooth_up",
+            "mg_line_chunks",
             "mg_line_search",
             "mg_apply",
         ]
@@ -94,7 +95,7 @@ fn wgsl_is_valid() {
         // The refit's kernels, the prefix sum's, the drift sums and the multigrid's per-cloth
         // kernels run one row of 64 threads.
         let size = if entry.name.contains("refit")
-            || ["mg_dense_factor", "mg_coarsest", "mg_line_search"].contains(&entry.name.as_str())
+            || ["mg_dense_factor", "mg_coarsest", "mg_line_chunks", "mg_line_search"].contains(&entry.name.as_str())
             || entry.name.ends_with("_leaves")
             || entry.name.starts_with("skin")
             || entry.name.contains("_scan_")
@@ -171,9 +172,9 @@ fn wgsl_structs_match_the_rust_layouts() {
             factored_damp,
             factored_h2,
             alpha,
-            pad_a,
-            pad_b,
-            pad_c
+            chunk_start,
+            chunk_count,
+            pad
         ]
     );
     assert_layout!(
@@ -188,11 +189,11 @@ fn wgsl_structs_match_the_rust_layouts() {
             block_words,
             share_words,
             spring_words,
-            pad_a,
+            chunk_words,
             node_values,
             block_values,
             spring_values,
-            pad_b
+            chunk_values
         ]
     );
     assert_layout!(

@@ -13,7 +13,9 @@
 //!
 //! A substep's correction is `mg_begin` before the prediction ([`MultigridPlan::begin`]: the
 //! step, BDF2's or implicit Euler's) and the rest after the sweep ([`MultigridPlan::correct`]):
-//! `8 + 4 (L - 1)` dispatches for the deepest cloth's `L` levels.
+//! `9 + 4 (L - 1)` dispatches for the deepest cloth's `L` levels. The line search sums in two
+//! levels (chunks of 64 level-1 nodes, then each cloth's chunks), so that a big cloth's sums
+//! spread over many workgroups.
 //!
 //! [`MultigridCorrection::for_first_substep`]: bvh_cloth_core::backend::MultigridCorrection::for_first_substep
 
@@ -70,11 +72,16 @@ pub(crate) struct MultigridPlan {
     workgroups: Vec<(u32, u32)>,
 }
 
-/// The pass entries before the levels': the cloths, the crossing springs, every node.
+/// The pass entries before the levels': the cloths, the crossing springs, every node, the
+/// chunks of level-1 nodes.
 const CLOTHS: u32 = 0;
 const SPRINGS: u32 = 1;
 const NODES: u32 = 2;
-const FIRST_LEVEL: u32 = 3;
+const CHUNKS: u32 = 3;
+const FIRST_LEVEL: u32 = 4;
+
+/// Level-1 nodes per chunk: one workgroup of the line search's first level.
+const CHUNK: u32 = 64;
 
 impl MultigridPlan {
     /// The buffers for `cloths` in a batch of `cloth_slots` cloth entries.
@@ -214,18 +221,36 @@ impl MultigridPlan {
             };
             dense_end += (dense_order * dense_order).div_ceil(4);
         }
+        // The chunk table: each cloth's level-1 nodes in runs of up to 64, one workgroup each in
+        // the line search's first level.
+        let chunk_words = index.len() as u32;
+        let mut chunks = 0u32;
+        for (k, cloth) in cloths.iter().enumerate() {
+            let count = node_count(cloth, 0) as u32;
+            let header = &mut headers[cloth.slot as usize];
+            header.chunk_start = chunks;
+            for first in (0..count).step_by(CHUNK as usize) {
+                index.extend([node_base[k][0] + first, CHUNK.min(count - first)]);
+                header.chunk_count += 1;
+                chunks += 1;
+            }
+        }
+        let chunk_values = dense_end;
+        let value_count = chunk_values + chunks;
         let max = storage_binding_limit(device);
-        for bytes in [4 * index.len() as u64, 16 * u64::from(dense_end)] {
+        for bytes in [4 * index.len() as u64, 16 * u64::from(value_count)] {
             if bytes > max {
                 return Err(KernelError::BufferTooLarge { bytes, max });
             }
         }
-        let mut entries = vec![(0, cloth_slots, 0), (0, crossing_total, 0), (0, nodes, 0)];
+        let mut entries = vec![(0, cloth_slots, 0), (0, crossing_total, 0), (0, nodes, 0), (0, chunks, 0)];
         entries.extend(level_ranges.iter().enumerate().map(|(l, &(start, count))| (start, count, l as u32)));
         let mut workgroups = Vec::with_capacity(entries.len());
         let mut bytes = vec![0u8; entries.len() * UNIFORM_STRIDE as usize];
         for (e, &(start, count, level)) in entries.iter().enumerate() {
-            let groups = ClothKernels::workgroups(device, count)?;
+            // A chunk is one workgroup of 64 threads: a dispatch of as many threads as its nodes.
+            let threads = if e as u32 == CHUNKS { count.saturating_mul(CHUNK) } else { count };
+            let groups = ClothKernels::workgroups(device, threads)?;
             workgroups.push(groups);
             let pass = GpuMultigridPass {
                 start,
@@ -235,11 +260,11 @@ impl MultigridPlan {
                 block_words,
                 share_words,
                 spring_words,
-                pad_a: 0,
+                chunk_words,
                 node_values,
                 block_values,
                 spring_values,
-                pad_b: 0,
+                chunk_values,
             };
             let at = e * UNIFORM_STRIDE as usize;
             bytes[at..at + size_of::<GpuMultigridPass>()].copy_from_slice(bytemuck::bytes_of(&pass));
@@ -251,7 +276,7 @@ impl MultigridPlan {
         });
         Ok(Self {
             index: storage_buffer_with(device, "bvh_cloth_multigrid_index", &index),
-            values: storage_buffer(device, "bvh_cloth_multigrid_values", 16 * u64::from(dense_end)),
+            values: storage_buffer(device, "bvh_cloth_multigrid_values", 16 * u64::from(value_count)),
             cloths: storage_buffer_with(device, "bvh_cloth_multigrid_cloths", &headers),
             passes,
             levels: levels as u32,
@@ -345,7 +370,8 @@ impl MultigridPlan {
         for l in (0..self.levels - 1).rev() {
             run(EntryPoint::MgSmoothUp, level(l), groups(level(l)));
         }
-        run(EntryPoint::MgLineSearch, CLOTHS, per_cloth);
+        run(EntryPoint::MgLineChunks, CHUNKS, groups(CHUNKS));
+        run(EntryPoint::MgLineSearch, CHUNKS, per_cloth);
         run(EntryPoint::MgApply, CLOTHS, particles);
     }
 
