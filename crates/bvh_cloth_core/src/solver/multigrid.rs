@@ -29,7 +29,7 @@
 //!   the residual and the assembly, each once (12,474 of the 23,938 springs of a 64 x 64 grid,
 //!   202,810 of 390,658 at 256 x 256; 484 and 7,396 aggregates). Their forces are found eight
 //!   springs at a time in SIMD lanes, as the sweep's are.
-//! - The coarse matrices are assembled every 12 substeps (`REASSEMBLE`) and kept in between.
+//! - The coarse matrices are assembled every 12 substeps (`REASSEMBLE_EVERY`) and kept in between.
 //!   The residual is exact in every substep, and the line search measures the step with this
 //!   substep's Hessian (each crossing spring's direction and stretch, kept from the residual's
 //!   pass): a kept preconditioner costs a little convergence and nothing else. Measured the
@@ -148,23 +148,29 @@ use crate::solver::forces::ForceModel;
 use crate::solver::params::Integrator;
 
 /// Substeps a coarse hierarchy is kept before it is assembled again.
-const REASSEMBLE: u32 = 12;
+pub const REASSEMBLE_EVERY: u32 = 12;
 
 /// How far the kept levels' curvature along the correction may drift from the substep's own,
-/// as a fraction of it, before the levels are assembled again (see [`Multigrid::correct`]).
-const STALE: f64 = 0.5;
+/// as a fraction of it, before the levels are assembled again (see the module docs).
+pub const STALE_CURVATURE: f64 = 0.5;
 
 /// Nodes at most on the coarsest level, which is solved exactly.
 const COARSEST: usize = 24;
 
+/// Nodes at most on a coarsest level that is factored; a larger one is smoothed.
+pub const DENSE_NODES: usize = 4 * COARSEST;
+
+/// Smoothing steps on a coarsest level too large for the dense solve.
+pub const COARSEST_SMOOTHING: u32 = 16;
+
 /// The weight of the levels' damped Jacobi steps.
-const JACOBI: f32 = 2.0 / 3.0;
+pub const JACOBI_WEIGHT: f32 = 2.0 / 3.0;
 
 /// Levels at most below the particles.
 const MAX_LEVELS: usize = 12;
 
-/// No aggregate.
-const NONE: u32 = u32::MAX;
+/// No node: a pinned particle's aggregate, a block inside one aggregate.
+pub const NO_NODE: u32 = u32::MAX;
 
 /// Springs one partial sum takes: fixed, so that the sums do not depend on the thread count.
 const CHUNK: usize = 4096;
@@ -189,7 +195,7 @@ struct Level {
     /// through them, each coarse node summing its own, in order.
     child_offsets: Vec<u32>,
     children: Vec<u32>,
-    /// For each off-diagonal block, the block of the next level it adds to, or [`NONE`] when
+    /// For each off-diagonal block, the block of the next level it adds to, or [`NO_NODE`] when
     /// both nodes share an aggregate (it then adds to the aggregate's diagonal).
     slot: Vec<u32>,
     /// The inverses of the diagonal blocks at the step the level was factored for.
@@ -231,7 +237,7 @@ impl Level {
         let this = &*self;
         next.par_iter_mut().enumerate().with_min_len(MIN_TASK).for_each(|(a, out)| {
             let rhs = this.b[a] - this.off_product(a, &e, h2);
-            *out = (1.0 - JACOBI) * e[a] + JACOBI * (this.diag_inv[a] * rhs);
+            *out = (1.0 - JACOBI_WEIGHT) * e[a] + JACOBI_WEIGHT * (this.diag_inv[a] * rhs);
         });
         self.e = next;
         self.scratch = e;
@@ -321,7 +327,7 @@ struct Spring {
 }
 
 /// One aggregate's share of a crossing spring: the spring, which end lies in the aggregate,
-/// and the off-diagonal block of level 1 the spring adds to (or [`NONE`] when its other end
+/// and the off-diagonal block of level 1 the spring adds to (or [`NO_NODE`] when its other end
 /// is in no aggregate).
 #[derive(Clone, Copy, Debug)]
 struct Crossing {
@@ -335,7 +341,7 @@ struct Crossing {
 /// The particles' aggregates (level 1's nodes) and the springs as they see them.
 #[derive(Clone, Debug, Default)]
 struct Groups {
-    /// Each particle's aggregate, [`NONE`] for a pinned particle.
+    /// Each particle's aggregate, [`NO_NODE`] for a pinned particle.
     agg: Vec<u32>,
     /// The aggregates' particles, CSR.
     member_offsets: Vec<u32>,
@@ -466,25 +472,6 @@ pub struct MultigridLayout {
     pub levels: Vec<LevelLayout>,
 }
 
-/// No node: a pinned particle's aggregate, a block inside one aggregate.
-pub const NO_NODE: u32 = NONE;
-
-/// Substeps a coarse hierarchy is kept before it is assembled again.
-pub const REASSEMBLE_EVERY: u32 = REASSEMBLE;
-
-/// How far the kept levels' curvature may drift from the substep's before they are assembled
-/// again, as a fraction of it.
-pub const STALE_CURVATURE: f64 = STALE;
-
-/// The weight of the levels' damped Jacobi steps.
-pub const JACOBI_WEIGHT: f32 = JACOBI;
-
-/// Smoothing steps on a coarsest level too large for the dense solve.
-pub const COARSEST_SMOOTHING: u32 = 16;
-
-/// Nodes at most on a coarsest level that is factored.
-pub const DENSE_NODES: usize = 4 * COARSEST;
-
 impl MultigridCorrection {
     /// Builds the hierarchy of `topology` with the forces of `model`, for the pins of `free`
     /// (0 for a pinned particle) and the held particles of `held` (1 for a particle a collider
@@ -590,7 +577,7 @@ impl Multigrid {
         }
         let damp = 1.0 + model.damping * h;
         let h2 = h * h;
-        if self.age >= REASSEMBLE || stiff {
+        if self.age >= REASSEMBLE_EVERY || stiff {
             self.assemble(topology, held, start, d);
         }
         self.age += 1;
@@ -610,7 +597,7 @@ impl Multigrid {
         let along: f64 = self.residual.iter().zip(e).map(|(r, e)| f64::from(r.dot(*e))).sum();
         let curvature = self.curvature(held, damp, h2, start, d);
         // The kept levels' curvature along `e` against this substep's: when they differ by more
-        // than `STALE` of it, the cloth has changed under them (a cloth snapping taut), and
+        // than `STALE_CURVATURE` of it, the cloth has changed under them (a cloth snapping taut), and
         // they are assembled again in the next substep.
         let level = &self.levels[0];
         let kept: f64 = (0..level.len())
@@ -619,8 +606,8 @@ impl Multigrid {
                 f64::from((level.diag_block(a, damp, h2) * e + level.off_product(a, &level.e, h2)).dot(e))
             })
             .sum();
-        if (kept / curvature - 1.0).abs() > STALE {
-            self.age = REASSEMBLE;
+        if (kept / curvature - 1.0).abs() > STALE_CURVATURE {
+            self.age = REASSEMBLE_EVERY;
         }
         let alpha = (along / curvature).clamp(0.0, 1.0) as f32;
         if !(curvature > 0.0 && alpha.is_finite() && alpha > 0.0) {
@@ -629,7 +616,7 @@ impl Multigrid {
         let agg = &self.groups.agg;
         let e = &self.levels[0].e;
         d.par_iter_mut().zip(agg.par_iter()).zip(held.par_iter()).with_min_len(4096).for_each(|((d, &a), &held)| {
-            if a != NONE && held == 0.0 {
+            if a != NO_NODE && held == 0.0 {
                 *d += alpha * e[a as usize];
             }
         });
@@ -681,7 +668,7 @@ impl Multigrid {
                 let j = end.other as usize;
                 let (a, b) = (agg[i], agg[j]);
                 let stiffness = model.k_over_mass[end.kind as usize] * end.weight;
-                if stiffness == 0.0 || a == NONE || (b != NONE && j < i) {
+                if stiffness == 0.0 || a == NO_NODE || (b != NO_NODE && j < i) {
                     continue;
                 }
                 let spring = Spring { ends: [i as u32, j as u32], stiffness, rest: end.rest };
@@ -692,7 +679,7 @@ impl Multigrid {
                 let s = crossing.len() as u32;
                 crossing.push(spring);
                 per_agg[a as usize].push((s, 0));
-                if b != NONE {
+                if b != NO_NODE {
                     per_agg[b as usize].push((s, 1));
                 }
             }
@@ -707,8 +694,8 @@ impl Multigrid {
                 let spring_ends = crossing[s as usize].ends;
                 let ends = [spring_ends[side as usize], spring_ends[1 - side as usize]];
                 let other = agg[ends[1] as usize];
-                let slot = if other == NONE {
-                    NONE
+                let slot = if other == NO_NODE {
+                    NO_NODE
                 } else {
                     let at = match cols[row_start..].iter().position(|&c| c == other) {
                         Some(p) => row_start + p,
@@ -789,7 +776,7 @@ impl Multigrid {
                     }
                     let block = hessians[c.spring as usize];
                     *diag += block;
-                    if c.slot != NONE && held[other as usize] == 0.0 {
+                    if c.slot != NO_NODE && held[other as usize] == 0.0 {
                         row[c.slot as usize - row_start] -= block;
                     }
                 }
@@ -827,7 +814,7 @@ impl Multigrid {
                 .map(|a| level.diag_block(a, damp, h2).inverse());
             level.diag_inv = inverses.collect();
         }
-        self.coarsest = self.levels.last().filter(|l| l.len() <= 4 * COARSEST).and_then(|l| Dense::factor(l, damp, h2));
+        self.coarsest = self.levels.last().filter(|l| l.len() <= DENSE_NODES).and_then(|l| Dense::factor(l, damp, h2));
         self.factored_for = Some((damp, h2));
     }
 
@@ -913,7 +900,7 @@ impl Multigrid {
         let agg = &self.groups.agg;
         let moved = |i: u32| {
             let a = agg[i as usize];
-            if a == NONE || held[i as usize] != 0.0 { Vec3A::ZERO } else { e[a as usize] }
+            if a == NO_NODE || held[i as usize] != 0.0 { Vec3A::ZERO } else { e[a as usize] }
         };
         let spring_term = |s: &Spring, axis: glam::Vec4| {
             let [i, j] = s.ends;
@@ -952,7 +939,7 @@ impl Multigrid {
             if let Some(dense) = &self.coarsest {
                 dense.solve(&level.b, &mut level.e);
             } else {
-                for _ in 0..16 {
+                for _ in 0..COARSEST_SMOOTHING {
                     level.smooth(h2);
                 }
             }
@@ -1058,16 +1045,16 @@ fn spring_hessian(k: f32, rest: f32, delta: Vec3A) -> Mat3A {
 /// still free becomes an aggregate with them; then each node left joins the aggregate of the
 /// neighbour it is most strongly coupled to (or starts one with its free neighbours when none
 /// of them has one). `neighbours(i)` lists the strong neighbours with their strengths; nodes
-/// that are not `eligible` get [`NONE`]. Returns each node's aggregate and the count.
+/// that are not `eligible` get [`NO_NODE`]. Returns each node's aggregate and the count.
 fn group<I: Iterator<Item = (usize, f32)>>(
     n: usize,
     eligible: impl Fn(usize) -> bool,
     neighbours: impl Fn(usize) -> I,
 ) -> (Vec<u32>, usize) {
-    let mut agg = vec![NONE; n];
+    let mut agg = vec![NO_NODE; n];
     let mut count = 0u32;
     for i in 0..n {
-        if !eligible(i) || agg[i] != NONE || neighbours(i).any(|(j, _)| agg[j] != NONE) {
+        if !eligible(i) || agg[i] != NO_NODE || neighbours(i).any(|(j, _)| agg[j] != NO_NODE) {
             continue;
         }
         agg[i] = count;
@@ -1077,18 +1064,18 @@ fn group<I: Iterator<Item = (usize, f32)>>(
         count += 1;
     }
     for i in 0..n {
-        if !eligible(i) || agg[i] != NONE {
+        if !eligible(i) || agg[i] != NO_NODE {
             continue;
         }
         let best =
-            neighbours(i).filter(|&(j, _)| agg[j] != NONE).max_by(|x, y| x.1.total_cmp(&y.1)).map(|(j, _)| agg[j]);
+            neighbours(i).filter(|&(j, _)| agg[j] != NO_NODE).max_by(|x, y| x.1.total_cmp(&y.1)).map(|(j, _)| agg[j]);
         if let Some(best) = best {
             agg[i] = best;
             continue;
         }
         agg[i] = count;
         for (j, _) in neighbours(i) {
-            if agg[j] == NONE {
+            if agg[j] == NO_NODE {
                 agg[j] = count;
             }
         }
@@ -1100,7 +1087,7 @@ fn group<I: Iterator<Item = (usize, f32)>>(
 /// The members of each of `count` aggregates, CSR, from each node's aggregate.
 fn invert(agg: &[u32], count: usize) -> (Vec<u32>, Vec<u32>) {
     let mut offsets = vec![0u32; count + 1];
-    for &a in agg.iter().filter(|&&a| a != NONE) {
+    for &a in agg.iter().filter(|&&a| a != NO_NODE) {
         offsets[a as usize + 1] += 1;
     }
     for a in 0..count {
@@ -1108,7 +1095,7 @@ fn invert(agg: &[u32], count: usize) -> (Vec<u32>, Vec<u32>) {
     }
     let mut fill = offsets.clone();
     let mut members = vec![0u32; offsets[count] as usize];
-    for (i, &a) in agg.iter().enumerate().filter(|(_, a)| **a != NONE) {
+    for (i, &a) in agg.iter().enumerate().filter(|(_, a)| **a != NO_NODE) {
         members[fill[a as usize] as usize] = i as u32;
         fill[a as usize] += 1;
     }
@@ -1137,7 +1124,7 @@ fn coarsen(fine: &mut Level) -> Option<Level> {
     }
     let mut next = Level { mass: vec![0.0; count], k_diag: vec![Mat3A::ZERO; count], ..Default::default() };
     let (member_offsets, members) = invert(&parent, count);
-    let mut slot = vec![NONE; level.cols.len()];
+    let mut slot = vec![NO_NODE; level.cols.len()];
     next.offsets.push(0);
     for c in 0..count {
         let row_start = next.cols.len();
@@ -1193,7 +1180,7 @@ fn galerkin(fine: &Level, coarse: &mut Level) {
                 *diag += fine.k_diag[a];
                 for k in fine.offsets[a] as usize..fine.offsets[a + 1] as usize {
                     match fine.slot[k] {
-                        NONE => *diag += fine.k_off[k],
+                        NO_NODE => *diag += fine.k_off[k],
                         at => row[at as usize - row_start] += fine.k_off[k],
                     }
                 }
@@ -1257,8 +1244,8 @@ mod tests {
         let groups = &mg.groups;
         let count = groups.len();
         for (i, (&a, &f)) in groups.agg.iter().zip(&free).enumerate() {
-            assert_eq!(a == NONE, f == 0.0, "particle {i}");
-            if a != NONE {
+            assert_eq!(a == NO_NODE, f == 0.0, "particle {i}");
+            if a != NO_NODE {
                 assert!(groups.members_of(a as usize).contains(&(i as u32)), "particle {i} not among its aggregate's");
             }
         }
@@ -1266,7 +1253,7 @@ mod tests {
         let springs = topology.spring_count();
         assert_eq!(groups.crossing.len() + groups.inner.len(), springs, "every spring once, crossing or inside");
         let sides: usize =
-            groups.crossing.iter().map(|s| if groups.agg[s.ends[1] as usize] == NONE { 1 } else { 2 }).sum();
+            groups.crossing.iter().map(|s| if groups.agg[s.ends[1] as usize] == NO_NODE { 1 } else { 2 }).sum();
         assert_eq!(groups.crossings.len(), sides);
         assert!(count * 6 < topology.len() && count * 12 > topology.len(), "{count} aggregates of {}", topology.len());
     }

@@ -112,11 +112,11 @@ impl ClothBatch {
             index as u64 * size_of::<GpuBatchCloth>() as u64,
             &bytemuck::bytes_of(&slot.constants)[..GpuBatchCloth::HOST_BYTES as usize],
         );
-        if let Some(state) = slot.pending_state.take() {
+        if core::mem::take(&mut slot.pending) {
             queue.write_buffer(
                 &b.base,
                 u64::from(particle_start) * size_of::<GpuParticle>() as u64,
-                bytemuck::cast_slice(&state),
+                bytemuck::cast_slice(&slot.added),
             );
             // A new cloth has no BDF2 history.
             queue.write_buffer(
@@ -157,7 +157,7 @@ impl ClothBatch {
         for index in 0..self.slots.len() {
             let Some(slot) = self.slots[index].as_ref() else { continue };
             let (len, ends, surface) = (slot.topology.len() as u32, slot.ends_len(), slot.surface_len());
-            if slot.pending_state.is_none() {
+            if !slot.pending {
                 // The state, block descent's acceleration estimates and BDF2's history (kept in
                 // the substep start's and the inertial target's buffers between substeps).
                 for (from, to) in [

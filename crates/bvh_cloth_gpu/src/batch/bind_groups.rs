@@ -300,20 +300,8 @@ impl ClothBatch {
             let hierarchy = slot.multigrid();
             key.push((index as u32, slot.particle_start, Arc::as_ptr(&hierarchy) as usize, slot.stiff));
         }
-        let failed = self.multigrid.as_ref().is_some_and(|stage| stage.key == key && stage.plan.is_none());
-        if failed {
-            // The cloths keep stepping as block descent until the set changes.
-            for (index, slot) in self.slots.iter_mut().enumerate() {
-                let Some(slot) = slot.as_mut().filter(|s| s.constants.integrator == INTEGRATOR_MULTIGRID) else {
-                    continue;
-                };
-                slot.constants.integrator = INTEGRATOR_BLOCK_DESCENT;
-                queue.write_buffer(
-                    &self.buffers.cloth_constants,
-                    index as u64 * size_of::<GpuBatchCloth>() as u64,
-                    &bytemuck::bytes_of(&slot.constants)[..GpuBatchCloth::HOST_BYTES as usize],
-                );
-            }
+        if self.multigrid.as_ref().is_some_and(|stage| stage.key == key && stage.plan.is_none()) {
+            self.multigrid_as_descent(queue);
             return;
         }
         if key.is_empty() {
@@ -343,13 +331,28 @@ impl ClothBatch {
                 None
             }
         };
-        if plan.is_some() {
+        let failed = plan.is_none();
+        if !failed {
             self.multigrid_error = None;
         }
         self.multigrid = Some(MultigridStage { key, plan });
         self.groups = None;
-        if self.multigrid_error.is_some() {
-            self.prepare_multigrid(device, queue);
+        if failed {
+            self.multigrid_as_descent(queue);
+        }
+    }
+
+    /// Steps the multigrid cloths as block descent with one sweep, their correction's buffers
+    /// not fitting the device, until the set of multigrid cloths changes.
+    fn multigrid_as_descent(&mut self, queue: &Queue) {
+        for (index, slot) in self.slots.iter_mut().enumerate() {
+            let Some(slot) = slot.as_mut().filter(|s| s.constants.integrator == INTEGRATOR_MULTIGRID) else { continue };
+            slot.constants.integrator = INTEGRATOR_BLOCK_DESCENT;
+            queue.write_buffer(
+                &self.buffers.cloth_constants,
+                index as u64 * size_of::<GpuBatchCloth>() as u64,
+                &bytemuck::bytes_of(&slot.constants)[..GpuBatchCloth::HOST_BYTES as usize],
+            );
         }
     }
 

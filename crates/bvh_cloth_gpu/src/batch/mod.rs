@@ -49,8 +49,10 @@ struct Slot {
     pins: Vec<u32>,
     /// This frame's anchor targets per tick, particle indices relative to the cloth.
     targets: Vec<Vec<(u32, Vec3)>>,
-    /// The cloth's state, waiting for the next rebuild or first upload.
-    pending_state: Option<Vec<GpuParticle>>,
+    /// The state the cloth was added with ([`gpu_particles`]): uploaded at its first placing
+    /// (while `pending` says so), and where a multigrid cloth's hierarchy is grouped from.
+    added: Arc<[GpuParticle]>,
+    pending: bool,
     /// Where `normal_shader` writes the cloth this frame: the layout, and the vertex buffer.
     writeback: Option<(GpuMeshWriteback, Buffer)>,
     /// The substeps its own parameters ask for, and the tick they were given for: a cloth with
@@ -65,9 +67,6 @@ struct Slot {
     free_body: bool,
     /// Each particle's nearest pin and rest distance ([`ClothSim::tethers`]).
     tethers: Arc<TetherSet>,
-    /// The positions, velocities and collider flags it was added with: a multigrid cloth's
-    /// hierarchy is grouped by its springs after a first substep from there.
-    added: Arc<(Vec<Vec3A>, Vec<Vec3A>, Vec<f32>)>,
     /// The multigrid correction's hierarchy for the current pins, once a multigrid cloth needs it.
     multigrid: Option<Arc<MultigridCorrection>>,
     /// Whether its springs are too stiff for BDF2 at its substep length (multigrid only).
@@ -100,8 +99,10 @@ impl Slot {
             for &p in pins.iter() {
                 free[p as usize] = 0.0;
             }
-            let (x, v, held) = &**added;
-            Arc::new(MultigridCorrection::for_first_substep(topology, model, &free, held, constants.h, x, v))
+            let x: Vec<Vec3A> = added.iter().map(|p| Vec3A::from_slice(&p.position[..3])).collect();
+            let v: Vec<Vec3A> = added.iter().map(|p| Vec3A::from_slice(&p.velocity[..3])).collect();
+            let held: Vec<f32> = added.iter().map(|p| p.velocity[3]).collect();
+            Arc::new(MultigridCorrection::for_first_substep(topology, model, &free, &held, constants.h, &x, &v))
         }))
     }
 }
@@ -262,7 +263,8 @@ impl ClothBatch {
             constants: GpuBatchCloth::default(),
             pins: sim.pins().to_vec(),
             targets: Vec::new(),
-            pending_state: Some(gpu_particles(sim)),
+            added: gpu_particles(sim).into(),
+            pending: true,
             writeback: None,
             own_substeps: 0,
             tick_seconds: 0.0,
@@ -271,11 +273,6 @@ impl ClothBatch {
             wind: *sim.wind(),
             free_body: sim.is_free_body(),
             tethers: Arc::clone(sim.tethers()),
-            added: Arc::new((
-                (0..sim.len()).map(|i| Vec3A::from(sim.position(i))).collect(),
-                (0..sim.len()).map(|i| Vec3A::from(sim.velocity(i))).collect(),
-                (0..sim.len()).map(|i| f32::from(u8::from(sim.touched(i)))).collect(),
-            )),
             multigrid: None,
             stiff: false,
             model: ForceModel::new(sim.params()),

@@ -156,23 +156,6 @@ impl EntryPoint {
     /// cloths take their kick in `vbd_predict_air`.
     pub const AIR: [Self; 3] = [Self::AirSample, Self::AirForces, Self::AirKick];
 
-    /// The multigrid correction's entry points.
-    pub const MULTIGRID: [Self; 13] = [
-        Self::MgBegin,
-        Self::MgSprings,
-        Self::MgResidual,
-        Self::MgGalerkin,
-        Self::MgFactor,
-        Self::MgDenseFactor,
-        Self::MgSmoothDown,
-        Self::MgRestrict,
-        Self::MgCoarsest,
-        Self::MgSmoothUp,
-        Self::MgLineChunks,
-        Self::MgLineSearch,
-        Self::MgApply,
-    ];
-
     /// The entry point's name in the WGSL.
     pub const fn name(self) -> &'static str {
         match self {

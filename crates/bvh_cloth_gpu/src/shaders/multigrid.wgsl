@@ -74,6 +74,15 @@ struct MultigridPass {
 @group(0) @binding(51) var<storage, read_write> mg_cloths: array<MultigridCloth>;
 @group(0) @binding(52) var<uniform> mg_pass: MultigridPass;
 
+// The node (or spring) this thread of a pass takes, or NO_NODE past the pass's count.
+fn pass_item(id: vec3<u32>) -> u32 {
+    let t = thread_index(id, mg_pass.width);
+    if (t >= mg_pass.count) {
+        return NO_NODE;
+    }
+    return mg_pass.start + t;
+}
+
 // A node's words (bvh_cloth_gpu::layout::MULTIGRID_NODE_WORDS).
 struct NodeInfo {
     row_start: u32,
@@ -232,11 +241,10 @@ fn mg_begin(@builtin(global_invocation_id) id: vec3<u32>) {
 
 @compute @workgroup_size(8, 8, 1)
 fn mg_springs(@builtin(global_invocation_id) id: vec3<u32>) {
-    let t = thread_index(id, mg_pass.width);
-    if (t >= mg_pass.count) {
+    let index = pass_item(id);
+    if (index == NO_NODE) {
         return;
     }
-    let index = mg_pass.start + t;
     let s = spring(index);
     let c = particle_info[s.i].w;
     let h2 = mg_cloths[c].h2;
@@ -264,11 +272,10 @@ fn share_ends(s: Spring, side: u32) -> vec2<u32> {
 
 @compute @workgroup_size(8, 8, 1)
 fn mg_residual(@builtin(global_invocation_id) id: vec3<u32>) {
-    let t = thread_index(id, mg_pass.width);
-    if (t >= mg_pass.count) {
+    let a = pass_item(id);
+    if (a == NO_NODE) {
         return;
     }
-    let a = mg_pass.start + t;
     let node = node_info(a);
     let c = node.cloth;
     let damp = mg_cloths[c].damp;
@@ -353,11 +360,10 @@ fn mg_residual(@builtin(global_invocation_id) id: vec3<u32>) {
 
 @compute @workgroup_size(8, 8, 1)
 fn mg_galerkin(@builtin(global_invocation_id) id: vec3<u32>) {
-    let t = thread_index(id, mg_pass.width);
-    if (t >= mg_pass.count) {
+    let a = pass_item(id);
+    if (a == NO_NODE) {
         return;
     }
-    let a = mg_pass.start + t;
     let node = node_info(a);
     if (mg_cloths[node.cloth].assemble == 0u) {
         return;
@@ -401,11 +407,10 @@ fn diagonal_block(a: u32, damp: f32, h2: f32) -> array<vec4<f32>, 2> {
 
 @compute @workgroup_size(8, 8, 1)
 fn mg_factor(@builtin(global_invocation_id) id: vec3<u32>) {
-    let t = thread_index(id, mg_pass.width);
-    if (t >= mg_pass.count) {
+    let a = pass_item(id);
+    if (a == NO_NODE) {
         return;
     }
-    let a = mg_pass.start + t;
     let c = node_info(a).cloth;
     if (mg_cloths[c].refactor == 0u) {
         return;
@@ -541,11 +546,10 @@ fn coarsest(node: NodeInfo) -> bool {
 
 @compute @workgroup_size(8, 8, 1)
 fn mg_smooth_down(@builtin(global_invocation_id) id: vec3<u32>) {
-    let t = thread_index(id, mg_pass.width);
-    if (t >= mg_pass.count) {
+    let a = pass_item(id);
+    if (a == NO_NODE) {
         return;
     }
-    let a = mg_pass.start + t;
     if (coarsest(node_info(a))) {
         return;
     }
@@ -570,11 +574,10 @@ fn off_product(node: NodeInfo, h2: f32, entry: u32, up: bool) -> vec3<f32> {
 
 @compute @workgroup_size(8, 8, 1)
 fn mg_restrict(@builtin(global_invocation_id) id: vec3<u32>) {
-    let t = thread_index(id, mg_pass.width);
-    if (t >= mg_pass.count) {
+    let a = pass_item(id);
+    if (a == NO_NODE) {
         return;
     }
-    let a = mg_pass.start + t;
     let node = node_info(a);
     let c = node.cloth;
     let damp = mg_cloths[c].damp;
@@ -677,11 +680,10 @@ fn mg_coarsest(@builtin(workgroup_id) group: vec3<u32>, @builtin(local_invocatio
 
 @compute @workgroup_size(8, 8, 1)
 fn mg_smooth_up(@builtin(global_invocation_id) id: vec3<u32>) {
-    let t = thread_index(id, mg_pass.width);
-    if (t >= mg_pass.count) {
+    let a = pass_item(id);
+    if (a == NO_NODE) {
         return;
     }
-    let a = mg_pass.start + t;
     let node = node_info(a);
     if (coarsest(node)) {
         return;
