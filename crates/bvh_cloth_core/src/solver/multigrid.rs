@@ -27,8 +27,9 @@
 //! - A spring inside an aggregate moves its two ends together under `P`, so it adds nothing to
 //!   `Pᵀ H P`, and its two forces cancel in `Pᵀ r`: only the springs that cross aggregates enter
 //!   the residual and the assembly, each once (12,474 of the 23,938 springs of a 64 x 64 grid,
-//!   202,810 of 390,658 at 256 x 256; 484 and 7,396 aggregates). Their forces are found eight
-//!   springs at a time in SIMD lanes, as the sweep's are.
+//!   202,810 of 390,658 at 256 x 256; 484 and 7,396 aggregates). One pass over them finds
+//!   their forces, directions and stretches, which the residual, the assembly (when due) and
+//!   the line search all read.
 //! - The coarse matrices are assembled every 12 substeps (`REASSEMBLE_EVERY`) and kept in between.
 //!   The residual is exact in every substep, and the line search measures the step with this
 //!   substep's Hessian (each crossing spring's direction and stretch, kept from the residual's
@@ -227,6 +228,28 @@ impl Level {
         Mat3A::from_diagonal(glam::Vec3::splat(damp * self.mass[a])) + h2 * self.k_diag[a]
     }
 
+    /// `eᵀ A e` for the level's `e`, summed in chunks of fixed length.
+    fn quadratic_form(&self, damp: f32, h2: f32) -> f64 {
+        let e = &self.e;
+        let partial: Vec<f64> = (0..e.len())
+            .into_par_iter()
+            .step_by(MIN_TASK)
+            .map(|from| {
+                (from..(from + MIN_TASK).min(e.len()))
+                    .map(|a| f64::from((self.diag_block(a, damp, h2) * e[a] + self.off_product(a, e, h2)).dot(e[a])))
+                    .sum()
+            })
+            .collect();
+        partial.into_iter().sum()
+    }
+
+    /// [`Self::smooth`] from `e = 0`: `e ← ω D⁻¹ b`, with no off-diagonal product to form.
+    fn smooth_from_zero(&mut self) {
+        let Self { b, e, diag_inv, .. } = self;
+        e.clear();
+        e.extend(b.iter().zip(diag_inv.iter()).map(|(&b, &inv)| JACOBI_WEIGHT * (inv * b)));
+    }
+
     /// One damped block Jacobi step on `A e = b`: every node at once, from the others' `e`
     /// before the step, `e ← (1 - ω) e + ω D⁻¹ (b - (A - D) e)`.
     fn smooth(&mut self, h2: f32) {
@@ -349,6 +372,8 @@ struct Groups {
     /// The springs that cross aggregates (or end at a pinned particle), each once, and each
     /// aggregate's shares of them, CSR.
     crossing: Vec<Spring>,
+    /// The aggregates of each crossing spring's ends ([`NO_NODE`] at a pinned end).
+    crossing_aggs: Vec<[u32; 2]>,
     crossing_offsets: Vec<u32>,
     crossings: Vec<Crossing>,
     /// The springs inside each aggregate, CSR: they count only when a collider holds one end.
@@ -577,6 +602,7 @@ impl Multigrid {
         }
         let damp = 1.0 + model.damping * h;
         let h2 = h * h;
+        self.crossing_forces(h2, start, d);
         if self.age >= REASSEMBLE_EVERY || stiff {
             self.assemble(topology, held, start, d);
         }
@@ -600,12 +626,7 @@ impl Multigrid {
         // than `STALE_CURVATURE` of it, the cloth has changed under them (a cloth snapping taut), and
         // they are assembled again in the next substep.
         let level = &self.levels[0];
-        let kept: f64 = (0..level.len())
-            .map(|a| {
-                let e = level.e[a];
-                f64::from((level.diag_block(a, damp, h2) * e + level.off_product(a, &level.e, h2)).dot(e))
-            })
-            .sum();
+        let kept: f64 = level.quadratic_form(damp, h2);
         if (kept / curvature - 1.0).abs() > STALE_CURVATURE {
             self.age = REASSEMBLE_EVERY;
         }
@@ -635,6 +656,7 @@ impl Multigrid {
     ) {
         self.aggregate(topology, model, free);
         if self.groups.len() > 0 {
+            self.crossing_forces(0.0, start, d);
             self.assemble(topology, held, start, d);
         }
     }
@@ -726,26 +748,49 @@ impl Multigrid {
             k_off: vec![Mat3A::ZERO; blocks],
             ..Default::default()
         });
-        self.groups =
-            Groups { agg, member_offsets, members, crossing, crossing_offsets, crossings, inner_offsets, inner };
+        let crossing_aggs = crossing.iter().map(|s| s.ends.map(|e| agg[e as usize])).collect();
+        self.groups = Groups {
+            agg,
+            member_offsets,
+            members,
+            crossing,
+            crossing_aggs,
+            crossing_offsets,
+            crossings,
+            inner_offsets,
+            inner,
+        };
         self.age = u32::MAX;
     }
 
-    /// Assembles level 1 from the springs that cross aggregates, at the displacements `d`
-    /// (and from those inside an aggregate whose one end a collider holds), then every coarser
-    /// level from the one above it.
+    /// The crossing springs' forces and axes at `start + d` (see [`spring_forces`]), for a
+    /// substep of squared length `h2`.
+    fn crossing_forces(&mut self, h2: f32, start: &[Vec3A], d: &[Vec3A]) {
+        let crossing = &self.groups.crossing;
+        self.forces.resize(crossing.len(), Vec3A::ZERO);
+        self.axes.resize(crossing.len(), glam::Vec4::ZERO);
+        self.forces
+            .par_chunks_mut(CHUNK)
+            .zip(self.axes.par_chunks_mut(CHUNK))
+            .zip(crossing.par_chunks(CHUNK))
+            .for_each(|((forces, axes), springs)| spring_forces(springs, h2, start, d, forces, axes));
+    }
+
+    /// Assembles level 1 from the springs that cross aggregates, at the displacements `d` whose
+    /// axes [`Self::crossing_forces`] found (and from those inside an aggregate whose one end a
+    /// collider holds), then every coarser level from the one above it.
     fn assemble(&mut self, topology: &ClothTopology, held: &[f32], start: &[Vec3A], d: &[Vec3A]) {
         let share = topology.mass_share();
         let hessian = |s: &Spring| {
             let [i, j] = s.ends.map(|e| e as usize);
-            spring_hessian(s.stiffness, s.rest, (start[j] - start[i]) + (d[j] - d[i]))
+            axis_hessian(s.stiffness, spring_axis(s.rest, (start[j] - start[i]) + (d[j] - d[i])))
         };
         self.hessians.resize(self.groups.crossing.len(), Mat3A::ZERO);
         self.hessians
             .par_iter_mut()
-            .zip(self.groups.crossing.par_iter())
+            .zip(self.groups.crossing.par_iter().zip(self.axes.par_iter()))
             .with_min_len(4096)
-            .for_each(|(h, s)| *h = hessian(s));
+            .for_each(|(h, (s, &axis))| *h = axis_hessian(s.stiffness, axis));
         let Self { groups, hessians, levels, .. } = self;
         let level = &mut levels[0];
         let mut rows = split_rows(&mut level.k_off, &level.offsets);
@@ -839,15 +884,7 @@ impl Multigrid {
             let stretch = 1.0 - s.rest / delta.length().max(1.0e-6 * s.rest);
             (s.stiffness * h2 * stretch) * delta
         };
-        let crossing = &self.groups.crossing;
-        self.forces.resize(crossing.len(), Vec3A::ZERO);
-        self.axes.resize(crossing.len(), glam::Vec4::ZERO);
-        self.forces
-            .par_chunks_mut(LANES)
-            .zip(self.axes.par_chunks_mut(LANES))
-            .zip(crossing.par_chunks(LANES))
-            .with_min_len(CHUNK / LANES)
-            .for_each(|((forces, axes), springs)| spring_lanes(springs, h2, start, d, forces, axes));
+        let some_held = held.iter().any(|&h| h != 0.0);
         let Self { groups, forces, residual, mass_now, any_held, .. } = self;
         let count = groups.len();
         residual.resize(count, Vec3A::ZERO);
@@ -864,7 +901,7 @@ impl Multigrid {
                 let (mut sum, mut any_held) = (Vec3A::ZERO, false);
                 for &i in groups.members_of(a) {
                     let i = i as usize;
-                    if held[i] == 0.0 {
+                    if !some_held || held[i] == 0.0 {
                         sum += share[i] * (target[i] - damp * d[i]);
                         mass += share[i];
                     } else {
@@ -873,7 +910,7 @@ impl Multigrid {
                 }
                 for c in groups.crossings_of(a) {
                     let [own, _] = c.ends;
-                    if held[own as usize] == 0.0 {
+                    if !some_held || held[own as usize] == 0.0 {
                         let f = forces[c.spring as usize];
                         sum += if c.side == 0 { f } else { -f };
                     }
@@ -897,24 +934,32 @@ impl Multigrid {
     /// directions and stretches the residual's pass kept.
     fn curvature(&self, held: &[f32], damp: f32, h2: f32, start: &[Vec3A], d: &[Vec3A]) -> f64 {
         let e = &self.levels[0].e;
-        let agg = &self.groups.agg;
-        let moved = |i: u32| {
-            let a = agg[i as usize];
-            if a == NO_NODE || held[i as usize] != 0.0 { Vec3A::ZERO } else { e[a as usize] }
+        let some_held = self.any_held.contains(&true);
+        // A particle's correction: its aggregate's `e`, none at a pinned or held particle.
+        let moved = |a: u32, i: u32| {
+            if a == NO_NODE || (some_held && held[i as usize] != 0.0) { Vec3A::ZERO } else { e[a as usize] }
         };
-        let spring_term = |s: &Spring, axis: glam::Vec4| {
+        let spring_term = |s: &Spring, aggs: [u32; 2], axis: glam::Vec4| {
             let [i, j] = s.ends;
-            let de = moved(j) - moved(i);
+            let de = moved(aggs[1], j) - moved(aggs[0], i);
             let (u, stretch) = (Vec3A::from(axis.truncate()), axis.w);
             let along = u.dot(de);
             s.stiffness * h2 * (stretch * de.length_squared() + (1.0 - stretch) * along * along)
         };
-        let partial: Vec<f64> = self
-            .groups
+        let groups = &self.groups;
+        let partial: Vec<f64> = groups
             .crossing
             .par_chunks(CHUNK)
+            .zip(groups.crossing_aggs.par_chunks(CHUNK))
             .zip(self.axes.par_chunks(CHUNK))
-            .map(|(springs, axes)| springs.iter().zip(axes).map(|(s, &axis)| f64::from(spring_term(s, axis))).sum())
+            .map(|((springs, aggs), axes)| {
+                springs
+                    .iter()
+                    .zip(aggs)
+                    .zip(axes)
+                    .map(|((s, &aggs), &axis)| f64::from(spring_term(s, aggs, axis)))
+                    .sum()
+            })
             .collect();
         let mut sum: f64 = partial.into_iter().sum();
         for (a, (&mass, &any_held)) in self.mass_now.iter().zip(&self.any_held).enumerate() {
@@ -922,7 +967,8 @@ impl Multigrid {
             if any_held {
                 for s in self.groups.inner_of(a) {
                     let [i, j] = s.ends.map(|e| e as usize);
-                    sum += f64::from(spring_term(s, spring_axis(s.rest, (start[j] - start[i]) + (d[j] - d[i]))));
+                    let axis = spring_axis(s.rest, (start[j] - start[i]) + (d[j] - d[i]));
+                    sum += f64::from(spring_term(s, [a as u32; 2], axis));
                 }
             }
         }
@@ -945,12 +991,7 @@ impl Multigrid {
             }
             return;
         }
-        {
-            let level = &mut self.levels[l];
-            level.e.clear();
-            level.e.resize(level.len(), Vec3A::ZERO);
-            level.smooth(h2);
-        }
+        self.levels[l].smooth_from_zero();
         // The restriction of the residual `b - A e`: each coarse node gathers its children's.
         let (upper, lower) = self.levels.split_at_mut(l + 1);
         let (level, next) = (&upper[l], &mut lower[0]);
@@ -972,14 +1013,9 @@ impl Multigrid {
     }
 }
 
-/// Springs [`spring_lanes`] takes at once.
-const LANES: usize = 8;
-
-/// The force on the first end of each of up to [`LANES`] springs, and each one's direction and
-/// clamped stretch, laid out as arrays over the lanes so that the square roots and divisions
-/// run in SIMD lanes (a short chunk fills its spare lanes with a spring of rest length 1 and
-/// no stiffness, and writes only its own).
-fn spring_lanes(
+/// The force on the first end of each spring (the `k h² / M`-scaled force of the sweep's
+/// units), and each one's direction and clamped stretch `s⁺`, at `start + d`.
+fn spring_forces(
     springs: &[Spring],
     h2: f32,
     start: &[Vec3A],
@@ -987,26 +1023,13 @@ fn spring_lanes(
     forces: &mut [Vec3A],
     axes: &mut [glam::Vec4],
 ) {
-    let mut delta = [[0.0f32; LANES]; 3];
-    let mut k = [0.0f32; LANES];
-    let mut rest = [1.0f32; LANES];
-    for (l, s) in springs.iter().enumerate() {
+    for ((s, force), axis) in springs.iter().zip(forces).zip(axes) {
         let [i, j] = s.ends.map(|e| e as usize);
-        let e = (start[j] - start[i]) + (d[j] - d[i]);
-        (delta[0][l], delta[1][l], delta[2][l]) = (e.x, e.y, e.z);
-        (k[l], rest[l]) = (s.stiffness * h2, s.rest);
-    }
-    let mut inv_l = [0.0f32; LANES];
-    let mut stretch = [0.0f32; LANES];
-    for l in 0..LANES {
-        let len = (delta[0][l] * delta[0][l] + delta[1][l] * delta[1][l] + delta[2][l] * delta[2][l]).sqrt();
-        inv_l[l] = 1.0 / len.max(1.0e-6 * rest[l]);
-        stretch[l] = 1.0 - rest[l] * inv_l[l];
-    }
-    for (l, (f, axis)) in forces.iter_mut().zip(axes.iter_mut()).enumerate() {
-        let e = Vec3A::new(delta[0][l], delta[1][l], delta[2][l]);
-        *f = (k[l] * stretch[l]) * e;
-        *axis = (e * inv_l[l]).extend(stretch[l].max(0.0));
+        let delta = (start[j] - start[i]) + (d[j] - d[i]);
+        let inv_l = 1.0 / delta.length().max(1.0e-6 * s.rest);
+        let stretch = 1.0 - s.rest * inv_l;
+        *force = (s.stiffness * h2 * stretch) * delta;
+        *axis = (delta * inv_l).extend(stretch.max(0.0));
     }
 }
 
@@ -1029,14 +1052,11 @@ fn split_rows<'a>(mut blocks: &'a mut [Mat3A], offsets: &[u32]) -> Vec<&'a mut [
     rows
 }
 
-/// A spring's Hessian with its compressive part clamped, `k (s⁺ I + (1 - s⁺) u uᵀ)`, for the
-/// vector `delta` between its ends, `s = 1 - rest / |delta|` and `u` the unit direction.
+/// A spring's Hessian with its compressive part clamped, `k (s⁺ I + (1 - s⁺) u uᵀ)`, from its
+/// unit direction `u` and clamped stretch `s⁺` (`axis`, as [`spring_axis`] gives them).
 #[inline]
-fn spring_hessian(k: f32, rest: f32, delta: Vec3A) -> Mat3A {
-    let len = delta.length();
-    let inv_l = 1.0 / len.max(1.0e-6 * rest);
-    let s = (1.0 - rest * inv_l).max(0.0);
-    let u = delta * inv_l;
+fn axis_hessian(k: f32, axis: glam::Vec4) -> Mat3A {
+    let (u, s) = (Vec3A::from(axis.truncate()), axis.w);
     let t = k * (1.0 - s);
     Mat3A::from_diagonal(glam::Vec3::splat(k * s)) + Mat3A::from_cols(t * u.x * u, t * u.y * u, t * u.z * u)
 }
