@@ -52,10 +52,7 @@ fn setup(mut commands: Commands, mut meshes: ResMut<Assets<Mesh>>, mut materials
                 damping: 0.3,
                 spring_k: 400.0,
                 mass: 0.3,
-                looper: 24,
-                // Flutter is fast motion: four sweeps a substep let block descent follow it
-                // where one would damp it to a tremble.
-                integrator: Integrator::BlockDescent { iterations: 4 },
+                // The default integrator (multigrid) follows the flutter at RK4's pace.
                 aerodynamics: Aerodynamics::FABRIC,
                 ..default()
             },

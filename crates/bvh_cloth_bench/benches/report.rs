@@ -25,8 +25,8 @@
 //!     both backends, GPU against CPU in gusty wind, and what drag and lift cost.
 //! 13. Motion ([`motion`]): each solver setting's free fall and drift against the analytic
 //!     answer, a hanging cloth's sag and strain in motion against RK4 from 32 x 32 to 256 x 256,
-//!     and the flag's flutter; and what the tethers and the multigrid integrator cost a tick
-//!     (`motion_cost`).
+//!     and the flag's flutter; and what the tethers cost block descent a tick, and the default
+//!     (the multigrid integrator) against block descent (`motion_cost`).
 //! 14. Several cloths on the CPU ([`cpu_cloths`]): stepped one after another against side by
 //!     side.
 //!

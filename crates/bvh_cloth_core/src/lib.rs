@@ -1,7 +1,8 @@
 //! # bvh_cloth_core
 //!
-//! The engine-agnostic core of `bevy_bvh_cloth`: a mass-spring cloth integrated with vertex
-//! block descent or fourth-order Runge–Kutta, colliding with rigid meshes that are voxelised into spheres and
+//! The engine-agnostic core of `bevy_bvh_cloth`: a mass-spring cloth integrated by BDF2 steps
+//! solved with vertex block descent and a multigrid correction (the default), by block descent
+//! alone or by fourth-order Runge–Kutta, colliding with rigid meshes that are voxelised into spheres and
 //! arranged in a Morton-code LBVH. It follows Mei, Fan, Zhang and Liu, "A Collision Detection and
 //! Cloth Simulation Method Based on Parallel BVH"; the section each module implements is named in
 //! its documentation.

@@ -97,7 +97,12 @@ pub(crate) fn self_contact_events(bunny: &ObjMesh) {
     };
     for speed in [7.0f32, 15.0] {
         // One substep a tick of 1/960 s: the substeps of Looper 16 at 60 Hz, checked between.
-        let params = ClothParams { self_contact: Some(SELF_CONTACT), looper: 1, ..Default::default() };
+        let params = ClothParams {
+            self_contact: Some(SELF_CONTACT),
+            looper: 1,
+            integrator: Integrator::BLOCK_DESCENT,
+            ..Default::default()
+        };
         let pose = Affine3A::from_translation(Vec3::new(0.12, top + 0.1, 0.0));
         let mut sim = ClothSim::new(params, Arc::clone(&topology), pose, &[]).expect("a valid cloth");
         for i in 0..sim.len() {

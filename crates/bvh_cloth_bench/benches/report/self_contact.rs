@@ -30,7 +30,11 @@ pub(crate) fn self_contact(bunny: &ObjMesh, single: &rayon::ThreadPool, threads:
         .with_friction(0.5);
     let fold = Arc::new(ClothTopology::grid(ClothGrid::new(Vec2::ONE, UVec2::splat(64))).expect("a valid grid"));
     for on in [true, false] {
-        let params = ClothParams { self_contact: on.then_some(contact), ..Default::default() };
+        let params = ClothParams {
+            self_contact: on.then_some(contact),
+            integrator: Integrator::BLOCK_DESCENT,
+            ..Default::default()
+        };
         // From 0.8 m the two sides whip into each other under the bar; from lower they only
         // swing down.
         let pose = Affine3A::from_translation(Vec3::new(0.12, 0.8, 0.0));
@@ -54,7 +58,11 @@ pub(crate) fn self_contact(bunny: &ObjMesh, single: &rayon::ThreadPool, threads:
     let two = Arc::new(ClothTopology::grid(square_grid(64)).expect("a valid grid"));
     let top = bvh_cloth_bench::top_of(&surface);
     for on in [true, false] {
-        let params = ClothParams { self_contact: on.then_some(contact), ..Default::default() };
+        let params = ClothParams {
+            self_contact: on.then_some(contact),
+            integrator: Integrator::BLOCK_DESCENT,
+            ..Default::default()
+        };
         let place = |lift: f32, turn: f32| {
             Affine3A::from_rotation_translation(Quat::from_rotation_y(turn), Vec3::new(-0.1, top + lift, 0.0))
         };
@@ -114,7 +122,11 @@ fn started_crossed(surface: &Collider) {
     let top = bvh_cloth_bench::top_of(surface);
     let grid = Arc::new(ClothTopology::grid(ClothGrid::new(Vec2::ONE, UVec2::splat(32))).expect("a valid grid"));
     for on in [true, false] {
-        let params = ClothParams { self_contact: on.then_some(SELF_CONTACT), ..Default::default() };
+        let params = ClothParams {
+            self_contact: on.then_some(SELF_CONTACT),
+            integrator: Integrator::BLOCK_DESCENT,
+            ..Default::default()
+        };
         let middle = Vec3::new(-0.1, top + 0.2, 0.0);
         let flat = Affine3A::from_translation(middle);
         let turned = Affine3A::from_rotation_translation(Quat::from_rotation_z(10f32.to_radians()), middle);
@@ -150,7 +162,8 @@ pub(crate) fn resting_with_self_contact(bunny: &ObjMesh) -> (Collider, ClothSim)
     let surface = collider(bunny, 5).with_exact_contact(bunny.as_mesh_ref()).expect("the bunny has area");
     let top = bvh_cloth_bench::top_of(&surface);
     let big = Arc::new(ClothTopology::grid(square_grid(128)).expect("a valid grid"));
-    let params = ClothParams { self_contact: Some(SELF_CONTACT), ..Default::default() };
+    let params =
+        ClothParams { self_contact: Some(SELF_CONTACT), integrator: Integrator::BLOCK_DESCENT, ..Default::default() };
     let mut with = ClothSim::new(params, big, Affine3A::from_translation(Vec3::new(-0.1, top + 0.2, 0.0)), &[])
         .expect("a valid cloth");
     for _ in 0..(1.0 / TICK).round() as u32 {

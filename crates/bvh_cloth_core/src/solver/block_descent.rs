@@ -104,7 +104,9 @@
 //! its pins reaches them late, and the cloth stretches far more than RK4's would, the more the
 //! finer. A held cloth's tethers ([`crate::cloth::tethers`], on by default) carry that load to the pins
 //! in every substep; the figures with and without them are in that module's docs. A cloth that
-//! nothing holds has no tethers, and there the stretch of a fine cloth in motion remains.
+//! nothing holds has no tethers, and there the stretch of a fine cloth in motion remains. The
+//! default integrator adds a multigrid correction to the sweep ([`crate::solver::multigrid`]),
+//! which carries the load across the whole cloth in every substep, held or not.
 //! Implicit Euler also damps fast motion more than RK4. Converged (no tethers, and sweeps
 //! beyond the [`MAX_ITERATIONS`](crate::solver::params::MAX_ITERATIONS) a cloth may ask for,
 //! 64 and 256 a substep giving the same sag), the hanging cloth of the core's `motion` tests

@@ -1,7 +1,7 @@
 //! An aggregation multigrid correction for the implicit step's system: what carries a big
 //! cloth's low modes, which one Gauss–Seidel sweep moves by one ring of springs per colour pass,
-//! across the whole cloth in every substep. [`Integrator::Multigrid`] runs it after one
-//! block-descent sweep of a BDF2 step ([`crate::solver::block_descent`]).
+//! across the whole cloth in every substep. [`Integrator::Multigrid`], the default integrator,
+//! runs it after one block-descent sweep of a BDF2 step ([`crate::solver::block_descent`]).
 //!
 //! ## The method
 //! After the sweep, the substep's incremental potential `G` is linearised at the sweep's
@@ -86,11 +86,11 @@
 //! | 256 | 0.487 m | +5 % | +6 % | +284 % |
 //!
 //! A flag in steady 8 m/s wind flutters at RK4's pace and swing (5.25 Hz and 34.4 mm against
-//! 5.08 Hz and 33.5 mm; block descent at the default, 3.08 Hz and 23.5 mm: the core's test
-//! `the_multigrid_integrators_flag_flutters_like_rk4s`).
+//! 5.08 Hz and 33.5 mm; block descent with one sweep, 3.08 Hz and 23.5 mm: the core's test
+//! `the_default_flag_flutters_like_rk4s`).
 //!
 //! Its p99 structural strain stays within 0.94x to 1.09x of RK4's at Looper 16 (1.48x at
-//! 512 x 512, whose sag at 1 s is 7.7 % above RK4's: `a_512_cloth_swings_like_rk4_with_the_multigrid_integrator`).
+//! 512 x 512, whose sag at 1 s is 7.7 % above RK4's: `a_512_cloth_swings_like_rk4_at_the_default`).
 //! At 0.5 s, the bottom of the swing, the sags are within 3.5 % of RK4's; what is left at 1 s,
 //! near the top of the swing, is mostly BDF2's own step error where the cloth snaps taut (see
 //! the alternatives below).

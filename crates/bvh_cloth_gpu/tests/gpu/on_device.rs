@@ -1337,8 +1337,9 @@ fn the_multigrid_integrator_agrees_with_the_cpu() {
     );
 }
 
-/// Tethers on the GPU as on the CPU: a 64 x 64 cloth hanging from two corners at the default
-/// settings (tethers with a slack of 3 %) and the same cloth without tethers fall for 1 s in
+/// Tethers on the GPU as on the CPU: a 64 x 64 cloth hanging from two corners, stepped by block
+/// descent with one sweep and the default tethers (a slack of 3 %), and the same cloth without
+/// tethers fall for 1 s in
 /// one batch, each tick from the CPU's state. Tolerance 2e-5 m per tick, twice block descent's
 /// elsewhere: 16 substeps of a 64 x 64 cloth stretching while it swings carry the f32 rounding
 /// of its 3x3 solves further (measured on lavapipe: 1.0e-5 m with tethers, where a tether takes
@@ -1349,9 +1350,10 @@ fn the_multigrid_integrator_agrees_with_the_cpu() {
 fn tethers_hold_a_hanging_cloth_on_the_gpu_as_on_the_cpu() {
     let Some(rig) = rig() else { return };
     let at = |x: f32| Affine3A::from_translation(Vec3::new(x, 2.0, 0.0));
-    let untethered = ClothParams { tethers: None, ..Default::default() };
+    let tethered = ClothParams { integrator: Integrator::BLOCK_DESCENT, ..Default::default() };
+    let untethered = ClothParams { tethers: None, ..tethered.clone() };
     let mut cloths: Vec<(&str, ClothSim)> = vec![
-        ("tethered", grid_cloth(square(1.0, 64), ClothParams::default(), at(0.0), &[0, 63])),
+        ("tethered", grid_cloth(square(1.0, 64), tethered, at(0.0), &[0, 63])),
         ("untethered", grid_cloth(square(1.0, 64), untethered, at(3.0), &[0, 63])),
     ];
     let (mut batch, ids) = rig.batch(&cloths, 1.0 / 60.0);
@@ -1386,28 +1388,30 @@ fn bunny_cloth(centre: Vec3) -> ClothTopology {
     ClothTopology::from_mesh(MeshRef { positions: &positions, indices: Some(&obj.indices) }).unwrap()
 }
 
-/// The default solver on the GPU, against the analytic answer and the CPU: in one batch, a
-/// 16 x 16 grid hanging from two corners (held, so its drift is not summed), a 30 x 30 grid
-/// turned upright, the bunny as authored cloth and a 3 x 3 grid, which start inside 64-slot
-/// blocks that another cloth leads (the 3 x 3 grid wholly inside one), and a 16 x 16 grid 1 km
-/// out on every axis, fall for 1 s (solving for positions, the last one did not move).
+/// The default solver (the multigrid integrator: BDF2 after the first substep, and the
+/// correction) on the GPU, against the analytic answer and the CPU: in one batch, a 16 x 16
+/// grid hanging from two corners (held, so its drift is not summed), a 30 x 30 grid turned
+/// upright, the bunny as authored cloth and a 3 x 3 grid, which start inside 64-slot blocks
+/// that another cloth leads (the 3 x 3 grid wholly inside one), and a 16 x 16 grid 1 km out on
+/// every axis, fall for 1 s (solving for positions, the last one did not move).
 ///
 /// Every free cloth's centre of mass drops `g/c (t - (1 - e^{-ct})/c)` = 4.180 m within 1 %
 /// and moves less than 1 mm sideways, and the CPU's is within 1 mm of the GPU's (measured on
-/// lavapipe: 3e-5 m at most). The drift sums' per-tick agreement with the CPU, where contact
-/// makes the drift large, is `block_descent_agrees_with_the_cpu_in_a_mixed_batch`'s flag.
+/// lavapipe: 4.1802 m, the CPU within 7e-5 m, 2.4e-4 m 1 km out). The batch is rebuilt as its
+/// cloths are added, so this also checks that BDF2's history comes through a rebuild.
 #[test]
 fn the_default_solver_falls_and_keeps_momentum_on_the_gpu() {
+    assert_eq!(ClothParams::default().integrator, Integrator::Multigrid);
     falls_and_keeps_momentum_on_the_gpu(ClothParams::default());
 }
 
-/// As `the_default_solver_falls_and_keeps_momentum_on_the_gpu`, with the multigrid integrator
-/// (BDF2 after the first substep, and the correction; measured on lavapipe: 4.1802 m, the CPU
-/// within 7e-5 m, 2.4e-4 m 1 km out). The batch is rebuilt as its cloths are added, so this
-/// also checks that BDF2's history comes through a rebuild.
+/// As `the_default_solver_falls_and_keeps_momentum_on_the_gpu`, with block descent's one sweep
+/// (measured on lavapipe: 4.1834 m). The drift sums' per-tick agreement with the CPU, where
+/// contact makes the drift large, is `block_descent_agrees_with_the_cpu_in_a_mixed_batch`'s
+/// flag.
 #[test]
-fn the_multigrid_integrator_falls_and_keeps_momentum_on_the_gpu() {
-    falls_and_keeps_momentum_on_the_gpu(ClothParams { integrator: Integrator::Multigrid, ..Default::default() });
+fn block_descent_falls_and_keeps_momentum_on_the_gpu() {
+    falls_and_keeps_momentum_on_the_gpu(ClothParams { integrator: Integrator::BLOCK_DESCENT, ..Default::default() });
 }
 
 fn falls_and_keeps_momentum_on_the_gpu(params: ClothParams) {
@@ -1546,8 +1550,8 @@ fn primitive_responses_agree_with_the_cpu() {
     assert!(touched > 150, "the scatter must reach the primitives: {touched} touched");
 }
 
-/// A 48 x 48 cloth dropped over the sphere, the capsule and the box onto the ground, block
-/// descent, 240 ticks: the cloths agree in the large (centroid within 2 cm, lowest point within
+/// A 48 x 48 cloth dropped over the sphere, the capsule and the box onto the ground, the
+/// default solver (multigrid), 240 ticks: the cloths agree in the large (centroid within 2 cm, lowest point within
 /// 3 cm), and no GPU particle ends inside a primitive.
 #[test]
 fn a_cloth_dropped_on_primitives_agrees_with_the_cpu() {
@@ -1905,11 +1909,12 @@ fn pins_change_live_on_the_gpu_as_on_the_cpu() {
     let Some(rig) = rig() else { return };
     let at = |x: f32| Affine3A::from_translation(Vec3::new(x, 2.0, 0.0));
     let rk4 = ClothParams { integrator: Integrator::Rk4, ..Default::default() };
+    let descent = ClothParams { integrator: Integrator::BLOCK_DESCENT, ..Default::default() };
     let mut cloths: Vec<(&str, ClothSim)> = vec![
         ("RK4, let go", grid_cloth(square(1.0, 16), rk4, at(0.0), &[0, 15])),
-        ("block descent, let go", grid_cloth(square(1.0, 16), ClothParams::default(), at(2.0), &[0, 15])),
-        ("falling, caught", grid_cloth(square(0.5, 12), ClothParams::default(), at(4.0), &[])),
-        ("left alone", grid_cloth(square(1.0, 16), ClothParams::default(), at(6.0), &[0, 15])),
+        ("block descent, let go", grid_cloth(square(1.0, 16), descent.clone(), at(2.0), &[0, 15])),
+        ("falling, caught", grid_cloth(square(0.5, 12), descent.clone(), at(4.0), &[])),
+        ("left alone", grid_cloth(square(1.0, 16), descent, at(6.0), &[0, 15])),
     ];
     let tick = 1.0 / 60.0;
     let (mut batch, ids) = rig.batch(&cloths, tick);
