@@ -513,8 +513,11 @@ fn the_gpu_backend_lets_a_corner_go_without_a_rebuild() {
 /// In `FixedPostUpdate` (60 Hz steps) the render world runs every tick of every run: two runs
 /// in a 30 fps frame run two ticks in that frame's pass, and a 120 fps frame without a run runs
 /// none. The state read back is the core's after exactly the ticks the cloth has run, and those
-/// are the clock's (1e-4 m, as the test above). Running only the last run's ticks would leave
-/// the cloth half as far fallen; running them again in a frame without a run, twice as far.
+/// are the clock's (1e-3 m, where a tick's error would move the cloth over 0.1 m: in this free
+/// fall the default integrator's kernels and the core part by about 2.5e-5 of the distance
+/// fallen, 1.5e-4 m after 73 ticks on lavapipe, the same whether the ticks run one or three to
+/// a pass; block descent's agree to the bit). Running only the last run's ticks would leave the
+/// cloth half as far fallen; running them again in a frame without a run, twice as far.
 #[test]
 fn the_gpu_backend_runs_every_tick_of_a_fixed_schedule() {
     let Some(mut app) = gpu_backend_app_with(BvhClothPlugins::new(FixedPostUpdate)) else { return };
@@ -551,7 +554,7 @@ fn the_gpu_backend_runs_every_tick_of_a_fixed_schedule() {
         "fixed schedule: {ran} ticks run + {late} late of {ticks} since it spawned; within {gap:e} m of the core's state"
     );
     assert_eq!(ran + late, ticks, "the cloth ran {ran} ticks and is {late} behind {ticks} since it spawned");
-    assert!(gap < 1e-4, "the read-back state is not the core's after {ran} ticks ({gap} m)");
+    assert!(gap < 1e-3, "the read-back state is not the core's after {ran} ticks ({gap} m)");
 }
 
 /// On the GPU backend a skinned collider is refitted on the GPU from its joint matrices: a
