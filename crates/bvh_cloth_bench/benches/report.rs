@@ -26,7 +26,8 @@
 //! 13. Motion ([`motion`]): each solver setting's free fall and drift against the analytic
 //!     answer, a hanging cloth's sag and strain in motion against RK4 from 32 x 32 to 256 x 256,
 //!     and the flag's flutter; and what the tethers cost block descent a tick, and the default
-//!     (the multigrid integrator) against block descent (`motion_cost`).
+//!     (the multigrid integrator) against block descent (`motion_cost`); the default's swing at
+//!     512 x 512 and 1024 x 1024 against a converged reference (`fine_swing`).
 //! 14. Several cloths on the CPU ([`cpu_cloths`]): stepped one after another against side by
 //!     side.
 //!
@@ -36,7 +37,8 @@
 //! `fidelity`, `step_scaling`, `topology`, `gpu_profile`, `many_cloths`, `build_scaling`,
 //! `far_from_origin`, `solver`, `solver_gpu`, `primitives`, `skinned_refit`, `exact_contact`,
 //! `exact_contact_queries`, `exact_contact_build`, `exact_contact_gpu`, `self_contact`,
-//! `self_contact_events`, `self_contact_gpu`, `wind`, `wind_gpu`, `motion`, `motion_cost`, `cpu_cloths`. The
+//! `self_contact_events`, `self_contact_gpu`, `wind`, `wind_gpu`, `motion`, `motion_cost`, `fine_swing`,
+//! `cpu_cloths`. The
 //! GPU halves of the solver, exact-contact, self-contact and wind tables are sections of their
 //! own, so `-- gpu` runs every GPU-only table without their CPU simulations.
 
@@ -205,6 +207,9 @@ fn main() {
     }
     if run("motion_cost") {
         motion::motion_cost();
+    }
+    if run("fine_swing") {
+        motion::fine_swing();
     }
     if run("cpu_cloths") {
         cpu_cloths::cpu_cloths(threads);

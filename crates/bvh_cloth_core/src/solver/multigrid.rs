@@ -95,12 +95,13 @@
 //! near the top of the swing, is mostly BDF2's own step error where the cloth snaps taut (see
 //! the alternatives below).
 //!
-//! Its cost on the 2-core development machine (an Intel Xeon), against block descent at the
-//! default Looper 16 (the report's `motion_cost` section, four runs): 1.54x-1.75x at 64 x 64
-//! and 1.56x-1.68x at 256 x 256 at Looper 16, 1.08x-1.24x and 1.23x-1.41x at Looper 12. Timers
-//! in a scratch build put about 40 % of a 256 x 256 tick at Looper 12 in the correction: the
-//! residual (its largest part), the V-cycle, the line search's curvature and, every twelfth
-//! substep, the assembly.
+//! Its cost on the 2-core development machine (an Intel Xeon), against block descent with one
+//! sweep and its tethers at Looper 16 (the report's `motion_cost` section, two runs on
+//! 2026-11-29): 1.44x-1.68x at 64 x 64 and 1.48x-1.51x at 256 x 256 at Looper 16, 1.13x-1.22x
+//! and 1.12x-1.13x at Looper 12; the machine is noisy, and a ratio is good to about a tenth.
+//! Timers in a scratch build (64 x 64, one thread) put the correction at about 40 % of the
+//! tick: the crossing springs' forces (its largest part), the line search's curvature, the
+//! residual's gather, the V-cycle and, every twelfth substep, the assembly.
 //!
 //! ## Alternatives, measured
 //! With a scratch program on the same hanging cloth (2026-11-28, the 2-core development

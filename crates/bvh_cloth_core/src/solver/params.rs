@@ -36,7 +36,7 @@ pub const MAX_DENSITY: f32 = 10.0;
 /// (the stability guard), and a cloth that would need more than [`MAX_SUBSTEPS_PER_TICK`]
 /// steps past its stability limit; a designer's slider should do neither. RK4 stays for
 /// reproducing the paper and as the reference the other integrators are measured against.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Hash)]
 #[cfg_attr(feature = "bevy_reflect", derive(bevy_reflect::Reflect), reflect(Default, Debug, PartialEq, Hash))]
 pub enum Integrator {
     /// Classic fourth-order Runge–Kutta over the whole system (paper eq. 4): each of the four
@@ -57,16 +57,11 @@ pub enum Integrator {
     /// ([`crate::solver::multigrid`]): a fine cloth's load reaches its pins within the substep,
     /// so it swings and stretches close to RK4's at every resolution (the hanging cloth's sag
     /// at 1 s within -1 % to +8 % of RK4's from 32 x 32 to 512 x 512, BENCHMARKS.md "Motion"),
-    /// and BDF2 damps its motion far less than implicit Euler. Stable at every stiffness, and needs no tethers
-    /// ([`ClothParams::tethers`] is not used). Both backends run it; the GPU's kernels agree
-    /// with the CPU to f32 rounding (`bvh_cloth_gpu`'s tests).
+    /// and BDF2 damps its motion far less than implicit Euler. Stable at every stiffness, and
+    /// needs no tethers ([`ClothParams::tethers`] is not used). Both backends run it; the GPU's
+    /// kernels agree with the CPU within the tolerances `bvh_cloth_gpu`'s tests state.
+    #[default]
     Multigrid,
-}
-
-impl Default for Integrator {
-    fn default() -> Self {
-        Self::Multigrid
-    }
 }
 
 impl Integrator {
