@@ -24,9 +24,11 @@ const TICKS: u64 = 120;
 /// The ball's radius, at the origin; the collider's margin.
 const RADIUS: f32 = 0.3;
 const MARGIN: f32 = 0.01;
-/// How far the free cloth may be from the core's stepper after the same ticks: the GPU's f32
-/// arithmetic in another order (the native render test holds the same fall to 1e-4 m).
-const FALL_TOLERANCE: f32 = 1e-4;
+/// How far the free cloth may be from the core's stepper after the same ticks, where a tick's
+/// error would be over 0.1 m: the default integrator's kernels and the core part by a few
+/// 1e-5 of a free fall (4.2e-4 m after 113 ticks in Chromium's SwiftShader, 1.5e-4 m after 73
+/// on lavapipe; the native render test holds its fall to the same 1e-3 m).
+const FALL_TOLERANCE: f32 = 1e-3;
 
 fn main() {
     let plugins = DefaultPlugins.set(WindowPlugin {
