@@ -118,7 +118,7 @@ fn a_512_cloth_swings_like_rk4_at_the_default() {
 
 /// A 128 x 128 cloth of 1.4 m dropped 0.2 m onto the bundled bunny (n = 5): at 1 s, with the
 /// cloth on the bunny, its p99 structural strain is at most 1.5x RK4's at the default
-/// (measured: 3.6 % against 2.7 %, 1.34x), and with block descent's one sweep too (3.4 %,
+/// (measured: 3.4 % against 2.7 %, 1.27x), and with block descent's one sweep too (3.4 %,
 /// 1.25x; at 0.5 s, landing, 6.7 % against 4.8 %).
 #[test]
 fn a_free_cloth_landing_on_the_bunny_stretches_at_most_half_again_rk4s() {
