@@ -27,7 +27,7 @@
 //!     answer, a hanging cloth's sag and strain in motion against RK4 from 32 x 32 to 256 x 256,
 //!     and the flag's flutter; and what the tethers cost block descent a tick, and the default
 //!     (the multigrid integrator) against block descent (`motion_cost`); the default's swing at
-//!     512 x 512 and 1024 x 1024 against a converged reference (`fine_swing`).
+//!     512 x 512 and 1024 x 1024 against RK4 at the same resolution (`fine_swing`).
 //! 14. Several cloths on the CPU ([`cpu_cloths`]): stepped one after another against side by
 //!     side.
 //!

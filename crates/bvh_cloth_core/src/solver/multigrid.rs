@@ -95,6 +95,12 @@
 //! near the top of the swing, is mostly BDF2's own step error where the cloth snaps taut (see
 //! the alternatives below).
 //!
+//! At 1024 x 1024 it is not converged: at 1 s its sag is 13 % above RK4's and its p99 strain
+//! 2.7x RK4's (the report's `fine_swing`); at 0.5 s and 0.75 s it is within 2 % and 3 % of
+//! RK4's sag, with 0.95x and 1.15x its strain (a scratch program, 2026-11-29). Already at
+//! 512 x 512 its most stretched springs lie across the cloth, up to 15 % stretched 128 to 512
+//! springs from the pins, where RK4's past 4.3 % all lie within 128 springs of them.
+//!
 //! Its cost on the 2-core development machine (an Intel Xeon), against block descent with one
 //! sweep and its tethers at Looper 16 (the report's `motion_cost` section, two runs on
 //! 2026-11-29): 1.44x-1.68x at 64 x 64 and 1.48x-1.51x at 256 x 256 at Looper 16, 1.13x-1.22x
@@ -130,6 +136,21 @@
 //!   self-contact, 4 pairs of triangles crossing at the end of the bar's at 15 m/s (none with
 //!   Jacobi). A Gauss–Seidel sweep visits the nodes in order: one thread on the CPU, and a
 //!   colouring of every level on a GPU.
+//! - **The finest cloths** (2026-11-29, RK4 at the same resolution as the reference). One more
+//!   sweep after the correction (sweep, correct, sweep: about 50 % more wall time a tick) took
+//!   512 x 512 at 1 s from +7.7 % and 1.48x RK4's strain to +2.0 % and 1.06x, but 256 x 256
+//!   from +5.1 % and 1.03x to +7.6 % and 1.24x, and left 1024 x 1024 at +11.5 % and 2.7x. The
+//!   correction before the sweep (predict, correct, sweep: the same cost) left 512 x 512 at
+//!   +12 % and 3.7x. A W-cycle (every coarse level solved twice a visit) took 512 x 512 to
+//!   -0.4 % and 1.49x, and with the second sweep 512 x 512 to -0.6 % and 1.23x and
+//!   1024 x 1024 to -1.0 % and 2.7x: it mends the sag, not the strain. Implicit Euler in
+//!   every substep, in place of BDF2, brought 1024 x 1024's strain to 1.46x RK4's, its most
+//!   stretched springs near the pins as RK4's, but its sag to +24 %: with BDF2 a stretch that the inexact solve leaves rings on through BDF2's two-step
+//!   history (its stiffness `(2h/3)² k_max / m_min` is 354 there, under the limit of 400 where
+//!   a substep turns to implicit Euler), which implicit Euler damps, and the swing with it.
+//!   Two more Jacobi steps on level 1 after the cycle left 512 x 512 at +8.8 % and 1.52x. A
+//!   solve that converges further on the finest cloths (a smoothed prolongation, or a step
+//!   between BDF2 and implicit Euler where the springs are that stiff) is open.
 //! - **Coarse levels grouped by the springs at rest**, at the substep's start rather than after
 //!   its sweep (so that a host could build them from the cloth's shape alone), in the core's
 //!   `motion` tests (2026-11-29): 32 x 32 to 128 x 128 at 1 s -1.0 / +3.0 / +11.7 % off RK4's
