@@ -149,8 +149,15 @@
 //!   history (its stiffness `(2h/3)² k_max / m_min` is 354 there, under the limit of 400 where
 //!   a substep turns to implicit Euler), which implicit Euler damps, and the swing with it.
 //!   Two more Jacobi steps on level 1 after the cycle left 512 x 512 at +8.8 % and 1.52x. A
-//!   solve that converges further on the finest cloths (a smoothed prolongation, or a step
-//!   between BDF2 and implicit Euler where the springs are that stiff) is open.
+//!   step between the two (`x̂ = x⁰ + θ (x⁰ - x⁻¹) / 3`, `v̂` alike, `ĥ = (1 - θ/3) h`: BDF2 at
+//!   `θ = 1`, implicit Euler at 0, first order between) at `θ = 0.8` brought 1024 x 1024's
+//!   strain to 1.36x and its sag to +17 %; with the W-cycle, to 1.27x and -1.6 % (at 0.5 s
+//!   and 0.75 s +4.0 % and +4.7 %, 1.04x and 1.14x), about 16 % more wall time a tick. The
+//!   same pair at 512 x 512 gave -4.0 % and 1.22x, at 256 x 256 +4.7 % and 1.25x, and at
+//!   128 x 128 +11.3 % (the default there, in that build, +9.8 %: a rounding's difference in
+//!   BDF2's coefficients moves 128 x 128's sag at 1 s from +7.6 %), so it would suit only the
+//!   stiffest substeps (BDF2's stiffness 354 at 1024 x 1024 against 88 at 512 x 512), on both
+//!   backends; that is open.
 //! - **Coarse levels grouped by the springs at rest**, at the substep's start rather than after
 //!   its sweep (so that a host could build them from the cloth's shape alone), in the core's
 //!   `motion` tests (2026-11-29): 32 x 32 to 128 x 128 at 1 s -1.0 / +3.0 / +11.7 % off RK4's
