@@ -102,8 +102,8 @@
 //! springs from the pins, where RK4's past 4.3 % all lie within 128 springs of them.
 //!
 //! Its cost on the 2-core development machine (an Intel Xeon), against block descent with one
-//! sweep and its tethers at Looper 16 (the report's `motion_cost` section, two runs on
-//! 2026-11-29): 1.44x-1.68x at 64 x 64 and 1.48x-1.51x at 256 x 256 at Looper 16, 1.13x-1.22x
+//! sweep and its tethers at Looper 16 (the report's `motion_cost` section, three runs on
+//! 2026-11-29): 1.44x-1.68x at 64 x 64 and 1.48x-1.51x at 256 x 256 at Looper 16, 1.07x-1.22x
 //! and 1.12x-1.13x at Looper 12; the machine is noisy, and a ratio is good to about a tenth.
 //! Timers in a scratch build (64 x 64, one thread) put the correction at about 40 % of the
 //! tick: the crossing springs' forces (its largest part), the line search's curvature, the
