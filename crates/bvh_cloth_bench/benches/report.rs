@@ -37,10 +37,10 @@
 //! `fidelity`, `step_scaling`, `topology`, `gpu_profile`, `many_cloths`, `build_scaling`,
 //! `far_from_origin`, `solver`, `solver_gpu`, `primitives`, `skinned_refit`, `exact_contact`,
 //! `exact_contact_queries`, `exact_contact_build`, `exact_contact_gpu`, `self_contact`,
-//! `self_contact_events`, `self_contact_gpu`, `wind`, `wind_gpu`, `motion`, `motion_cost`, `fine_swing`,
-//! `cpu_cloths`. The
-//! GPU halves of the solver, exact-contact, self-contact and wind tables are sections of their
-//! own, so `-- gpu` runs every GPU-only table without their CPU simulations.
+//! `self_contact_events`, `self_contact_gpu`, `wind`, `wind_gpu`, `motion`, `motion_cost`,
+//! `fine_swing`, `cpu_cloths`. The GPU halves of the solver, exact-contact, self-contact and
+//! wind tables are sections of their own, so `-- gpu` runs every GPU-only table without their
+//! CPU simulations.
 
 #[path = "report/cpu_cloths.rs"]
 mod cpu_cloths;

@@ -244,7 +244,8 @@ pub(super) fn motion_cost() {
 /// against RK4 at the same resolution (the converged reference of the same model: its
 /// stiffness guard takes up to 256 substeps a tick), with 256 x 256 for scale and the
 /// multigrid integrator at Looper 32 (twice the default's substeps) to show how much of the
-/// default's error is the step's. RK4 at 1024 x 1024 takes about a quarter of an hour on the 2-core machine.
+/// default's error is the step's. RK4 at 1024 x 1024 takes about a quarter of an hour on the
+/// 2-core machine.
 pub(super) fn fine_swing() {
     println!("\n### Finer cloths: the hanging cloth at 1 s, the default against RK4\n");
     println!(

@@ -145,9 +145,10 @@
 //!   -0.4 % and 1.49x, and with the second sweep 512 x 512 to -0.6 % and 1.23x and
 //!   1024 x 1024 to -1.0 % and 2.7x: it mends the sag, not the strain. Implicit Euler in
 //!   every substep, in place of BDF2, brought 1024 x 1024's strain to 1.46x RK4's, its most
-//!   stretched springs near the pins as RK4's, but its sag to +24 %: with BDF2 a stretch that the inexact solve leaves rings on through BDF2's two-step
-//!   history (its stiffness `(2h/3)² k_max / m_min` is 354 there, under the limit of 400 where
-//!   a substep turns to implicit Euler), which implicit Euler damps, and the swing with it.
+//!   stretched springs near the pins as RK4's, but its sag to +24 %: with BDF2 a stretch that
+//!   the inexact solve leaves rings on through BDF2's two-step history (its stiffness
+//!   `(2h/3)² k_max / m_min` is 354 there, under the limit of 400 where a substep turns to
+//!   implicit Euler), which implicit Euler damps, and the swing with it.
 //!   Two more Jacobi steps on level 1 after the cycle left 512 x 512 at +8.8 % and 1.52x. A
 //!   step between the two (`x̂ = x⁰ + θ (x⁰ - x⁻¹) / 3`, `v̂` alike, `ĥ = (1 - θ/3) h`: BDF2 at
 //!   `θ = 1`, implicit Euler at 0, first order between) at `θ = 0.8` brought 1024 x 1024's

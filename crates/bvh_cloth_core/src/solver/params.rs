@@ -28,10 +28,10 @@ pub const MAX_DENSITY: f32 = 10.0;
 /// The default is [`Integrator::Multigrid`]: a game sets a stiffness and a budget (`looper`
 /// substeps) and gets that cost, stable whatever the stiffness, and a cloth that falls,
 /// swings and stretches as RK4's does (the hanging cloth's sag at 1 s within 10 % of RK4's
-/// from 32 x 32 to 512 x 512, 13 % above it at 1024 x 1024; BENCHMARKS.md, "Motion"). Its tick costs
-/// about one and a half times block descent's with one sweep, which converges a fine cloth's
-/// load only one ring of springs per colour pass and so lets a big sheet stretch like rubber
-/// while it moves (held by the tethers, 45 % more sag than RK4 at 256 x 256). With RK4 a
+/// from 32 x 32 to 512 x 512, 13 % above it at 1024 x 1024; BENCHMARKS.md, "Motion"). Its
+/// tick costs about one and a half times block descent's with one sweep, which converges a
+/// fine cloth's load only one ring of springs per colour pass and so lets a big sheet stretch
+/// like rubber while it moves (held by the tethers, 45 % more sag than RK4 at 256 x 256). With RK4 a
 /// 64x64 sheet made 100x stiffer (200 to 20,000 N/m) takes 157 substeps a tick instead of 16
 /// (the stability guard), and a cloth that would need more than [`MAX_SUBSTEPS_PER_TICK`]
 /// steps past its stability limit; a designer's slider should do neither. RK4 stays for
