@@ -26,10 +26,10 @@ pub use crate::self_contact::{
     ContactBody, ContactSolver, MAX_CANDIDATES, MAX_HELD_SCALE, MAX_PATH_SPAN, MAX_SPAN, particle_spacing,
     shared_substeps,
 };
-pub use crate::solver::block_descent::bdf2_is_stiff;
+pub use crate::solver::block_descent::{BLEND_LAG, BLEND_STEP, MultigridStepping};
 pub use crate::solver::forces::ForceModel;
 pub use crate::solver::multigrid::{
-    COARSEST_SMOOTHING, DENSE_NODES, JACOBI_WEIGHT, LayoutSpring, LevelLayout, MultigridCorrection, MultigridLayout,
-    NO_NODE, REASSEMBLE_EVERY, STALE_CURVATURE,
+    COARSEST_SMOOTHING, Cycle, DENSE_NODES, JACOBI_WEIGHT, LayoutSpring, LevelLayout, MultigridCorrection,
+    MultigridLayout, NO_NODE, REASSEMBLE_EVERY, STALE_CURVATURE,
 };
 pub use crate::solver::params::{MAX_ITERATIONS, MAX_SUBSTEPS_PER_TICK};

@@ -55,6 +55,8 @@ fn values() -> Vec<(&'static str, Value)> {
         ("REASSEMBLE_EVERY", U32(core::REASSEMBLE_EVERY)),
         ("STALE_CURVATURE", F32(core::STALE_CURVATURE as f32)),
         ("JACOBI_WEIGHT", F32(core::JACOBI_WEIGHT)),
+        ("BLEND_LAG", F32(core::BLEND_LAG)),
+        ("BLEND_STEP", F32(core::BLEND_STEP)),
         ("COARSEST_SMOOTHING", U32(core::COARSEST_SMOOTHING)),
         ("DENSE_ORDER", U32(3 * core::DENSE_NODES as u32)),
         ("MULTIGRID_NODE_WORDS", U32(layout::MULTIGRID_NODE_WORDS)),

@@ -93,15 +93,20 @@ pub struct GpuBatchCloth {
     /// Block descent's drift of the centre of mass in this substep (`xyz`, metres), which the
     /// kernels compute and read; the host never writes it.
     pub drift: [f32; 4],
-    /// The multigrid integrator's substep length in seconds (`h`, or `2h/3` for a BDF2
-    /// substep), which `mg_begin` writes in every substep; the host never writes it.
+    /// The multigrid integrator's substep length in seconds (`h`, `2h/3` for a BDF2 substep,
+    /// `(1 - θ/3) h` for a blended one), which `mg_begin` writes in every substep; the host
+    /// never writes it.
     pub step: f32,
     /// Nonzero when BDF2 may not build on the cloth's last substep: a collider or the
     /// quarantine moved a particle in it (`vbd_finish` sets it), or the host replaced its state
     /// or its substep length; `mg_begin` clears it.
     pub broken: u32,
+    /// 1 when the multigrid integrator's substep blends BDF2 with implicit Euler
+    /// (`bvh_cloth_core::backend::BLEND_LAG`), which `mg_begin` writes; the host never writes
+    /// it.
+    pub blend: u32,
     /// Unused.
-    pub pad: [u32; 2],
+    pub pad: u32,
 }
 
 impl GpuBatchCloth {
@@ -155,7 +160,8 @@ impl GpuBatchCloth {
             drift: [0.0; 4],
             step: h,
             broken: 1,
-            pad: [0; 2],
+            blend: 0,
+            pad: 0,
         }
     }
 }
@@ -702,6 +708,10 @@ pub struct GpuMultigridCloth {
     /// The host's: 1 when the cloth is too stiff for BDF2 (every substep is then implicit
     /// Euler, and assembles the levels).
     pub stiff: u32,
+    /// The host's: 1 when the cloth's substeps blend BDF2 with implicit Euler and its
+    /// correction runs the first level's W-cycle
+    /// (`bvh_cloth_core::backend::MultigridStepping::Blend`).
+    pub blend: u32,
     /// The kernels': substeps since the levels were assembled, and whether this substep
     /// assembles and factors them.
     pub age: u32,
@@ -726,8 +736,6 @@ pub struct GpuMultigridCloth {
     pub chunk_start: u32,
     /// See [`Self::chunk_start`].
     pub chunk_count: u32,
-    /// Unused.
-    pub pad: u32,
 }
 
 /// One dispatch of the multigrid correction (a uniform at a dynamic offset): the range of

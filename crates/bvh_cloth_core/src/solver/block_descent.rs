@@ -138,8 +138,14 @@
 //! one, one after anything but the springs moved a particle (a collider, self-contact, the
 //! quarantine, or a write to the cloth's state between ticks), one of another length, and one
 //! where `ĥ² k_max / m_min` passes `BDF2_STIFFNESS_LIMIT` (springs far stiffer than a cloth's,
-//! where BDF2 rings). After the sweep, the multigrid correction ([`crate::solver::multigrid`])
-//! carries the load across the cloth within the substep, so it needs no tethers. The centre
+//! where BDF2 rings). Between `BLEND_LIMIT` and that limit (the finest cloths at the default
+//! Looper: 1024 x 1024's substeps sit at 354) a substep blends the two, `x̂ = x⁰ + θ (x⁰ -
+//! x⁻¹)/3`, `v̂` alike and `ĥ = (1 - θ/3) h` at `θ = 0.8` ([`BLEND_LAG`]; BDF2 at 1, implicit
+//! Euler at 0), and the correction runs its first level's W-cycle: there one sweep and a
+//! V-cycle leave a stretch that BDF2's two-step history rings on, and implicit Euler damps the
+//! swing (the multigrid module's docs have the figures). After the sweep, the multigrid
+//! correction ([`crate::solver::multigrid`]) carries the load across the cloth within the
+//! substep, so it needs no tethers. The centre
 //! of mass is kept as for block descent, about where inertia, damping and the uniform
 //! acceleration take the BDF2 step.
 
@@ -154,7 +160,7 @@ use crate::cloth::tethers::TetherSet;
 use crate::cloth::topology::ClothTopology;
 use crate::colliders::collision::ColliderFrame;
 use crate::solver::forces::ForceModel;
-use crate::solver::multigrid::{Multigrid, MultigridCorrection};
+use crate::solver::multigrid::{Cycle, Multigrid, MultigridCorrection};
 
 /// Particles one rayon task updates at least: below that, a pass is not split, since a fork
 /// and join costs more than the updates it would share (a 64x64 cloth's colours are not split).
@@ -354,6 +360,73 @@ pub(crate) enum Solve<'a> {
 /// particle moved at 9.3 m/s, where the default 256 x 256 cloth's moves at 8.5 m/s.
 pub(crate) const BDF2_STIFFNESS_LIMIT: f32 = 400.0;
 
+/// The stiffness `(2h/3)² k_max / m_min` past which a substep blends BDF2 with implicit Euler
+/// ([`BLEND_LAG`]) and the correction runs [`Cycle::TopW`], up to [`BDF2_STIFFNESS_LIMIT`]: between
+/// 512 x 512's 88 and 1024 x 1024's 354 at Looper 16 (the multigrid module's docs have the
+/// measurements).
+pub(crate) const BLEND_LIMIT: f32 = 200.0;
+
+/// The blended step's weight of the last substep, `θ/3` with `θ = 0.8`: `x̂ = x⁰ + θ (x⁰ -
+/// x⁻¹)/3`, `v̂` alike, for `ĥ = (1 - θ/3) h` ([`BLEND_STEP`]); `θ = 1` is BDF2, `θ = 0`
+/// implicit Euler.
+pub const BLEND_LAG: f32 = 0.8 / 3.0;
+
+/// The blended step's `ĥ / h`, `1 - θ/3` ([`BLEND_LAG`]).
+pub const BLEND_STEP: f32 = 1.0 - BLEND_LAG;
+
+/// How the multigrid integrator steps a cloth, by the stiffness of its substep,
+/// `(2h/3)² k_max / m_min` (the stiffest spring over the lightest particle, in units of BDF2's
+/// step).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum MultigridStepping {
+    /// BDF2 where the history allows, with V-cycles: a stiffness up to 200.
+    Bdf2,
+    /// The blend of BDF2 and implicit Euler ([`BLEND_LAG`]) where the history allows, with
+    /// [`Cycle::TopW`]: a stiffness from 200 to 400.
+    Blend,
+    /// Implicit Euler in every substep, the levels assembled in every one, with V-cycles: a
+    /// stiffness past 400.
+    Stiff,
+}
+
+impl MultigridStepping {
+    /// The stepping for a cloth of `topology` under `model` in substeps of `h` seconds.
+    pub fn of(model: &ForceModel, topology: &ClothTopology, h: f32) -> Self {
+        let stiffness = bdf2_stiffness(model, topology, h);
+        if stiffness > BDF2_STIFFNESS_LIMIT {
+            Self::Stiff
+        } else if stiffness > BLEND_LIMIT {
+            Self::Blend
+        } else {
+            Self::Bdf2
+        }
+    }
+
+    /// The coarse cycle the correction runs.
+    pub fn cycle(self) -> Cycle {
+        if self == Self::Blend { Cycle::TopW } else { Cycle::V }
+    }
+}
+
+/// How a substep steps in time.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+enum Step {
+    Euler,
+    Bdf2,
+    Blend,
+}
+
+impl Step {
+    /// The length `ĥ` of the implicit step a substep of `h` seconds minimises over.
+    fn length(self, h: f32) -> f32 {
+        match self {
+            Self::Euler => h,
+            Self::Bdf2 => h * (2.0 / 3.0),
+            Self::Blend => h * BLEND_STEP,
+        }
+    }
+}
+
 impl BlockDescent {
     /// Keeps the velocities as they are before the next substep's aerodynamic kick changes
     /// them.
@@ -373,10 +446,10 @@ impl BlockDescent {
         self.any_contact_moved = true;
     }
 
-    /// The substep's start, inertial targets and first iterate of every particle: BDF2's when
-    /// `bdf2` (its history allows), else implicit Euler's for a substep of `h` seconds.
-    fn predict(&mut self, model: &ForceModel, free: &[f32], h: f32, bdf2: bool) {
-        let step = if bdf2 { h * (2.0 / 3.0) } else { h };
+    /// The substep's start, inertial targets and first iterate of every particle for a substep
+    /// of `h` seconds stepped as `how` says.
+    fn predict(&mut self, model: &ForceModel, free: &[f32], h: f32, how: Step) {
+        let step = how.length(h);
         let kicked = core::mem::take(&mut self.kicked);
         let Self { x, v, accel, start, target, v_prev, lag, unkicked, .. } = self;
         let uniform = Vec3A::from(model.uniform_accel);
@@ -396,17 +469,24 @@ impl BlockDescent {
             .with_min_len(MIN_TASK)
             .for_each(|(i, (((((((x, v), start), v_prev), lag), target), &estimate), &free))| {
                 let (x0, v0) = (*x, *v);
-                // The velocity before the kick, and the kick `h a_air`, which BDF2 takes as
+                // The velocity before the kick, and the kick `h a_air`, which the step takes as
                 // `ĥ a_air`.
                 let unkicked = before_kick.get(i).copied().unwrap_or(v0);
-                let v_hat =
-                    if bdf2 { unkicked + (unkicked - *v_prev) / 3.0 + (v0 - unkicked) * (2.0 / 3.0) } else { v0 };
-                *lag = if bdf2 { (x0 - *start) / 3.0 } else { Vec3A::ZERO };
+                let v_hat = match how {
+                    Step::Euler => v0,
+                    Step::Bdf2 => unkicked + (unkicked - *v_prev) / 3.0 + (v0 - unkicked) * (2.0 / 3.0),
+                    Step::Blend => unkicked + (unkicked - *v_prev) * BLEND_LAG + (v0 - unkicked) * BLEND_STEP,
+                };
+                *lag = match how {
+                    Step::Euler => Vec3A::ZERO,
+                    Step::Bdf2 => (x0 - *start) / 3.0,
+                    Step::Blend => (x0 - *start) * BLEND_LAG,
+                };
                 // A pinned particle keeps its velocity.
                 (*start, *v_prev, *v) = (x0, unkicked, if free == 0.0 { v0 } else { v_hat });
                 if free == 0.0 {
                     (*target, *x) = (Vec3A::ZERO, Vec3A::ZERO);
-                } else if bdf2 {
+                } else if how != Step::Euler {
                     *target = *lag * damp + step * v_hat + (step * step) * uniform;
                     *x = *lag + first_iterate(v_hat, step, inv_damp, axis.dir * estimate);
                 } else {
@@ -497,11 +577,19 @@ impl BlockDescent {
         // BDF2 (`x = x̂ + ĥ v`, `v = v̂ + ĥ a` with `ĥ = 2h/3`, `x̂ = (4x⁰ - x⁻¹)/3` and
         // `v̂ = (4v⁰ - v⁻¹)/3`) is implicit Euler's minimisation with `ĥ` for `h` and `x̂`, `v̂`
         // for the start: only the targets and the first iterate change.
-        let stiff = bdf2_is_stiff(model, topology, h);
-        let bdf2 = matches!(solve, Solve::Multigrid) && self.history == Some(h) && !stiff;
-        let step = if bdf2 { h * (2.0 / 3.0) } else { h };
+        let stepping = MultigridStepping::of(model, topology, h);
+        let stiff = stepping == MultigridStepping::Stiff;
+        let how = match solve {
+            Solve::Multigrid if self.history == Some(h) => match stepping {
+                MultigridStepping::Bdf2 => Step::Bdf2,
+                MultigridStepping::Blend => Step::Blend,
+                MultigridStepping::Stiff => Step::Euler,
+            },
+            _ => Step::Euler,
+        };
+        let step = how.length(h);
         let contact_moved = core::mem::take(&mut self.any_contact_moved);
-        self.predict(model, free, h, bdf2);
+        self.predict(model, free, h, how);
         self.sweep(topology, colouring, model, free, step, iterations);
         let damp = 1.0 + model.damping * step;
         let inv_damp = 1.0 / damp;
@@ -514,9 +602,20 @@ impl BlockDescent {
                 for (c, &h) in self.contact_moved.iter_mut().zip(held.iter()) {
                     *c = c.max(h);
                 }
-                multigrid.correct(topology, model, free, &self.contact_moved, step, x, start, target, stiff);
+                multigrid.correct(
+                    topology,
+                    model,
+                    free,
+                    &self.contact_moved,
+                    step,
+                    x,
+                    start,
+                    target,
+                    stiff,
+                    stepping.cycle(),
+                );
             } else {
-                multigrid.correct(topology, model, free, held, step, x, start, target, stiff);
+                multigrid.correct(topology, model, free, held, step, x, start, target, stiff, stepping.cycle());
             }
         }
         if contact_moved {
@@ -604,20 +703,12 @@ impl MultigridCorrection {
         descent.v.copy_from_slice(v);
         let mut multigrid = Multigrid::default();
         if let Ok(colouring) = topology.colouring() {
-            descent.predict(model, free, h, false);
+            descent.predict(model, free, h, Step::Euler);
             descent.sweep(topology, colouring, model, free, h, 1);
             multigrid.build(topology, model, free, held, &descent.start, &descent.x);
         }
         Self::with_hierarchy(topology, model, free, multigrid)
     }
-}
-
-/// Whether the multigrid integrator steps a cloth of `topology` under `model` by implicit Euler
-/// in every substep of `h` seconds, its springs too stiff for BDF2 (`(2h/3)² k_max / m_min`
-/// beyond 400),
-/// and assembles its levels in every one.
-pub fn bdf2_is_stiff(model: &ForceModel, topology: &ClothTopology, h: f32) -> bool {
-    bdf2_stiffness(model, topology, h) > BDF2_STIFFNESS_LIMIT
 }
 
 /// `(2h/3)² k_max / m_min` for a substep of `h` seconds: BDF2's stiffness in units of its step.

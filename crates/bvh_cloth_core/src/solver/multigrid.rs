@@ -15,7 +15,8 @@
 //! aggregation; Vaněk, Mandel and Brezina 1996 for the aggregates). The aggregates are grouped
 //! the same way by their couplings, level after level, down to a couple of dozen nodes solved
 //! exactly (a dense Cholesky factor). One V-cycle, a damped block Jacobi step (weight 2/3)
-//! before each restriction and one after each prolongation, gives `e`; a line search along
+//! before each restriction and one after each prolongation, gives `e` (on the stiffest
+//! substeps, [`Cycle::TopW`]: the first level visits the next twice); a line search along
 //! `P e` on this substep's quadratic model, its step clamped to `[0, 1]`, gives the correction.
 //! Every pass of the cycle updates all the nodes of a level at once from the level's state
 //! before it, and every coarse node gathers what it needs from its own children (the
@@ -67,9 +68,10 @@
 //! level `l` of every cloth together, and each pass above is one dispatch over a level's nodes
 //! (or over the crossing springs, or the particles), the dense factor and solve and the line
 //! search one workgroup per cloth. The kernels keep the levels, decide when to assemble and
-//! factor them, and choose BDF2 or implicit Euler per substep as this module does; they sum
-//! in the same order, in f32 where the dense factor and the line search's sums are f64 here.
-//! A substep's correction is `9 + 4 (L - 1)` dispatches for `L` levels.
+//! factor them, and choose BDF2, the blend or implicit Euler per substep as this module does;
+//! they sum in the same order, in f32 where the dense factor and the line search's sums are
+//! f64 here. A substep's correction is `9 + 4 (L - 1)` dispatches for `L` levels, and `2 L`
+//! more for [`Cycle::TopW`] (a 1024 x 1024 cloth has 6 levels).
 //!
 //! ## What it buys
 //! The hanging cloth of the core's `motion` tests (1 m, pinned at its first row's corners,
@@ -156,9 +158,16 @@
 //!   and 0.75 s +4.0 % and +4.7 %, 1.04x and 1.14x), about 16 % more wall time a tick. The
 //!   same pair at 512 x 512 gave -4.0 % and 1.22x, at 256 x 256 +4.7 % and 1.25x, and at
 //!   128 x 128 +11.3 % (the default there, in that build, +9.8 %: a rounding's difference in
-//!   BDF2's coefficients moves 128 x 128's sag at 1 s from +7.6 %), so it would suit only the
-//!   stiffest substeps (BDF2's stiffness 354 at 1024 x 1024 against 88 at 512 x 512), on both
-//!   backends; that is open.
+//!   BDF2's coefficients moves 128 x 128's sag at 1 s from +7.6 %), so it suits only the
+//!   stiffest substeps (BDF2's stiffness 354 at 1024 x 1024 against 88 at 512 x 512), which is
+//!   where the integrator uses it (past a stiffness of 200). A full W-cycle on a GPU is many
+//!   small dispatches (218 a substep for 1024 x 1024's 6 levels, against the V-cycle's 11), so
+//!   the second visit was tried on fewer levels, with the blend, at 1024 x 1024 (sag at 1 s
+//!   and p99 strain against RK4's): on every level -1.5 % and 1.25x; on the first two
+//!   +4.8 % and 1.27x; on the first alone +7.2 % and 1.14x, at 0.5 s +2.8 % and 0.99x, for 24
+//!   dispatches. The first alone is [`Cycle::TopW`]. At 512 x 512 and Looper 8, whose
+//!   substeps are as stiff (352), it brought the sag at 1 s from +18.3 % to +11.2 % and the
+//!   strain from 1.86x to 1.14x (the core's `a_512_cloth_swings_like_rk4_at_the_default`).
 //! - **Coarse levels grouped by the springs at rest**, at the substep's start rather than after
 //!   its sweep (so that a host could build them from the cloth's shape alone), in the core's
 //!   `motion` tests (2026-11-29): 32 x 32 to 128 x 128 at 1 s -1.0 / +3.0 / +11.7 % off RK4's
@@ -196,6 +205,18 @@ pub const COARSEST_SMOOTHING: u32 = 16;
 
 /// The weight of the levels' damped Jacobi steps.
 pub const JACOBI_WEIGHT: f32 = 2.0 / 3.0;
+
+/// The coarse cycle of a correction.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Cycle {
+    /// A V-cycle: each level visits the next once (smoothing from zero, the next level's
+    /// correction, smoothing).
+    V,
+    /// A W-cycle on the first level only: level 1 (the aggregates of particles) visits the next
+    /// level twice, the second time with the residual of its answer after the first, each visit
+    /// a V-cycle below it and a smoothing after it.
+    TopW,
+}
 
 /// Levels at most below the particles.
 const MAX_LEVELS: usize = 12;
@@ -603,7 +624,9 @@ impl MultigridCorrection {
 
     /// Corrects the sweep's displacements `d` of a substep of `h` seconds, as the multigrid
     /// integrator does (`start` the substep's start, `target` the inertial target less it,
-    /// `held[i]` 1 for a particle to leave alone); `assemble` assembles the levels at `d` first.
+    /// `held[i]` 1 for a particle to leave alone); `assemble` assembles the levels at `d` first,
+    /// and `cycle` is the coarse cycle.
+    #[allow(clippy::too_many_arguments)]
     pub fn correct(
         &mut self,
         held: &[f32],
@@ -612,8 +635,9 @@ impl MultigridCorrection {
         start: &[Vec3A],
         target: &[Vec3A],
         assemble: bool,
+        cycle: Cycle,
     ) {
-        self.inner.correct(&self.topology, &self.model, &self.free, held, h, d, start, target, assemble);
+        self.inner.correct(&self.topology, &self.model, &self.free, held, h, d, start, target, assemble, cycle);
     }
 }
 
@@ -643,6 +667,7 @@ impl Multigrid {
         start: &[Vec3A],
         target: &[Vec3A],
         stiff: bool,
+        cycle: Cycle,
     ) {
         if self.built_for.as_slice() != free || self.built_k != model.k_over_mass {
             self.build(topology, model, free, held, start, d);
@@ -666,7 +691,7 @@ impl Multigrid {
         }
         let level = &mut self.levels[0];
         level.b.clone_from(&self.residual);
-        self.v_cycle(0, damp, h2);
+        self.cycle(0, damp, h2, cycle);
         // The line search along `P e` on this substep's quadratic model (not the kept levels',
         // which may be a few substeps old): `α = rᵀe / (Pe)ᵀ H (Pe)`.
         let e = &self.levels[0].e;
@@ -1023,8 +1048,8 @@ impl Multigrid {
         sum
     }
 
-    /// One V-cycle on level `l` for its right-hand side `b`, leaving the answer in its `e`.
-    fn v_cycle(&mut self, l: usize, damp: f32, h2: f32) {
+    /// One `cycle` on level `l` for its right-hand side `b`, leaving the answer in its `e`.
+    fn cycle(&mut self, l: usize, damp: f32, h2: f32, cycle: Cycle) {
         let last = self.levels.len() - 1;
         if l == last {
             let level = &mut self.levels[l];
@@ -1040,24 +1065,27 @@ impl Multigrid {
             return;
         }
         self.levels[l].smooth_from_zero();
-        // The restriction of the residual `b - A e`: each coarse node gathers its children's.
-        let (upper, lower) = self.levels.split_at_mut(l + 1);
-        let (level, next) = (&upper[l], &mut lower[0]);
-        let residual =
-            |a: usize| level.b[a] - level.diag_block(a, damp, h2) * level.e[a] - level.off_product(a, &level.e, h2);
-        next.b.clear();
-        next.b.resize(next.len(), Vec3A::ZERO);
-        let (offsets, children) = (&next.child_offsets, &next.children);
-        next.b.par_iter_mut().enumerate().with_min_len(MIN_TASK).for_each(|(c, b)| {
-            *b = children[offsets[c] as usize..offsets[c + 1] as usize].iter().map(|&a| residual(a as usize)).sum();
-        });
-        self.v_cycle(l + 1, damp, h2);
-        let (upper, lower) = self.levels.split_at_mut(l + 1);
-        let (level, next) = (&mut upper[l], &lower[0]);
-        level.e.par_iter_mut().zip(level.parent.par_iter()).with_min_len(MIN_TASK).for_each(|(e, &parent)| {
-            *e += next.e[parent as usize];
-        });
-        level.smooth(h2);
+        let visits = if cycle == Cycle::TopW && l == 0 { 2 } else { 1 };
+        for _ in 0..visits {
+            // The restriction of the residual `b - A e`: each coarse node gathers its children's.
+            let (upper, lower) = self.levels.split_at_mut(l + 1);
+            let (level, next) = (&upper[l], &mut lower[0]);
+            let residual =
+                |a: usize| level.b[a] - level.diag_block(a, damp, h2) * level.e[a] - level.off_product(a, &level.e, h2);
+            next.b.clear();
+            next.b.resize(next.len(), Vec3A::ZERO);
+            let (offsets, children) = (&next.child_offsets, &next.children);
+            next.b.par_iter_mut().enumerate().with_min_len(MIN_TASK).for_each(|(c, b)| {
+                *b = children[offsets[c] as usize..offsets[c + 1] as usize].iter().map(|&a| residual(a as usize)).sum();
+            });
+            self.cycle(l + 1, damp, h2, cycle);
+            let (upper, lower) = self.levels.split_at_mut(l + 1);
+            let (level, next) = (&mut upper[l], &lower[0]);
+            level.e.par_iter_mut().zip(level.parent.par_iter()).with_min_len(MIN_TASK).for_each(|(e, &parent)| {
+                *e += next.e[parent as usize];
+            });
+            level.smooth(h2);
+        }
     }
 }
 
@@ -1337,7 +1365,7 @@ mod tests {
             let before = potential(&topology, &model, h, &free, &start, &target, &d);
             let mut corrected = d.clone();
             let mut mg = Multigrid::default();
-            mg.correct(&topology, &model, &free, &held, h, &mut corrected, &start, &target, false);
+            mg.correct(&topology, &model, &free, &held, h, &mut corrected, &start, &target, false, Cycle::V);
             let after = potential(&topology, &model, h, &free, &start, &target, &corrected);
             // The minimum lies near the flat sheet, where `G` is about 1e-13 of this: one
             // correction takes 98 % (SpringK 200) and 95 % (10⁵) of the way there.

@@ -64,19 +64,28 @@ fn strain_p99(sim: &ClothSim) -> f32 {
 /// `strain_bound` times RK4's, at 0.5 s and 1 s, on the `side` x `side` hanging cloth, the other
 /// parameters the defaults.
 fn swings_within(integrator: Integrator, side: u32, sag_bound: f32, strain_bound: f32) {
+    each_swings_within(side, &[(ClothParams { integrator, ..Default::default() }, sag_bound, strain_bound)]);
+}
+
+/// [`swings_within`] for each of `cases` (the parameters, the sag's bound and the strain's),
+/// against one run of RK4 at the defaults: its stiffness guard takes more substeps than any
+/// Looper the cases ask for.
+fn each_swings_within(side: u32, cases: &[(ClothParams, f32, f32)]) {
     let rk4 = swing(side, ClothParams { integrator: Integrator::Rk4, ..Default::default() });
-    let own = swing(side, ClothParams { integrator, ..Default::default() });
-    for ((t, (sag, strain)), (rk4_sag, rk4_strain)) in [0.5, 1.0].into_iter().zip(own).zip(rk4) {
-        let case = format!("{integrator:?}, {side}x{side} at {t} s");
-        eprintln!(
-            "{case}: sag {sag:.3} m (RK4 {rk4_sag:.3}, {:+.1} %), p99 strain {:.2} % (RK4 {:.2} %, {:.2}x)",
-            (sag / rk4_sag - 1.0) * 100.0,
-            strain * 100.0,
-            rk4_strain * 100.0,
-            strain / rk4_strain
-        );
-        assert!((sag / rk4_sag - 1.0).abs() <= sag_bound, "{case}: sag {sag} against RK4's {rk4_sag}");
-        assert!(strain <= strain_bound * rk4_strain, "{case}: p99 strain {strain} against RK4's {rk4_strain}");
+    for (params, sag_bound, strain_bound) in cases {
+        let own = swing(side, params.clone());
+        for ((t, (sag, strain)), (rk4_sag, rk4_strain)) in [0.5, 1.0].into_iter().zip(own).zip(rk4) {
+            let case = format!("{:?} at Looper {}, {side}x{side} at {t} s", params.integrator, params.looper);
+            eprintln!(
+                "{case}: sag {sag:.3} m (RK4 {rk4_sag:.3}, {:+.1} %), p99 strain {:.2} % (RK4 {:.2} %, {:.2}x)",
+                (sag / rk4_sag - 1.0) * 100.0,
+                strain * 100.0,
+                rk4_strain * 100.0,
+                strain / rk4_strain
+            );
+            assert!((sag / rk4_sag - 1.0).abs() <= *sag_bound, "{case}: sag {sag} against RK4's {rk4_sag}");
+            assert!(strain <= strain_bound * rk4_strain, "{case}: p99 strain {strain} against RK4's {rk4_strain}");
+        }
     }
 }
 
@@ -111,9 +120,16 @@ fn block_descent_held_by_tethers_swings_within_a_quarter_of_rk4s() {
 /// falls to a twentieth of the cloth's own, and kept regardless, this cloth blew up between
 /// 0.5 s and 1 s (its p99 strain passed 180x). They are assembled again when the two differ by
 /// half.
+///
+/// At Looper 8 its substeps are as stiff as 1024 x 1024's at Looper 16 (`(2h/3)² k_max / m_min`
+/// 352 against 354), and the multigrid integrator blends BDF2 with implicit Euler and runs the
+/// first level's W-cycle: the sag within 15 % of RK4's and the p99 strain at most 1.5x
+/// (measured: +2.5 % and 1.03x at 0.5 s, +11.2 % and 1.14x at 1 s; with BDF2 and V-cycles, as
+/// at Looper 16, +18.3 % and 1.86x at 1 s, which fails this).
 #[test]
 fn a_512_cloth_swings_like_rk4_at_the_default() {
-    swings_within(Integrator::default(), 512, 0.1, 1.5);
+    let default = ClothParams::default();
+    each_swings_within(512, &[(default.clone(), 0.1, 1.5), (ClothParams { looper: 8, ..default }, 0.15, 1.5)]);
 }
 
 /// A 128 x 128 cloth of 1.4 m dropped 0.2 m onto the bundled bunny (n = 5): at 1 s, with the

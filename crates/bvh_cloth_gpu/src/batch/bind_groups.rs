@@ -298,7 +298,7 @@ impl ClothBatch {
         for (index, slot) in self.slots.iter_mut().enumerate() {
             let Some(slot) = slot.as_mut().filter(|s| s.constants.integrator == INTEGRATOR_MULTIGRID) else { continue };
             let hierarchy = slot.multigrid();
-            key.push((index as u32, slot.particle_start, Arc::as_ptr(&hierarchy) as usize, slot.stiff));
+            key.push((index as u32, slot.particle_start, Arc::as_ptr(&hierarchy) as usize, slot.stepping));
         }
         if self.multigrid.as_ref().is_some_and(|stage| stage.key == key && stage.plan.is_none()) {
             self.multigrid_as_descent(queue);
@@ -322,7 +322,12 @@ impl ClothBatch {
         let cloths: Vec<MultigridCloth<'_>> = key
             .iter()
             .zip(&layouts)
-            .map(|(&(slot, particle_start, _, stiff), layout)| MultigridCloth { slot, particle_start, layout, stiff })
+            .map(|(&(slot, particle_start, _, stepping), layout)| MultigridCloth {
+                slot,
+                particle_start,
+                layout,
+                stepping,
+            })
             .collect();
         let plan = match MultigridPlan::new(device, &cloths, self.buffers.cloths) {
             Ok(plan) => Some(plan),

@@ -18,7 +18,7 @@ use bvh_cloth_core::backend::AirSource;
 use bvh_cloth_core::backend::MAX_COLOURS;
 use bvh_cloth_core::backend::MAX_ITERATIONS;
 use bvh_cloth_core::backend::TetherSet;
-use bvh_cloth_core::backend::{ForceModel, MultigridCorrection, bdf2_is_stiff};
+use bvh_cloth_core::backend::{ForceModel, MultigridCorrection, MultigridStepping};
 use bvh_cloth_core::{
     Aerodynamics, ClothError, ClothParams, ClothSim, ClothTopology, Integrator, Vec3, Vec3A, Wind, WindSource,
 };
@@ -69,8 +69,8 @@ struct Slot {
     tethers: Arc<TetherSet>,
     /// The multigrid correction's hierarchy for the current pins, once a multigrid cloth needs it.
     multigrid: Option<Arc<MultigridCorrection>>,
-    /// Whether its springs are too stiff for BDF2 at its substep length (multigrid only).
-    stiff: bool,
+    /// How the multigrid integrator steps it at its substep length (multigrid only).
+    stepping: MultigridStepping,
     /// Its forces under its last parameters.
     model: ForceModel,
 }
@@ -108,10 +108,10 @@ impl Slot {
 }
 
 /// The multigrid correction's plan and what it was built for: per multigrid cloth its slot,
-/// first particle, hierarchy and stiffness.
+/// first particle, hierarchy and stepping.
 #[derive(Debug)]
 struct MultigridStage {
-    key: Vec<(u32, u32, usize, bool)>,
+    key: Vec<(u32, u32, usize, MultigridStepping)>,
     /// `None` when the plan would not fit the device ([`ClothBatch::multigrid_error`]).
     plan: Option<MultigridPlan>,
 }
@@ -274,7 +274,7 @@ impl ClothBatch {
             free_body: sim.is_free_body(),
             tethers: Arc::clone(sim.tethers()),
             multigrid: None,
-            stiff: false,
+            stepping: MultigridStepping::Bdf2,
             model: ForceModel::new(sim.params()),
         };
         let e = slot.ends_len();
@@ -369,7 +369,7 @@ impl ClothBatch {
         let before = (slot.constants.h, slot.constants.integrator, slot.constants.k_over_mass);
         slot.constants = GpuBatchCloth::new(params, &slot.topology, slot.particle_start, slot.ends_start, substeps, h);
         slot.model = ForceModel::new(params);
-        slot.stiff = params.integrator == Integrator::Multigrid && bdf2_is_stiff(&slot.model, &slot.topology, h);
+        slot.stepping = MultigridStepping::of(&slot.model, &slot.topology, h);
         // New springs need a new hierarchy, and BDF2 no history from another substep length.
         if before.2 != slot.constants.k_over_mass {
             slot.multigrid = None;

@@ -81,6 +81,9 @@ pub enum EntryPoint {
     MgCoarsest,
     /// `mg_smooth_up`: the prolongation and a damped Jacobi step, on the way up.
     MgSmoothUp,
+    /// `mg_keep`: the first level's answer kept as the start of its second visit to the next
+    /// level (the cloths that run `Cycle::TopW` only).
+    MgKeep,
     /// `mg_line_chunks`: the line search's sums over chunks of 64 nodes.
     MgLineChunks,
     /// `mg_line_search`: the step along the correction, one workgroup per cloth.
@@ -91,7 +94,7 @@ pub enum EntryPoint {
 
 impl EntryPoint {
     /// Every entry point, in order.
-    pub const ALL: [Self; 39] = [
+    pub const ALL: [Self; 40] = [
         Self::NodeUpdate,
         Self::NodeUpdateFinal,
         Self::VbdPredict,
@@ -128,6 +131,7 @@ impl EntryPoint {
         Self::MgRestrict,
         Self::MgCoarsest,
         Self::MgSmoothUp,
+        Self::MgKeep,
         Self::MgLineChunks,
         Self::MgLineSearch,
         Self::MgApply,
@@ -195,6 +199,7 @@ impl EntryPoint {
             Self::MgRestrict => "mg_restrict",
             Self::MgCoarsest => "mg_coarsest",
             Self::MgSmoothUp => "mg_smooth_up",
+            Self::MgKeep => "mg_keep",
             Self::MgLineChunks => "mg_line_chunks",
             Self::MgLineSearch => "mg_line_search",
             Self::MgApply => "mg_apply",
@@ -469,6 +474,7 @@ pub(super) fn descriptors() -> [KernelDescriptor; EntryPoint::ALL.len()] {
         multigrid(EntryPoint::MgRestrict),
         multigrid(EntryPoint::MgCoarsest),
         multigrid(EntryPoint::MgSmoothUp),
+        multigrid(EntryPoint::MgKeep),
         multigrid(EntryPoint::MgLineChunks),
         multigrid(EntryPoint::MgLineSearch),
         multigrid(EntryPoint::MgApply),

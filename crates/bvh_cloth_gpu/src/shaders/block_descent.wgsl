@@ -27,7 +27,7 @@
 #import bvh_cloth::springs::{particle_info, ends, cloths}
 #import bvh_cloth::collision::collide
 #import bvh_cloth::air::{air_cloth, air_kick_of}
-#import bvh_cloth::constants::{NO_CLOTH, UNTETHERED, INTEGRATOR_BLOCK_DESCENT, INTEGRATOR_MULTIGRID}
+#import bvh_cloth::constants::{NO_CLOTH, UNTETHERED, INTEGRATOR_BLOCK_DESCENT, INTEGRATOR_MULTIGRID, BLEND_LAG, BLEND_STEP}
 
 // Between substeps iterate holds the state; during one, d = x - x0 in position.xyz and the
 // velocity before the air's kick in velocity.xyz. substep_start holds x0 and the substep's
@@ -100,12 +100,18 @@ fn predict(i: u32, c: u32, me: GpuParticle, unkicked: vec3<f32>) {
     let free = me.position.w;
     let h = substep_length(c);
     // BDF2 is implicit Euler's minimisation with its start x^ = (4 x0 - x-1) / 3, held as the
-    // lag x^ - x0, and v^ = (4 v0 - v-1) / 3 (the kick over 2h/3, not h).
+    // lag x^ - x0, and v^ = (4 v0 - v-1) / 3 (the kick over 2h/3, not h); the blended step's
+    // weights are theta / 3 and 1 - theta / 3.
     var v_hat = me.velocity.xyz;
     var lag = vec3(0.0);
     if (bdf2(c)) {
-        v_hat = unkicked + (unkicked - unkicked_before) / 3.0 + (me.velocity.xyz - unkicked) * (2.0 / 3.0);
-        lag = (me.position.xyz - start_before) / 3.0;
+        if (cloths[c].blend != 0u) {
+            v_hat = unkicked + (unkicked - unkicked_before) * BLEND_LAG + (me.velocity.xyz - unkicked) * BLEND_STEP;
+            lag = (me.position.xyz - start_before) * BLEND_LAG;
+        } else {
+            v_hat = unkicked + (unkicked - unkicked_before) / 3.0 + (me.velocity.xyz - unkicked) * (2.0 / 3.0);
+            lag = (me.position.xyz - start_before) / 3.0;
+        }
     }
     var start = me;
     if (free != 0.0) {

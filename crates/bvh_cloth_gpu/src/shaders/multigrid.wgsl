@@ -24,7 +24,7 @@
 
 #import bvh_cloth::types::{GpuParticle, frame, step, thread_index, all_finite}
 #import bvh_cloth::springs::{particle_info, cloths}
-#import bvh_cloth::constants::{NO_CLOTH, INTEGRATOR_MULTIGRID, NO_NODE, REASSEMBLE_EVERY, STALE_CURVATURE, JACOBI_WEIGHT, COARSEST_SMOOTHING, DENSE_ORDER, MULTIGRID_NODE_WORDS, MULTIGRID_NODE_VALUES, MULTIGRID_SPRING_VALUES}
+#import bvh_cloth::constants::{NO_CLOTH, INTEGRATOR_MULTIGRID, NO_NODE, REASSEMBLE_EVERY, STALE_CURVATURE, JACOBI_WEIGHT, BLEND_STEP, COARSEST_SMOOTHING, DENSE_ORDER, MULTIGRID_NODE_WORDS, MULTIGRID_NODE_VALUES, MULTIGRID_SPRING_VALUES}
 #import bvh_cloth::block_descent::{iterate, substep_start, inertial, drift_sums, sum_lanes}
 
 struct MultigridCloth {
@@ -40,6 +40,7 @@ struct MultigridCloth {
     dense_order: u32,
     running: u32,
     stiff: u32,
+    blend: u32,
     age: u32,
     assemble: u32,
     refactor: u32,
@@ -51,7 +52,6 @@ struct MultigridCloth {
     alpha: f32,
     chunk_start: u32,
     chunk_count: u32,
-    pad: u32,
 }
 
 struct MultigridPass {
@@ -215,10 +215,17 @@ fn mg_begin(@builtin(global_invocation_id) id: vec3<u32>) {
     }
     let broken = atomicExchange(&cloths[c].broken, 0u);
     var length = cloths[c].h;
+    var blend = 0u;
     if (broken == 0u && mg_cloths[c].stiff == 0u) {
-        length = cloths[c].h * (2.0 / 3.0);
+        if (mg_cloths[c].blend != 0u) {
+            length = cloths[c].h * BLEND_STEP;
+            blend = 1u;
+        } else {
+            length = cloths[c].h * (2.0 / 3.0);
+        }
     }
     cloths[c].step = length;
+    cloths[c].blend = blend;
     let damp = 1.0 + cloths[c].damping * length;
     let h2 = length * length;
     var assemble = 0u;
@@ -693,6 +700,23 @@ fn mg_smooth_up(@builtin(global_invocation_id) id: vec3<u32>) {
     let rhs = mg_values[node_value(a, V_B)].xyz - off_product(node, mg_cloths[c].h2, V_DOWN, true);
     let next = (1.0 - JACOBI_WEIGHT) * e + JACOBI_WEIGHT * load_mul(node_value(a, V_INV), rhs);
     mg_values[node_value(a, V_UP)] = vec4(next, 0.0);
+}
+
+// The second visit from the first level (bvh_cloth_core's Cycle::TopW): node a's answer on the
+// way up becomes the start that mg_restrict takes the residual of and mg_smooth_up adds the next
+// level's answer to. A cloth that runs V-cycles keeps its first answer, so that the second
+// visit's passes compute it again, unchanged.
+@compute @workgroup_size(8, 8, 1)
+fn mg_keep(@builtin(global_invocation_id) id: vec3<u32>) {
+    let a = pass_item(id);
+    if (a == NO_NODE) {
+        return;
+    }
+    let node = node_info(a);
+    if (coarsest(node) || mg_cloths[node.cloth].blend == 0u) {
+        return;
+    }
+    mg_values[node_value(a, V_DOWN)] = mg_values[node_value(a, V_UP)];
 }
 
 // The correction of particle i on level 1 (zero at a pinned or held particle).

@@ -60,7 +60,8 @@ struct BatchCloth {
     drift: vec4<f32>,
     step: f32,
     broken: atomic<u32>,
-    pad: vec2<u32>,
+    blend: u32,
+    pad: u32,
 }
 
 struct ColourPass {

@@ -86,6 +86,7 @@ fn wgsl_is_valid() {
             "mg_restrict",
             "mg_coarsest",
             "mg_smooth_up",
+            "mg_keep",
             "mg_line_chunks",
             "mg_line_search",
             "mg_apply",
@@ -143,6 +144,7 @@ fn wgsl_structs_match_the_rust_layouts() {
             drift,
             step,
             broken,
+            blend,
             pad
         ]
     );
@@ -163,6 +165,7 @@ fn wgsl_structs_match_the_rust_layouts() {
             dense_order,
             running,
             stiff,
+            blend,
             age,
             assemble,
             refactor,
@@ -173,8 +176,7 @@ fn wgsl_structs_match_the_rust_layouts() {
             factored_h2,
             alpha,
             chunk_start,
-            chunk_count,
-            pad
+            chunk_count
         ]
     );
     assert_layout!(

@@ -12,8 +12,9 @@
 //! assemble and factor them, as the CPU does.
 //!
 //! A substep's correction is `mg_begin` before the prediction ([`MultigridPlan::begin`]: the
-//! step, BDF2's or implicit Euler's) and the rest after the sweep ([`MultigridPlan::correct`]):
-//! `9 + 4 (L - 1)` dispatches for the deepest cloth's `L` levels. The line search sums in two
+//! step: BDF2's, the blend's or implicit Euler's) and the rest after the sweep
+//! ([`MultigridPlan::correct`]): `9 + 4 (L - 1)` dispatches for the deepest cloth's `L` levels,
+//! and `2 L` more in a batch where a cloth runs [`Cycle::TopW`]. The line search sums in two
 //! levels (chunks of 64 level-1 nodes, then each cloth's chunks), so that a big cloth's sums
 //! spread over many workgroups.
 //!
@@ -22,7 +23,7 @@
 #[cfg(test)]
 mod tests;
 
-use bvh_cloth_core::backend::{DENSE_NODES, MultigridLayout, NO_NODE, REASSEMBLE_EVERY};
+use bvh_cloth_core::backend::{Cycle, DENSE_NODES, MultigridLayout, MultigridStepping, NO_NODE, REASSEMBLE_EVERY};
 use wgpu::util::DeviceExt;
 use wgpu::{BindGroup, Buffer, Device};
 
@@ -41,8 +42,9 @@ pub(crate) struct MultigridCloth<'a> {
     pub particle_start: u32,
     /// Its hierarchy.
     pub layout: &'a MultigridLayout,
-    /// Whether its levels are assembled in every substep.
-    pub stiff: bool,
+    /// How it steps: whether its levels are assembled in every substep, whether it blends
+    /// BDF2 with implicit Euler, and its cycle.
+    pub stepping: MultigridStepping,
 }
 
 /// What the bind group binds besides the plan's own buffers.
@@ -66,6 +68,9 @@ pub(crate) struct MultigridPlan {
     passes: Buffer,
     /// Levels of the deepest cloth.
     levels: u32,
+    /// [`Cycle::TopW`] when any cloth runs it (the others' second visits compute their first
+    /// answers again), else [`Cycle::V`].
+    cycle: Cycle,
     /// Entries of the cloth array (workgroups of the per-cloth kernels).
     cloth_slots: u32,
     /// Per pass entry, its workgroups.
@@ -215,7 +220,8 @@ impl MultigridPlan {
                 aggregate_start,
                 dense_start: dense_end,
                 dense_order,
-                stiff: u32::from(cloth.stiff),
+                stiff: u32::from(cloth.stepping == MultigridStepping::Stiff),
+                blend: u32::from(cloth.stepping == MultigridStepping::Blend),
                 age: REASSEMBLE_EVERY,
                 ..Default::default()
             };
@@ -280,6 +286,7 @@ impl MultigridPlan {
             cloths: storage_buffer_with(device, "bvh_cloth_multigrid_cloths", &headers),
             passes,
             levels: levels as u32,
+            cycle: if cloths.iter().any(|c| c.stepping.cycle() == Cycle::TopW) { Cycle::TopW } else { Cycle::V },
             cloth_slots,
             workgroups,
         })
@@ -362,17 +369,34 @@ impl MultigridPlan {
         }
         run(EntryPoint::MgFactor, NODES, groups(NODES));
         run(EntryPoint::MgDenseFactor, CLOTHS, per_cloth);
-        for l in 0..self.levels - 1 {
-            run(EntryPoint::MgSmoothDown, level(l), groups(level(l)));
-            run(EntryPoint::MgRestrict, level(l + 1), groups(level(l + 1)));
-        }
-        run(EntryPoint::MgCoarsest, CLOTHS, per_cloth);
-        for l in (0..self.levels - 1).rev() {
-            run(EntryPoint::MgSmoothUp, level(l), groups(level(l)));
-        }
+        self.cycle(0, &mut |entry, l| match entry {
+            EntryPoint::MgCoarsest => run(entry, CLOTHS, per_cloth),
+            _ => run(entry, level(l), groups(level(l))),
+        });
         run(EntryPoint::MgLineChunks, CHUNKS, groups(CHUNKS));
         run(EntryPoint::MgLineSearch, CHUNKS, per_cloth);
         run(EntryPoint::MgApply, CLOTHS, particles);
+    }
+
+    /// Calls `run` with the passes of the cycle from level `l` (and the level each runs on), in
+    /// order, as `bvh_cloth_core::solver::multigrid` runs it: the smoothing from zero, then one
+    /// visit of the next level (two from the first level in [`Cycle::TopW`]), each the
+    /// residual's restriction, the next level's cycle and the smoothing on the way up.
+    fn cycle(&self, l: u32, run: &mut impl FnMut(EntryPoint, u32)) {
+        if l + 1 >= self.levels {
+            run(EntryPoint::MgCoarsest, l);
+            return;
+        }
+        run(EntryPoint::MgSmoothDown, l);
+        let visits = if self.cycle == Cycle::TopW && l == 0 { 2 } else { 1 };
+        for visit in 0..visits {
+            if visit > 0 {
+                run(EntryPoint::MgKeep, l);
+            }
+            run(EntryPoint::MgRestrict, l + 1);
+            self.cycle(l + 1, run);
+            run(EntryPoint::MgSmoothUp, l);
+        }
     }
 
     /// One dispatch of `entry` in substep `k` with pass entry `pass`.

@@ -1,9 +1,10 @@
 //! The multigrid kernels against the CPU reference ([`MultigridCorrection::correct`]): two
 //! cloths of one plan, two substeps (the first implicit Euler's, assembling and factoring the
-//! levels; the second BDF2's, keeping them and factoring them for its step), the corrected
-//! displacements compared particle by particle.
+//! levels; the second BDF2's or the blend's, keeping them and factoring them for its step), by
+//! V-cycles and the first level's W-cycle, the corrected displacements compared particle by
+//! particle.
 
-use bvh_cloth_core::backend::{ForceModel, MultigridCorrection};
+use bvh_cloth_core::backend::{BLEND_STEP, ForceModel, MultigridCorrection, MultigridStepping};
 use bvh_cloth_core::{ClothGrid, ClothParams, ClothTopology, Integrator, UVec2, Vec2, Vec3A};
 
 use super::{MultigridCloth, MultigridPlan, SharedBuffers};
@@ -66,12 +67,28 @@ fn case(side: u32, size: f32, pins: &[usize], held: core::ops::Range<usize>, h: 
 /// and line-search sums against the CPU's f64).
 #[test]
 fn the_multigrid_kernels_correct_as_the_cpu_does() {
+    corrections_agree(32, [MultigridStepping::Bdf2; 2]);
+}
+
+/// The same with one cloth blending BDF2 with implicit Euler and running `Cycle::TopW`, in one
+/// plan with a cloth of V-cycles, whose second visit must leave its answer as it was: the deeper
+/// cloth (four levels) each way.
+#[test]
+fn the_multigrid_kernels_run_w_cycles_as_the_cpu_does() {
+    corrections_agree(128, [MultigridStepping::Blend, MultigridStepping::Bdf2]);
+    corrections_agree(128, [MultigridStepping::Bdf2, MultigridStepping::Blend]);
+}
+
+/// Two cloths, `side` x `side` pinned at two corners and a free 20 x 20, stepped as
+/// `steppings` says.
+fn corrections_agree(side: u32, steppings: [MultigridStepping; 2]) {
     let Some(rig) = rig() else { return };
     let (device, queue) = (&rig.device, &rig.queue);
     let h = 1.0 / 960.0;
     let params = ClothParams { integrator: Integrator::Multigrid, ..Default::default() };
     let model = ForceModel::new(&params);
-    let mut cases = [case(32, 1.0, &[0, 31], 100..110, h), case(20, 0.6, &[], 0..0, h)];
+    let last = side as usize - 1;
+    let mut cases = [case(side, 1.0, &[0, last], 100..110, h), case(20, 0.6, &[], 0..0, h)];
     let mut cpu: Vec<MultigridCorrection> =
         cases.iter().map(|c| MultigridCorrection::new(&c.topology, &model, &c.free, &c.held, &c.start, &c.d)).collect();
     let layouts: Vec<_> = cpu.iter().map(MultigridCorrection::layout).collect();
@@ -82,7 +99,12 @@ fn the_multigrid_kernels_correct_as_the_cpu_does() {
         .iter()
         .zip(&starts)
         .enumerate()
-        .map(|(k, (layout, &particle_start))| MultigridCloth { slot: k as u32, particle_start, layout, stiff: false })
+        .map(|(k, (layout, &particle_start))| MultigridCloth {
+            slot: k as u32,
+            particle_start,
+            layout,
+            stepping: steppings[k],
+        })
         .collect();
     let plan = MultigridPlan::new(device, &plan_cloths, 2).expect("the plan fits");
     let workgroups = ClothKernels::workgroups(device, slots).expect("one dispatch");
@@ -134,10 +156,15 @@ fn the_multigrid_kernels_correct_as_the_cpu_does() {
     let group = plan.bind_group(device, &rig.kernels, &shared);
     for substep in 0..2 {
         let before: Vec<Vec<Vec3A>> = cases.iter().map(|c| c.d.clone()).collect();
-        // The first substep is implicit Euler's (the cloth has no history), the second BDF2's.
-        let step = if substep == 0 { h } else { h * (2.0 / 3.0) };
-        for (c, correction) in cases.iter_mut().zip(&mut cpu) {
-            correction.correct(&c.held, step, &mut c.d, &c.start, &c.target, substep == 0);
+        // The first substep is implicit Euler's (the cloth has no history), the second BDF2's
+        // or the blend's.
+        for ((c, correction), stepping) in cases.iter_mut().zip(&mut cpu).zip(steppings) {
+            let step = match (substep, stepping) {
+                (0, _) => h,
+                (_, MultigridStepping::Blend) => h * BLEND_STEP,
+                _ => h * (2.0 / 3.0),
+            };
+            correction.correct(&c.held, step, &mut c.d, &c.start, &c.target, substep == 0, stepping.cycle());
         }
         let mut encoder = device.create_command_encoder(&Default::default());
         {
@@ -153,7 +180,11 @@ fn the_multigrid_kernels_correct_as_the_cpu_does() {
             let worst = (0..c.topology.len())
                 .map(|i| (Vec3A::from_slice(&gpu[(starts[k] as usize) + i].position[..3]) - c.d[i]).length())
                 .fold(0.0, f32::max);
-            eprintln!("substep {substep}, cloth {k}: the CPU moved {moved:.3e}, the GPU differs by {worst:.3e}");
+            eprintln!(
+                "{:?}, {} levels, substep {substep}, cloth {k}: the CPU moved {moved:.3e}, the GPU differs by {worst:.3e}",
+                steppings[k],
+                layouts[k].levels.len()
+            );
             assert!(moved > 1.0e-5, "substep {substep}, cloth {k}: the correction moved nothing");
             assert!(worst <= 1.0e-4 * moved, "substep {substep}, cloth {k}: {worst} against {moved}");
         }
