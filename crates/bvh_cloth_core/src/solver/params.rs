@@ -28,7 +28,7 @@ pub const MAX_DENSITY: f32 = 10.0;
 /// The default is [`Integrator::Multigrid`]: a game sets a stiffness and a budget (`looper`
 /// substeps) and gets that cost, stable whatever the stiffness, and a cloth that falls,
 /// swings and stretches as RK4's does (the hanging cloth's sag at 1 s within 10 % of RK4's
-/// from 32 x 32 to 512 x 512, 13 % above it at 1024 x 1024; BENCHMARKS.md, "Motion"). Its
+/// and its strain within 1.5x from 32 x 32 to 1024 x 1024; BENCHMARKS.md, "Motion"). Its
 /// tick costs about one and a half times block descent's with one sweep, which converges a
 /// fine cloth's load only one ring of springs per colour pass and so lets a big sheet stretch
 /// like rubber while it moves (held by the tethers, 45 % more sag than RK4 at 256 x 256). With RK4 a
@@ -56,8 +56,10 @@ pub enum Integrator {
     /// block-descent sweep and an aggregation multigrid correction
     /// ([`crate::solver::multigrid`]): a fine cloth's load reaches its pins within the substep,
     /// so it swings and stretches close to RK4's (the hanging cloth's sag at 1 s within -1 % to
-    /// +8 % of RK4's from 32 x 32 to 512 x 512, +13 % at 1024 x 1024, BENCHMARKS.md "Motion"),
-    /// and BDF2 damps its motion far less than implicit Euler. Stable at every stiffness, and
+    /// +8 % of RK4's from 32 x 32 to 1024 x 1024, BENCHMARKS.md "Motion"), and BDF2 damps its
+    /// motion far less than implicit Euler. On the stiffest substeps (1024 x 1024 at Looper 16)
+    /// the step blends BDF2 with implicit Euler and the correction visits its coarse levels
+    /// twice ([`crate::solver::block_descent`]). Stable at every stiffness, and
     /// needs no tethers ([`ClothParams::tethers`] is not used). Both backends run it; the GPU's
     /// kernels agree with the CPU within the tolerances `bvh_cloth_gpu`'s tests state.
     #[default]
