@@ -58,8 +58,8 @@ fn descent_cloth(i: u32) -> u32 {
     return c;
 }
 
-// The length of cloth c's substep: the multigrid integrator's own (mg_begin writes it: h, or
-// 2h/3 for a BDF2 substep), h for block descent.
+// The length of cloth c's substep: the multigrid integrator's own (mg_begin writes it: h, 2h/3
+// for a BDF2 substep, (1 - theta/3) h for a blended one), h for block descent.
 fn substep_length(c: u32) -> f32 {
     if (cloths[c].integrator == INTEGRATOR_MULTIGRID) {
         return cloths[c].step;
@@ -67,7 +67,8 @@ fn substep_length(c: u32) -> f32 {
     return cloths[c].h;
 }
 
-// Whether cloth c's substep is BDF2 (bvh_cloth_core::solver::block_descent's multigrid integrator).
+// Whether cloth c's substep builds on the last one, BDF2 or the blend (cloths[c].blend)
+// (bvh_cloth_core::solver::block_descent's multigrid integrator).
 fn bdf2(c: u32) -> bool {
     return cloths[c].integrator == INTEGRATOR_MULTIGRID && cloths[c].step != cloths[c].h;
 }

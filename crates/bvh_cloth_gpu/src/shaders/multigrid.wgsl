@@ -1,7 +1,7 @@
 // The multigrid correction of block descent's sweep (bvh_cloth_core::solver::multigrid), per
 // substep for every cloth of the batch that has it, after the sweeps and before vbd_finish:
-// - mg_begin, one thread per cloth: the substep's step, and whether it assembles and factors
-//   the levels;
+// - mg_begin, one thread per cloth: the substep's step (BDF2's, the blend's or implicit
+//   Euler's), and whether it assembles and factors the levels;
 // - mg_springs, one thread per crossing spring: its force, direction and clamped stretch, and
 //   at an assembly its Hessian;
 // - mg_residual, one thread per level-1 node: the residual P^T r, its free mass, and at an
@@ -14,7 +14,9 @@
 // - the V-cycle: per level down, mg_smooth_down (a damped Jacobi step from zero) and
 //   mg_restrict (each coarse node gathers its children's residuals); mg_coarsest, one
 //   workgroup per cloth (the dense solve, or smoothing when the level has no factor); per level
-//   up, mg_smooth_up (the prolongation and a damped Jacobi step in one);
+//   up, mg_smooth_up (the prolongation and a damped Jacobi step in one); where a cloth runs the
+//   first level's W-cycle, mg_keep, then level 1's second visit (mg_restrict, the V-cycle below,
+//   mg_smooth_up);
 // - mg_line_chunks, one workgroup per chunk of 64 of a cloth's level-1 nodes, and
 //   mg_line_search, one workgroup per cloth: the step along P e on the substep's quadratic
 //   model, summed in two levels, and whether the kept levels have gone stale;
@@ -200,8 +202,9 @@ fn corrected(c: u32) -> bool {
 }
 
 // Before the substep's prediction, one thread per cloth: whether the cloth runs this substep,
-// its step (BDF2's 2h/3 when its last substep allows, else implicit Euler's h), and whether the
-// levels are assembled and factored in it.
+// its step (when its last substep allows, BDF2's 2h/3, or the blend's (1 - theta/3) h where its
+// springs are stiff; else implicit Euler's h), and whether the levels are assembled and
+// factored in it.
 @compute @workgroup_size(8, 8, 1)
 fn mg_begin(@builtin(global_invocation_id) id: vec3<u32>) {
     let c = thread_index(id, mg_pass.width);
