@@ -145,9 +145,8 @@
 //! V-cycle leave a stretch that BDF2's two-step history rings on, and implicit Euler damps the
 //! swing (the multigrid module's docs have the figures). After the sweep, the multigrid
 //! correction ([`crate::solver::multigrid`]) carries the load across the cloth within the
-//! substep, so it needs no tethers. The centre
-//! of mass is kept as for block descent, about where inertia, damping and the uniform
-//! acceleration take the BDF2 step.
+//! substep, so it needs no tethers. The centre of mass is kept as for block descent, about
+//! where inertia, damping and the uniform acceleration take the BDF2 step.
 
 use std::sync::atomic::{AtomicUsize, Ordering};
 
@@ -361,9 +360,9 @@ pub(crate) enum Solve<'a> {
 pub(crate) const BDF2_STIFFNESS_LIMIT: f32 = 400.0;
 
 /// The stiffness `(2h/3)² k_max / m_min` past which a substep blends BDF2 with implicit Euler
-/// ([`BLEND_LAG`]) and the correction runs [`Cycle::TopW`], up to [`BDF2_STIFFNESS_LIMIT`]: between
-/// 512 x 512's 88 and 1024 x 1024's 354 at Looper 16 (the multigrid module's docs have the
-/// measurements).
+/// ([`BLEND_LAG`]) and the correction runs [`Cycle::TopW`], up to [`BDF2_STIFFNESS_LIMIT`]:
+/// between 512 x 512's 88 and 1024 x 1024's 354 at Looper 16 (the multigrid module's docs have
+/// the measurements).
 pub(crate) const BLEND_LIMIT: f32 = 200.0;
 
 /// The blended step's weight of the last substep, `θ/3` with `θ = 0.8`: `x̂ = x⁰ + θ (x⁰ -
@@ -576,7 +575,8 @@ impl BlockDescent {
         };
         // BDF2 (`x = x̂ + ĥ v`, `v = v̂ + ĥ a` with `ĥ = 2h/3`, `x̂ = (4x⁰ - x⁻¹)/3` and
         // `v̂ = (4v⁰ - v⁻¹)/3`) is implicit Euler's minimisation with `ĥ` for `h` and `x̂`, `v̂`
-        // for the start: only the targets and the first iterate change.
+        // for the start: only the targets and the first iterate change (the blend's likewise,
+        // with its own weights).
         let stepping = MultigridStepping::of(model, topology, h);
         let stiff = stepping == MultigridStepping::Stiff;
         let how = match solve {

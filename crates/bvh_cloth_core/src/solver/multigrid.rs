@@ -100,11 +100,11 @@
 //! At 1024 x 1024 (its substeps past a BDF2 stiffness of 200: the blended step and
 //! [`Cycle::TopW`]) its sag at 1 s is 7.2 % above RK4's and its p99 strain 1.14x RK4's (the
 //! report's `fine_swing`), where BDF2 and the V-cycle of the coarser cloths leave it at
-//! 13.3 % and 2.72x. Already at 512 x 512 the most stretched springs lie across the cloth, up to 15 %
-//! stretched 128 to 512 springs from the pins, where RK4's past 4.3 % all lie within 128
-//! springs of them. Timed with a scratch program (15 ticks of 1024 x 1024, twice each way on
-//! the 2-core machine), the blend and the first level's W-cycle cost what BDF2 and the V-cycle
-//! do within the machine's noise (47 and 54 s against 49 and 51 s).
+//! 13.3 % and 2.72x. Already at 512 x 512 the most stretched springs lie across the cloth,
+//! up to 15 % stretched 128 to 512 springs from the pins, where RK4's past 4.3 % all lie
+//! within 128 springs of them. Timed with a scratch program (15 ticks of 1024 x 1024, twice
+//! each way on the 2-core machine), the blend and the first level's W-cycle cost what BDF2 and
+//! the V-cycle do within the machine's noise (47 and 54 s against 49 and 51 s).
 //!
 //! Its cost on the 2-core development machine (an Intel Xeon), against block descent with one
 //! sweep and its tethers at Looper 16 (the report's `motion_cost` section, three runs on
