@@ -1337,6 +1337,7 @@ fn the_multigrid_integrator_agrees_with_the_cpu() {
             first = gaps;
         }
     }
+    // The cloth that joined at tick 15 had no first tick with the others.
     opening.push(0.0);
     for ((((name, sim), before), (&id, first)), opening) in
         cloths.iter().zip(&start).zip(ids.iter().zip(&first)).zip(&opening)
