@@ -73,10 +73,9 @@ impl ContactSolver {
         let normal_now =
             common_normal(p0, p1, q0, q1).map(|n| if normal_before.is_some_and(|b| b.dot(n) < 0.0) { -n } else { n });
         let side_before = normal_before.map_or(0.0, |n| (r0 - s0).dot(n));
-        // An edge with an end on the wrong side of the other's body, as `untangle` found them:
-        // the side to go back to is the other one.
-        let wrong = |ends: [u32; 2], body: u32| ends.iter().any(|&k| self.wrong_side[k as usize] == body);
-        let inverted = eb != fb && (wrong([a0, a1], fb) || wrong([b0, b1], eb));
+        // An edge with an end on the wrong side of the other's body or sheet, as `untangle`
+        // found them: the side to go back to is the other one.
+        let inverted = self.inverted(&[a0, a1], &[b0, b1]);
         let side_before = if inverted { -side_before } else { side_before };
         let side_now = normal_now.map_or(0.0, |n| (p0 - q0).dot(n));
         let through = side_before * side_now < 0.0;

@@ -298,9 +298,15 @@ pub struct ContactSolver {
     rest_boxes: Vec<[Vec3A; 2]>,
     /// The primitives sorted by the cells their boxes overlap.
     grid: HashedGrid,
-    /// For each particle, the other body it lies on the wrong side of at the substep's start
-    /// (`untangle::NO_BODY` for none): its contacts with that body take it back through.
+    /// For each particle, the label (in `sheet`) of the other body or sheet it lies on the
+    /// wrong side of at the substep's start (`untangle::NO_BODY` for none): its contacts with
+    /// that body or sheet take it back through.
     wrong_side: Vec<u32>,
+    /// For each particle, the label of the body or sheet it belongs to: its body's index, or
+    /// a label of its own for a sheet of a body that another sheet of it passes through.
+    sheet: Vec<u32>,
+    /// Whether any particle is on the wrong side this substep.
+    tangled: bool,
     /// Resolutions left before the next test for crossing bodies (`untangle`).
     untangle_wait: u32,
     /// Each particle's summed corrections and the number of contacts it took part in.

@@ -57,10 +57,9 @@ impl ContactSolver {
         let face = face_normal(at);
         let before = corners.map(|c| self.prev[c as usize]);
         let side_before = face_normal(before).map_or(0.0, |n| (self.prev[p] - before[0]).dot(n));
-        // A point on the wrong side of another body, or a triangle of the wrong side of the
-        // point's body, as `untangle` found them: the side to go back to is the other one.
-        let wrong = |k: u32, body: u32| self.wrong_side[k as usize] == body;
-        let inverted = pb != tb && (wrong(p as u32, tb) || corners.iter().any(|&c| wrong(c, pb)));
+        // A point on the wrong side of the triangle's body or sheet, or a triangle of the wrong
+        // side of the point's, as `untangle` found them: the side to go back to is the other.
+        let inverted = self.inverted(&[p as u32], &corners);
         let side_before = if inverted { -side_before } else { side_before };
         let side_now = face.map_or(0.0, |n| (xp - at[0]).dot(n));
         let through = side_before * side_now < 0.0;

@@ -180,6 +180,69 @@ fn two_cloths_started_crossed_come_apart() {
     assert_eq!(close, 0, "particles of the two cloths closer than half the thickness at 1 s");
 }
 
+/// A cloth folded over itself on the ground (32 x 66 particles, 0.8 m wide, its lower half and
+/// its upper half 5 cm apart, joined by a round fold), with a bump of its lower half poked
+/// up through its upper half, as a pin dragged through it would leave it: a closed curve of
+/// intersection on each half. Contact alone keeps each particle on the side it is on, so the
+/// bump stays through; the untangling finds the two rings of cut triangles, the bump's tip and
+/// the patch of the upper half it passes through, and takes the smaller back through the
+/// other. Within 1 s no two triangles of the cloth intersect, and no two particles that share
+/// no spring lie closer than half the thickness.
+#[test]
+fn a_cloth_poked_through_itself_comes_apart() {
+    let (cols, rows) = (32u32, 66u32);
+    let topology = common::grid_topology(0.8, cols, rows);
+    let spacing = 0.8 / (cols - 1) as f32;
+    let params = ClothParams {
+        self_contact: Some(SelfContact { thickness: THICKNESS, friction: 0.3 }),
+        ..ClothParams::default()
+    };
+    let ground = Collider::primitive(Primitive::HalfSpace { normal: Vec3::Y }).unwrap().with_friction(0.5);
+    let colliders = [ground];
+    let (floor, radius) = (0.02, 3.0 * spacing / core::f32::consts::PI);
+    let (height, width) = (0.15, 0.06);
+    let mut cloth = ClothSim::new(params, Arc::clone(&topology), Affine3A::IDENTITY, &[]).unwrap();
+    for r in 0..rows {
+        for c in 0..cols {
+            let x = -0.4 + c as f32 * spacing;
+            let position = match r {
+                // The lower half, with the bump about its middle.
+                0..=31 => {
+                    let z = -0.4 + r as f32 * spacing;
+                    let bump = height * (-(x * x + z * z) / (2.0 * width * width)).exp();
+                    Vec3::new(x, floor + bump, z)
+                }
+                // The fold: a half turn of radius `radius` over three spacings.
+                32..=33 => {
+                    let angle = (r - 31) as f32 * core::f32::consts::PI / 3.0;
+                    Vec3::new(x, floor + radius * (1.0 - angle.cos()), 0.4 + radius * angle.sin())
+                }
+                // The upper half, back over the lower.
+                _ => Vec3::new(x, floor + 2.0 * radius, 0.4 - (r - 34) as f32 * spacing),
+            };
+            cloth.set_position((r * cols + c) as usize, position);
+        }
+    }
+    let crossing = |cloth: &ClothSim| crossing_triangles(topology.triangles(), &cloth.positions(), None);
+    let start = crossing(&cloth);
+    assert!(start > 20, "the bump crosses the upper half at only {start} pairs of triangles");
+    let mut solver = ContactSolver::default();
+    let mut pairs = vec![start];
+    for _ in 0..2 {
+        for _ in 0..30 {
+            ClothSim::tick_together(&mut [&mut cloth], 1.0 / 60.0, &colliders, &mut solver);
+        }
+        pairs.push(crossing(&cloth));
+    }
+    let close = close_pairs(&topology, &cloth.positions(), 0.5 * THICKNESS);
+    eprintln!(
+        "a cloth poked through itself: {pairs:?} intersecting pairs at 0, 0.5 and 1 s; {close} close pairs at 1 s"
+    );
+    assert!(cloth.is_finite());
+    assert_eq!(pairs[2], 0, "triangles of the cloth still intersect each other at 1 s");
+    assert_eq!(close, 0, "particles of the cloth closer than half the thickness at 1 s");
+}
+
 /// Thicknesses below zero, NaN and above the particle spacing are refused, naming the field; so
 /// is a negative friction.
 #[test]
