@@ -68,8 +68,8 @@ impl ContactSolver {
                     let tested = if ub == tb {
                         let h = bodies[tb as usize].contact.thickness;
                         let ([t_lo, t_hi], [u_lo, u_hi]) = (self.rest_boxes[t as usize], self.rest_boxes[u as usize]);
-                        !tc.iter().any(|k| uc.contains(k))
-                            && !((t_lo - h).cmple(u_hi).all() && (t_hi + h).cmpge(u_lo).all())
+                        let neighbours = (t_lo - h).cmple(u_hi).all() && (t_hi + h).cmpge(u_lo).all();
+                        !(neighbours || tc.iter().any(|k| uc.contains(k)))
                     } else {
                         bodies[tb as usize].layers.interacts_with(bodies[ub as usize].layers)
                     };
