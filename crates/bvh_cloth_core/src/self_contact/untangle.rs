@@ -43,8 +43,6 @@ impl ContactSolver {
     pub(super) fn find_wrong_sides(&mut self, bodies: &[ContactBody<'_>]) -> usize {
         self.wrong_side.clear();
         self.wrong_side.resize(self.x.len(), NO_BODY);
-        self.sheet.clear();
-        self.sheet.extend(self.owner.iter().map(|&(body, _)| body));
         self.tangled = false;
         if self.untangle_wait > 0 {
             self.untangle_wait -= 1;
@@ -84,6 +82,10 @@ impl ContactSolver {
             self.untangle_wait = UNTANGLE_EVERY - 1;
             return 0;
         }
+        // Every particle's label is its body's until a sheet of one body gets its own (read
+        // only while something is marked).
+        self.sheet.clear();
+        self.sheet.extend(self.owner.iter().map(|&(body, _)| body));
         // Each pair of bodies that cross, and the triangles of each that the other cuts; and
         // each body that crosses itself, with its pairs.
         let mut crossing: HashMap<(u32, u32), (Vec<u32>, Vec<u32>)> = HashMap::new();
@@ -168,26 +170,14 @@ impl ContactSolver {
     /// curve that runs out to the cloth's border on both sides of it, an edge through an edge)
     /// is left alone, as two bodies are.
     fn self_crossings(&self, body: u32, topology: &ClothTopology, pairs: &[(u32, u32)]) -> Vec<(Vec<u32>, Vec<u32>)> {
-        let first = self.triangles.partition_point(|&(b, _)| b < body);
-        let first_particle = self.owner.partition_point(|&(b, _)| b < body) as u32;
-        let triangles = topology.triangles();
-        let mut is_cut = vec![false; triangles.len()];
-        for &(t, u) in pairs {
-            is_cut[t as usize - first] = true;
-            is_cut[u as usize - first] = true;
-        }
-        let (ring, rings) = flood(topology, |t| is_cut[t]);
-        let (part, sizes) = flood(topology, |t| !is_cut[t]);
-        let Some(largest) = (0..sizes.len()).max_by_key(|&k| (sizes[k], usize::MAX - k)) else {
+        let cut = pairs.iter().flat_map(|&(t, u)| [t, u]);
+        let Some(Cut { first, first_particle, is_cut, part, parts, largest, on_largest }) =
+            self.cut(body, topology, cut)
+        else {
             return Vec::new();
         };
-        let largest = largest as u32;
-        let mut on_largest = vec![false; topology.len()];
-        for (c, _) in triangles.iter().zip(&part).filter(|&(_, &p)| p == largest) {
-            for &k in c {
-                on_largest[k as usize] = true;
-            }
-        }
+        let triangles = topology.triangles();
+        let (ring, rings) = flood(topology, |t| is_cut[t]);
         // Each ring's corners, and the parts beside it other than the largest.
         let mut ring_corners: Vec<BTreeSet<u32>> = vec![BTreeSet::new(); rings.len()];
         let mut beside: Vec<BTreeSet<u32>> = vec![BTreeSet::new(); rings.len()];
@@ -200,7 +190,7 @@ impl ContactSolver {
                 }
             });
         }
-        let mut part_corners: Vec<Vec<u32>> = vec![Vec::new(); sizes.len()];
+        let mut part_corners: Vec<Vec<u32>> = vec![Vec::new(); parts];
         for (c, &p) in triangles.iter().zip(&part) {
             if p != UNSET && p != largest {
                 part_corners[p as usize].extend(c.iter().copied());
@@ -240,30 +230,58 @@ impl ContactSolver {
     /// of the parts the cuts leave besides the largest, less the corners of the largest part's
     /// triangles; `None` for none.
     fn wrong_part(&self, body: u32, topology: &ClothTopology, cut: &[u32]) -> Option<Vec<u32>> {
+        let Cut { first_particle, part, largest, on_largest, .. } = self.cut(body, topology, cut.iter().copied())?;
+        // Each particle that is a corner of a triangle outside the largest part.
+        let mut rest = vec![false; topology.len()];
+        for (c, _) in topology.triangles().iter().zip(&part).filter(|&(_, &p)| p != largest) {
+            for &k in c {
+                rest[k as usize] = true;
+            }
+        }
+        let wrong: Vec<u32> =
+            (0..topology.len()).filter(|&k| rest[k] && !on_largest[k]).map(|k| first_particle + k as u32).collect();
+        (!wrong.is_empty()).then_some(wrong)
+    }
+
+    /// Body `body` (of shape `topology`) cut by the triangles `cut` (flat indices, repeats
+    /// allowed): its other triangles' parts and the largest of them; `None` when every
+    /// triangle is cut.
+    fn cut(&self, body: u32, topology: &ClothTopology, cut: impl Iterator<Item = u32>) -> Option<Cut> {
         // The body's first triangle and first particle (flat indices): its triangles and
         // particles are in the topology's order from there.
         let first = self.triangles.partition_point(|&(b, _)| b < body);
         let first_particle = self.owner.partition_point(|&(b, _)| b < body) as u32;
         let triangles = topology.triangles();
         let mut is_cut = vec![false; triangles.len()];
-        for &t in cut {
+        for t in cut {
             is_cut[t as usize - first] = true;
         }
         // The parts: a flood over the triangles that share an edge (two corners) with each.
         let (part, sizes) = flood(topology, |t| !is_cut[t]);
         let largest = (0..sizes.len()).max_by_key(|&k| (sizes[k], usize::MAX - k))? as u32;
-        // Each particle: a corner of the largest part, and a corner of the rest.
-        let (mut right, mut rest) = (vec![false; topology.len()], vec![false; topology.len()]);
-        for (c, &part) in triangles.iter().zip(&part) {
-            let side = if part == largest { &mut right } else { &mut rest };
+        let mut on_largest = vec![false; topology.len()];
+        for (c, _) in triangles.iter().zip(&part).filter(|&(_, &p)| p == largest) {
             for &k in c {
-                side[k as usize] = true;
+                on_largest[k as usize] = true;
             }
         }
-        let wrong: Vec<u32> =
-            (0..topology.len()).filter(|&k| rest[k] && !right[k]).map(|k| first_particle + k as u32).collect();
-        (!wrong.is_empty()).then_some(wrong)
+        Some(Cut { first, first_particle, is_cut, part, parts: sizes.len(), largest, on_largest })
     }
+}
+
+/// A body cut by the triangles that cross (local triangle and particle indices).
+struct Cut {
+    /// The body's first triangle and first particle, as flat indices.
+    first: usize,
+    first_particle: u32,
+    /// Whether each triangle is cut.
+    is_cut: Vec<bool>,
+    /// Each uncut triangle's part ([`UNSET`] for a cut one), the count of parts and the largest.
+    part: Vec<u32>,
+    parts: usize,
+    largest: u32,
+    /// Whether each particle is a corner of a triangle of the largest part.
+    on_largest: Vec<bool>,
 }
 
 /// Groups the triangles of `topology` that `within(t)` keeps into sets joined across shared

@@ -180,11 +180,16 @@ fn two_cloths_started_crossed_come_apart() {
     assert_eq!(close, 0, "particles of the two cloths closer than half the thickness at 1 s");
 }
 
-/// The folded cloth of [`a_cloth_poked_through_itself_comes_apart`]: 32 x 66 particles, 0.8 m
-/// wide, its lower half 2 cm over the ground and its upper half 5 cm above that, joined by a
-/// round fold, the lower half raised by a bump of height `bump` about its middle; and the
-/// index of the particle at the top of the bump.
-fn folded_cloth(params: ClothParams, bump: f32) -> (ClothSim, u32) {
+/// The folded cloth of [`a_cloth_poked_through_itself_comes_apart`] (with self-contact at
+/// [`THICKNESS`], the rest of the parameters the default's): 32 x 66 particles, 0.8 m wide,
+/// its lower half 2 cm over the ground and its upper half 5 cm above that, joined by a round
+/// fold, the lower half raised by a bump of height `bump` about its middle; and the index of
+/// the particle at the top of the bump.
+fn folded_cloth(bump: f32) -> (ClothSim, u32) {
+    let params = ClothParams {
+        self_contact: Some(SelfContact { thickness: THICKNESS, friction: 0.3 }),
+        ..ClothParams::default()
+    };
     let (cols, rows) = (32u32, 66u32);
     let topology = common::grid_topology(0.8, cols, rows);
     let spacing = 0.8 / (cols - 1) as f32;
@@ -214,6 +219,24 @@ fn folded_cloth(params: ClothParams, bump: f32) -> (ClothSim, u32) {
     (cloth, 16 * cols + 16)
 }
 
+/// The ground the folded cloth lies on (friction 0.5).
+fn ground() -> [Collider; 1] {
+    [Collider::primitive(Primitive::HalfSpace { normal: Vec3::Y }).unwrap().with_friction(0.5)]
+}
+
+/// Ticks `cloth` alone on `colliders` for a second with `solver`: the pairs of its triangles
+/// that intersect after 0.5 s and after 1 s, and its close pairs at the end.
+fn one_second(cloth: &mut ClothSim, colliders: &[Collider], solver: &mut ContactSolver) -> ([usize; 2], usize) {
+    let topology = Arc::clone(cloth.topology());
+    let pairs = [(); 2].map(|_| {
+        for _ in 0..30 {
+            ClothSim::tick_together(&mut [&mut *cloth], 1.0 / 60.0, colliders, solver);
+        }
+        crossing_triangles(topology.triangles(), &cloth.positions(), None)
+    });
+    (pairs, close_pairs(&topology, &cloth.positions(), 0.5 * THICKNESS))
+}
+
 /// A cloth folded over itself on the ground (32 x 66 particles, 0.8 m wide, its lower half and
 /// its upper half 5 cm apart, joined by a round fold), with a bump of its lower half poked
 /// up through its upper half, as a pin dragged through it would leave it: a closed curve of
@@ -224,31 +247,16 @@ fn folded_cloth(params: ClothParams, bump: f32) -> (ClothSim, u32) {
 /// no spring lie closer than half the thickness.
 #[test]
 fn a_cloth_poked_through_itself_comes_apart() {
-    let params = ClothParams {
-        self_contact: Some(SelfContact { thickness: THICKNESS, friction: 0.3 }),
-        ..ClothParams::default()
-    };
-    let ground = Collider::primitive(Primitive::HalfSpace { normal: Vec3::Y }).unwrap().with_friction(0.5);
-    let colliders = [ground];
-    let (mut cloth, _) = folded_cloth(params, 0.15);
-    let topology = Arc::clone(cloth.topology());
-    let crossing = |cloth: &ClothSim| crossing_triangles(topology.triangles(), &cloth.positions(), None);
-    let start = crossing(&cloth);
+    let (mut cloth, _) = folded_cloth(0.15);
+    let start = crossing_triangles(cloth.topology().triangles(), &cloth.positions(), None);
     assert!(start > 20, "the bump crosses the upper half at only {start} pairs of triangles");
-    let mut solver = ContactSolver::default();
-    let mut pairs = vec![start];
-    for _ in 0..2 {
-        for _ in 0..30 {
-            ClothSim::tick_together(&mut [&mut cloth], 1.0 / 60.0, &colliders, &mut solver);
-        }
-        pairs.push(crossing(&cloth));
-    }
-    let close = close_pairs(&topology, &cloth.positions(), 0.5 * THICKNESS);
+    let ([half, end], close) = one_second(&mut cloth, &ground(), &mut ContactSolver::default());
     eprintln!(
-        "a cloth poked through itself: {pairs:?} intersecting pairs at 0, 0.5 and 1 s; {close} close pairs at 1 s"
+        "a cloth poked through itself: {:?} intersecting pairs at 0, 0.5 and 1 s; {close} close pairs at 1 s",
+        [start, half, end]
     );
     assert!(cloth.is_finite());
-    assert_eq!(pairs[2], 0, "triangles of the cloth still intersect each other at 1 s");
+    assert_eq!(end, 0, "triangles of the cloth still intersect each other at 1 s");
     assert_eq!(close, 0, "particles of the cloth closer than half the thickness at 1 s");
 }
 
@@ -259,13 +267,8 @@ fn a_cloth_poked_through_itself_comes_apart() {
 /// triangles of the cloth intersect.
 #[test]
 fn a_pin_dragged_through_the_cloth_leaves_no_tangle() {
-    let params = ClothParams {
-        self_contact: Some(SelfContact { thickness: THICKNESS, friction: 0.3 }),
-        ..ClothParams::default()
-    };
-    let ground = Collider::primitive(Primitive::HalfSpace { normal: Vec3::Y }).unwrap().with_friction(0.5);
-    let colliders = [ground];
-    let (mut cloth, middle) = folded_cloth(params, 0.0);
+    let colliders = ground();
+    let (mut cloth, middle) = folded_cloth(0.0);
     let topology = Arc::clone(cloth.topology());
     let crossing = |cloth: &ClothSim| crossing_triangles(topology.triangles(), &cloth.positions(), None);
     let mut solver = ContactSolver::default();
@@ -279,20 +282,14 @@ fn a_pin_dragged_through_the_cloth_leaves_no_tangle() {
     }
     let released = crossing(&cloth);
     cloth.set_pins(&[]).unwrap();
-    let mut pairs = vec![released];
-    for _ in 0..2 {
-        for _ in 0..30 {
-            ClothSim::tick_together(&mut [&mut cloth], 1.0 / 60.0, &colliders, &mut solver);
-        }
-        pairs.push(crossing(&cloth));
-    }
-    let close = close_pairs(&topology, &cloth.positions(), 0.5 * THICKNESS);
+    let ([half, end], close) = one_second(&mut cloth, &colliders, &mut solver);
     eprintln!(
-        "a pin dragged through the cloth: at most {most} intersecting pairs while dragged; {pairs:?} at the release, 0.5 and 1 s after; {close} close pairs at 1 s"
+        "a pin dragged through the cloth: at most {most} intersecting pairs while dragged; {:?} at the release, 0.5 and 1 s after; {close} close pairs at 1 s",
+        [released, half, end]
     );
     assert!(cloth.is_finite());
     assert!(released > 10, "the drag left only {released} intersecting pairs: the scene does not tangle the cloth");
-    assert_eq!(pairs[2], 0, "triangles of the cloth still intersect each other 1 s after the release");
+    assert_eq!(end, 0, "triangles of the cloth still intersect each other 1 s after the release");
     assert_eq!(close, 0, "particles of the cloth closer than half the thickness 1 s after the release");
 }
 
