@@ -139,7 +139,7 @@
 //! quarantine, or a write to the cloth's state between ticks), one of another length, and one
 //! where `ĥ² k_max / m_min` passes `BDF2_STIFFNESS_LIMIT` (springs far stiffer than a cloth's,
 //! where BDF2 rings). Between `BLEND_LIMIT` and that limit (the finest cloths at the default
-//! Looper: 1024 x 1024's substeps sit at 354) a substep blends the two, `x̂ = x⁰ + θ (x⁰ -
+//! Looper: 512 x 512's substeps sit at 88, 1024 x 1024's at 354) a substep blends the two, `x̂ = x⁰ + θ (x⁰ -
 //! x⁻¹)/3`, `v̂` alike and `ĥ = (1 - θ/3) h` at `θ = 0.8` ([`BLEND_LAG`]; BDF2 at 1, implicit
 //! Euler at 0), and the correction runs its first level's W-cycle: there one sweep and a
 //! V-cycle leave a stretch that BDF2's two-step history rings on, and implicit Euler damps the
@@ -361,9 +361,9 @@ pub(crate) const BDF2_STIFFNESS_LIMIT: f32 = 400.0;
 
 /// The stiffness `(2h/3)² k_max / m_min` past which a substep blends BDF2 with implicit Euler
 /// ([`BLEND_LAG`]) and the correction runs [`Cycle::TopW`], up to [`BDF2_STIFFNESS_LIMIT`]:
-/// between 512 x 512's 88 and 1024 x 1024's 354 at Looper 16 (the multigrid module's docs have
+/// between 256 x 256's 22 and 512 x 512's 88 at Looper 16 (the multigrid module's docs have
 /// the measurements).
-pub(crate) const BLEND_LIMIT: f32 = 200.0;
+pub(crate) const BLEND_LIMIT: f32 = 50.0;
 
 /// The blended step's weight of the last substep, `θ/3` with `θ = 0.8`: `x̂ = x⁰ + θ (x⁰ -
 /// x⁻¹)/3`, `v̂` alike, for `ĥ = (1 - θ/3) h` ([`BLEND_STEP`]); `θ = 1` is BDF2, `θ = 0`
@@ -378,10 +378,10 @@ pub const BLEND_STEP: f32 = 1.0 - BLEND_LAG;
 /// step).
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum MultigridStepping {
-    /// BDF2 where the history allows, with V-cycles: a stiffness up to 200.
+    /// BDF2 where the history allows, with V-cycles: a stiffness up to 50.
     Bdf2,
     /// The blend of BDF2 and implicit Euler ([`BLEND_LAG`]) where the history allows, with
-    /// [`Cycle::TopW`]: a stiffness from 200 to 400.
+    /// [`Cycle::TopW`]: a stiffness from 50 to 400.
     Blend,
     /// Implicit Euler in every substep, the levels assembled in every one, with V-cycles: a
     /// stiffness past 400.

@@ -28,9 +28,14 @@
 //! - A spring inside an aggregate moves its two ends together under `P`, so it adds nothing to
 //!   `Pᵀ H P`, and its two forces cancel in `Pᵀ r`: only the springs that cross aggregates enter
 //!   the residual and the assembly, each once (12,474 of the 23,938 springs of a 64 x 64 grid,
-//!   202,810 of 390,658 at 256 x 256; 484 and 7,396 aggregates). One pass over them finds
-//!   their forces, directions and stretches, which the residual, the assembly (when due) and
-//!   the line search all read.
+//!   202,810 of 390,658 at 256 x 256; 484 and 7,396 aggregates). They are kept in blocks,
+//!   a block being the springs between two aggregates (or between one and the pins), and one
+//!   pass over the blocks sums each block's forces and clamped Hessians (1,787 blocks of 7
+//!   springs on average at 64 x 64). The residual gathers an aggregate's blocks, the assembly
+//!   (when due) takes level 1's off-diagonal blocks from them, and the line search's curvature
+//!   is a sum over blocks, `deᵀ B de`: every spring of a block moves by the same difference
+//!   `de` of its two aggregates' corrections. A spring with an end a collider holds is left
+//!   out of its block's sums and taken on its own by all three.
 //! - The coarse matrices are assembled every 12 substeps (`REASSEMBLE_EVERY`) and kept in between.
 //!   The residual is exact in every substep, and the line search measures the step with this
 //!   substep's Hessian (each crossing spring's direction and stretch, kept from the residual's
@@ -69,36 +74,40 @@
 //! (or over the crossing springs, or the particles), the dense factor and solve and the line
 //! search one workgroup per cloth. The kernels keep the levels, decide when to assemble and
 //! factor them, and choose BDF2, the blend or implicit Euler per substep as this module does;
-//! they sum in the same order, in f32 where the dense factor and the line search's sums are
-//! f64 here. A substep's correction is `9 + 4 (L - 1)` dispatches for `L` levels, and `2 L`
+//! they sum the same terms (a spring's force and Hessian for each aggregate it ends in, where
+//! this module sums a block's springs first), in f32 where the dense factor and the line
+//! search's sums are f64 here. A substep's correction is `9 + 4 (L - 1)` dispatches for `L` levels, and `2 L`
 //! more for [`Cycle::TopW`] (a 1024 x 1024 cloth has 6 levels).
 //!
 //! ## What it buys
 //! The hanging cloth of the core's `motion` tests (1 m, pinned at its first row's corners,
 //! dropped flat, the default parameters but the integrator), its sag at 1 s against RK4's at
 //! the same resolution, from the report's `motion` section (BENCHMARKS.md, "Motion"; `cargo
-//! test -p bvh_cloth_core --release --test core -- --nocapture multigrid_integrator` prints
+//! test -p bvh_cloth_core --release --test core -- --nocapture stretching_like_rubber` prints
 //! them to 128 x 128):
 //!
 //! | side | RK4 | multigrid, Looper 16 | multigrid, Looper 12 | block descent without tethers |
 //! |---|---|---|---|---|
 //! | 32 | 0.383 m | -1 % | +2 % | +14 % |
-//! | 64 | 0.404 m | +3 % | +5 % | +45 % |
-//! | 128 | 0.435 m | +8 % | +13 % | +134 % |
-//! | 256 | 0.487 m | +5 % | +6 % | +284 % |
+//! | 64 | 0.404 m | +4 % | +4 % | +45 % |
+//! | 128 | 0.435 m | +10 % | +12 % | +134 % |
+//! | 256 | 0.487 m | +4 % | +6 % | +284 % |
 //!
-//! A flag in steady 8 m/s wind flutters at RK4's pace and swing (5.25 Hz and 34.4 mm against
-//! 5.08 Hz and 33.5 mm; block descent with one sweep, 3.08 Hz and 23.5 mm: the core's test
+//! A flag in steady 8 m/s wind flutters close to RK4's pace and with its swing (5.83 Hz and
+//! 33.2 mm against 5.08 Hz and 33.5 mm; block descent with one sweep, 3.08 Hz and 23.5 mm: the core's test
 //! `the_default_flag_flutters_like_rk4s`).
 //!
-//! Its p99 structural strain stays within 0.94x to 1.09x of RK4's at Looper 16 (1.48x at
-//! 512 x 512, whose sag at 1 s is 7.7 % above RK4's: `a_512_cloth_swings_like_rk4_at_the_default`).
-//! At 0.5 s, the bottom of the swing, the sags are within 3.5 % of RK4's; what is left at 1 s,
-//! near the top of the swing, is mostly BDF2's own step error where the cloth snaps taut (see
-//! the alternatives below).
+//! Its p99 structural strain stays within 0.92x to 1.06x of RK4's at Looper 16. At 0.5 s, the
+//! bottom of the swing, the sags are within 3.5 % of RK4's; what is left at 1 s, near the top
+//! of the swing, is mostly BDF2's own step error where the cloth snaps taut (see the
+//! alternatives below). The swing there is sensitive to rounding: with the cloth's starting
+//! height moved by 1 to 3 mm (RK4's alike), 128 x 128's sag at 1 s came out between +6.5 % and
+//! +10.6 % of RK4's (a scratch program, 2026-11-29), so a sag here is good to about two points.
 //!
-//! At 1024 x 1024 (its substeps past a BDF2 stiffness of 200: the blended step and
-//! [`Cycle::TopW`]) its sag at 1 s is 7.2 % above RK4's and its p99 strain 1.14x RK4's (the
+//! At 512 x 512 (its substeps past a BDF2 stiffness of 50: the blended step and
+//! [`Cycle::TopW`], below) its sag at 1 s is 0.1 % below RK4's and its p99 strain 1.15x RK4's,
+//! at 0.5 s +4.1 % and 1.00x (`a_512_cloth_swings_like_rk4_at_the_default`). At 1024 x 1024
+//! its sag at 1 s is 7.2 % above RK4's and its p99 strain 1.14x RK4's (the
 //! report's `fine_swing`), where BDF2 and the V-cycle of the coarser cloths leave it at
 //! 13.3 % and 2.72x. Already at 512 x 512 the most stretched springs lie across the cloth,
 //! up to 15 % stretched 128 to 512 springs from the pins, where RK4's past 4.3 % all lie
@@ -108,16 +117,12 @@
 //!
 //! Its cost on the 2-core development machine (an Intel Xeon), against block descent with one
 //! sweep and its tethers at Looper 16 (the report's `motion_cost` section, three runs on
-//! 2026-11-29): 1.44x-1.68x at 64 x 64 and 1.48x-1.51x at 256 x 256 at Looper 16, 1.07x-1.22x
-//! and 1.12x-1.13x at Looper 12; the machine is noisy, and a ratio is good to about a tenth.
-//! Timers in a scratch build (64 x 64, one thread) put the correction at about 40 % of the
-//! tick: the crossing springs' forces (its largest part), the line search's curvature, the
-//! residual's gather, the V-cycle and, every twelfth substep, the assembly. A sampling profile
-//! of the same (`perf record --call-graph dwarf`, 100 ticks, 2026-11-29) puts the sweep at
-//! 50 % of the samples and the correction at 36 %: the crossing springs' forces 9.5 %, the
-//! curvature 8.8 %, the residual's gather 6.1 %, the cycle 4.4 %, the assembly 3.7 %. The
-//! curvature summed in four `f64` lanes (so that no addition waits on the last) took 9.2 %:
-//! its time is not the sum's chain.
+//! 2026-11-29 from 20:59 UTC): 1.34x, 1.41x and 1.43x at 64 x 64 and 1.36x, 1.32x and 1.38x at
+//! 256 x 256 at Looper 16, 0.99x to 1.12x at Looper 12; the machine is noisy, and a ratio is
+//! good to about a tenth. Timers in a scratch build (64 x 64, 200 ticks, one thread) put the
+//! correction at 32 % of the tick: the blocks' sums 18 %, the V-cycle 4.9 %, the residual's
+//! gather 4.0 %, the line search's curvature 1.7 %, the assembly and the factors 1.5 %, the
+//! kept levels' curvature 1.4 % and the step 1.0 %.
 //!
 //! ## Alternatives, measured
 //! With a scratch program on the same hanging cloth (2026-11-28, the 2-core development
@@ -167,8 +172,13 @@
 //!   same pair at 512 x 512 gave -4.0 % and 1.22x, at 256 x 256 +4.7 % and 1.25x, and at
 //!   128 x 128 +11.3 % (the default there, in that build, +9.8 %: a rounding's difference in
 //!   BDF2's coefficients moves 128 x 128's sag at 1 s from +7.6 %), so it suits only the
-//!   stiffest substeps (BDF2's stiffness 354 at 1024 x 1024 against 88 at 512 x 512), which is
-//!   where the integrator uses it (past a stiffness of 200). A full W-cycle on a GPU is many
+//!   stiffest substeps, which is where the integrator uses it: past a stiffness of 50, which
+//!   512 x 512 (88) and 1024 x 1024 (354) pass at Looper 16 and 256 x 256 (22) does not. At
+//!   512 x 512 and Looper 16, BDF2 and the V-cycle left the p99 strain at 1 s between 1.48x and
+//!   1.64x RK4's (as the rounding of the correction's sums changed, or the starting height
+//!   moved by 1 mm), and the blend with [`Cycle::TopW`] at 1.15x, the sag from +7.9 % to
+//!   -0.1 %, in the same wall time (50 s for the second on the 2-core machine, a scratch
+//!   program). A full W-cycle on a GPU is many
 //!   small dispatches (218 a substep for 1024 x 1024's 6 levels, against the V-cycle's 11), so
 //!   the second visit was tried on fewer levels, with the blend, at 1024 x 1024 (sag at 1 s
 //!   and p99 strain against RK4's): on every level -1.5 % and 1.25x; on the first two
@@ -176,6 +186,17 @@
 //!   dispatches. The first alone is [`Cycle::TopW`]. At 512 x 512 and Looper 8, whose
 //!   substeps are as stiff (352), it brought the sag at 1 s from +18.3 % to +11.2 % and the
 //!   strain from 1.86x to 1.14x (the core's `a_512_cloth_swings_like_rk4_at_the_default`).
+//! - **The springs one by one** (2026-11-29): a pass for each crossing spring's force and axis,
+//!   each aggregate gathering its springs' forces, the curvature summed spring by spring and
+//!   each spring's Hessian added to level 1 at an assembly. The same timers put the correction
+//!   at 35.5 % of the tick (the forces 9.9 %, the curvature 8.0 %, the gather 6.2 %, the
+//!   assembly 4.6 %) and the report's `motion_cost` at 1.44x to 1.68x at 64 x 64 and 1.48x to
+//!   1.51x at 256 x 256 in three runs: a block's Hessian costs about what its springs' forces
+//!   do, and the passes it spares cost more. Summing eight blocks at a time in SIMD lanes was
+//!   slower (a micro-benchmark: 190 against 120 µs for the blocks of a 64 x 64 cloth), and
+//!   four springs at a time, each block padded to a multiple of four, 15 % faster on the sums
+//!   alone for 41 % more springs: the gathers of the springs' ends and their transposition
+//!   into lanes cost what the lanes save.
 //! - **Coarse levels grouped by the springs at rest**, at the substep's start rather than after
 //!   its sweep (so that a host could build them from the cloth's shape alone), in the core's
 //!   `motion` tests (2026-11-29): 32 x 32 to 128 x 128 at 1 s -1.0 / +3.0 / +11.7 % off RK4's
@@ -187,7 +208,7 @@
 //!   depend that much on the grouping: a grouping good by construction, rather than by which
 //!   ties the first sweep breaks, is open.
 
-use glam::{DVec3, Mat3A, Vec3A};
+use glam::{DVec3, Mat3A, Vec3A, Vec3Swizzles};
 use rayon::prelude::*;
 
 use crate::cloth::topology::ClothTopology;
@@ -232,8 +253,8 @@ const MAX_LEVELS: usize = 12;
 /// No node: a pinned particle's aggregate, a block inside one aggregate.
 pub const NO_NODE: u32 = u32::MAX;
 
-/// Springs one partial sum takes: fixed, so that the sums do not depend on the thread count.
-const CHUNK: usize = 4096;
+/// Blocks one partial sum takes: fixed, so that the sums do not depend on the thread count.
+const BLOCK_CHUNK: usize = 1024;
 
 /// Aggregates one rayon task takes at least.
 const MIN_TASK: usize = 256;
@@ -428,16 +449,41 @@ impl Spring {
     }
 }
 
-/// One aggregate's share of a crossing spring: the spring, which end lies in the aggregate,
-/// and the off-diagonal block of level 1 the spring adds to (or [`NO_NODE`] when its other end
-/// is in no aggregate).
-#[derive(Clone, Copy, Debug)]
-struct Crossing {
-    spring: u32,
-    side: u32,
-    slot: u32,
-    /// The spring's end in the aggregate, and the other.
-    ends: [u32; 2],
+/// A symmetric 3x3 matrix: its diagonal and its off-diagonal entries (`xy`, `xz`, `yz`).
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+struct Sym3 {
+    diag: Vec3A,
+    off: Vec3A,
+}
+
+impl Sym3 {
+    /// A spring's Hessian with its compressive part clamped, as [`axis_hessian`] gives it.
+    #[inline]
+    fn of_axis(k: f32, axis: glam::Vec4) -> Self {
+        let (u, s) = (Vec3A::from(axis.truncate()), axis.w);
+        let t = k * (1.0 - s);
+        let tu = t * u;
+        Self { diag: Vec3A::splat(k * s) + tu * u, off: tu.xxy() * u.yzz() }
+    }
+
+    /// `vᵀ S v`.
+    #[inline]
+    fn quadratic(&self, v: Vec3A) -> f32 {
+        self.diag.dot(v * v) + 2.0 * self.off.dot(v.xxy() * v.yzz())
+    }
+
+    fn matrix(&self) -> Mat3A {
+        let (d, o) = (self.diag, self.off);
+        Mat3A::from_cols(Vec3A::new(d.x, o.x, o.y), Vec3A::new(o.x, d.y, o.z), Vec3A::new(o.y, o.z, d.z))
+    }
+}
+
+impl core::ops::AddAssign for Sym3 {
+    #[inline]
+    fn add_assign(&mut self, other: Self) {
+        self.diag += other.diag;
+        self.off += other.off;
+    }
 }
 
 /// The particles' aggregates (level 1's nodes) and the springs as they see them.
@@ -448,13 +494,18 @@ struct Groups {
     /// The aggregates' particles, CSR.
     member_offsets: Vec<u32>,
     members: Vec<u32>,
-    /// The springs that cross aggregates (or end at a pinned particle), each once, and each
-    /// aggregate's shares of them, CSR.
+    /// The springs that cross aggregates (or end at a pinned particle), each once, block by
+    /// block: a block is the springs between two aggregates, or between one and the pins, each
+    /// spring's first end in the block's first aggregate.
     crossing: Vec<Spring>,
-    /// The aggregates of each crossing spring's ends ([`NO_NODE`] at a pinned end).
-    crossing_aggs: Vec<[u32; 2]>,
-    crossing_offsets: Vec<u32>,
-    crossings: Vec<Crossing>,
+    /// Each block's aggregates (the lower first; [`NO_NODE`] second for the pins), and its
+    /// springs, `crossing[block_offsets[k]..block_offsets[k + 1]]`.
+    block_aggs: Vec<[u32; 2]>,
+    block_offsets: Vec<u32>,
+    /// The block of each off-diagonal entry of level 1 (aligned with its `cols`), and each
+    /// aggregate's block to the pins ([`NO_NODE`] when it has none).
+    row_blocks: Vec<u32>,
+    pinned_block: Vec<u32>,
     /// The springs inside each aggregate, CSR: they count only when a collider holds one end.
     inner_offsets: Vec<u32>,
     inner: Vec<Spring>,
@@ -470,8 +521,8 @@ impl Groups {
         &self.members[self.member_offsets[a] as usize..self.member_offsets[a + 1] as usize]
     }
 
-    fn crossings_of(&self, a: usize) -> &[Crossing] {
-        &self.crossings[self.crossing_offsets[a] as usize..self.crossing_offsets[a + 1] as usize]
+    fn springs_of_block(&self, k: usize) -> &[Spring] {
+        &self.crossing[self.block_offsets[k] as usize..self.block_offsets[k + 1] as usize]
     }
 
     fn inner_of(&self, a: usize) -> &[Spring] {
@@ -495,11 +546,12 @@ pub(crate) struct Multigrid {
     /// The step the levels are factored for, and the substeps since they were assembled.
     factored_for: Option<(f32, f32)>,
     age: u32,
-    /// Per crossing spring, this substep's force on its first end, its direction and clamped
-    /// stretch (for the line search), and its Hessian (at an assembly).
-    forces: Vec<Vec3A>,
-    axes: Vec<glam::Vec4>,
-    hessians: Vec<Mat3A>,
+    /// Per block, this substep's sum of its springs' forces on their first ends and of their
+    /// clamped Hessians (`k / M`, before the step's `h²`), over the springs with no held end,
+    /// and whether any of its springs has a held end (those are taken one by one).
+    block_force: Vec<Vec3A>,
+    block_hessian: Vec<Sym3>,
+    block_held: Vec<bool>,
     /// Per aggregate, this substep's mass of the particles no collider holds, and whether a
     /// collider holds any of its particles.
     mass_now: Vec<f32>,
@@ -619,12 +671,13 @@ impl MultigridCorrection {
                 children: if l == 0 { groups.members.clone() } else { level.children.clone() },
             })
             .collect();
+        let (share_offsets, shares) = self.inner.shares();
         MultigridLayout {
             aggregate: groups.agg.clone(),
             springs,
             crossing_count,
-            share_offsets: groups.crossing_offsets.clone(),
-            shares: groups.crossings.iter().map(|c| [c.spring, c.side, c.slot]).collect(),
+            share_offsets,
+            shares,
             inner_offsets: groups.inner_offsets.iter().map(|&o| o + crossing_count as u32).collect(),
             levels,
         }
@@ -685,7 +738,8 @@ impl Multigrid {
         }
         let damp = 1.0 + model.damping * h;
         let h2 = h * h;
-        self.crossing_forces(h2, start, d);
+        let some_held = held.iter().any(|&h| h != 0.0);
+        self.block_sums(h2, held, some_held, start, d);
         if self.age >= REASSEMBLE_EVERY || stiff {
             self.assemble(topology, held, start, d);
         }
@@ -693,7 +747,7 @@ impl Multigrid {
         if self.factored_for != Some((damp, h2)) {
             self.factor(damp, h2);
         }
-        self.gather_residual(topology, held, damp, h2, d, start, target);
+        self.gather_residual(topology, held, some_held, damp, h2, d, start, target);
         if !self.residual.iter().all(|r| r.is_finite()) {
             return;
         }
@@ -739,7 +793,7 @@ impl Multigrid {
     ) {
         self.aggregate(topology, model, free);
         if self.groups.len() > 0 {
-            self.crossing_forces(0.0, start, d);
+            self.block_sums(0.0, held, held.iter().any(|&h| h != 0.0), start, d);
             self.assemble(topology, held, start, d);
         }
     }
@@ -766,7 +820,7 @@ impl Multigrid {
         let (member_offsets, members) = invert(&agg, count);
         // Each spring once, from its lower end (or from its free end when the other is pinned).
         let mut crossing = Vec::new();
-        let mut per_agg: Vec<Vec<(u32, u32)>> = vec![Vec::new(); count];
+        let mut per_agg: Vec<Vec<u32>> = vec![Vec::new(); count];
         let mut inner_per_agg: Vec<Vec<Spring>> = vec![Vec::new(); count];
         for i in 0..n {
             for end in topology.springs_of(i) {
@@ -781,41 +835,51 @@ impl Multigrid {
                     inner_per_agg[a as usize].push(spring);
                     continue;
                 }
-                let s = crossing.len() as u32;
-                crossing.push(spring);
-                per_agg[a as usize].push((s, 0));
+                // Oriented from the lower aggregate (or from the free end).
+                let (key, spring) = if b == NO_NODE || a < b {
+                    ([a, b], spring)
+                } else {
+                    ([b, a], Spring { ends: [j as u32, i as u32], ..spring })
+                };
+                crossing.push((key, spring));
                 if b != NO_NODE {
-                    per_agg[b as usize].push((s, 1));
+                    per_agg[a as usize].push(b);
+                    per_agg[b as usize].push(a);
                 }
             }
         }
-        // Level 1's structure: the aggregates each aggregate's crossing springs reach.
-        let mut offsets = vec![0u32];
-        let mut cols = Vec::new();
-        let (mut crossing_offsets, mut crossings) = (vec![0u32], Vec::new());
-        for (a, shares) in per_agg.iter().enumerate() {
+        // The blocks, in the order of their aggregates; a block's springs keep their order.
+        crossing.sort_by_key(|&(key, _)| key);
+        let (mut block_aggs, mut block_offsets) = (Vec::new(), Vec::new());
+        for (s, &(key, _)) in crossing.iter().enumerate() {
+            if block_aggs.last() != Some(&key) {
+                block_aggs.push(key);
+                block_offsets.push(s as u32);
+            }
+        }
+        block_offsets.push(crossing.len() as u32);
+        let crossing: Vec<Spring> = crossing.into_iter().map(|(_, spring)| spring).collect();
+        let mut pinned_block = vec![NO_NODE; count];
+        for (k, &[a, b]) in block_aggs.iter().enumerate() {
+            if b == NO_NODE {
+                pinned_block[a as usize] = k as u32;
+            }
+        }
+        // Level 1's structure: the aggregates each aggregate's crossing springs reach, in the
+        // order its springs first reach them, and the block of each.
+        let block_of = |pair: [u32; 2]| block_aggs.binary_search(&pair).expect("a block for every pair") as u32;
+        let (mut offsets, mut cols, mut row_blocks) = (vec![0u32], Vec::new(), Vec::new());
+        for (a, others) in per_agg.iter().enumerate() {
             let row_start = cols.len();
-            for &(s, side) in shares {
-                let spring_ends = crossing[s as usize].ends;
-                let ends = [spring_ends[side as usize], spring_ends[1 - side as usize]];
-                let other = agg[ends[1] as usize];
-                let slot = if other == NO_NODE {
-                    NO_NODE
-                } else {
-                    let at = match cols[row_start..].iter().position(|&c| c == other) {
-                        Some(p) => row_start + p,
-                        None => {
-                            cols.push(other);
-                            cols.len() - 1
-                        }
-                    };
-                    at as u32
-                };
-                crossings.push(Crossing { spring: s, side, slot, ends });
+            for &other in others {
+                if !cols[row_start..].contains(&other) {
+                    cols.push(other);
+                    let a = a as u32;
+                    row_blocks.push(block_of([a.min(other), a.max(other)]));
+                }
             }
             debug_assert!(cols[row_start..].iter().all(|&c| c as usize != a));
             offsets.push(cols.len() as u32);
-            crossing_offsets.push(crossings.len() as u32);
         }
         let (mut inner_offsets, mut inner) = (vec![0u32], Vec::new());
         for springs in inner_per_agg {
@@ -831,49 +895,78 @@ impl Multigrid {
             k_off: vec![Mat3A::ZERO; blocks],
             ..Default::default()
         });
-        let crossing_aggs = crossing.iter().map(|s| s.ends.map(|e| agg[e as usize])).collect();
         self.groups = Groups {
             agg,
             member_offsets,
             members,
             crossing,
-            crossing_aggs,
-            crossing_offsets,
-            crossings,
+            block_aggs,
+            block_offsets,
+            row_blocks,
+            pinned_block,
             inner_offsets,
             inner,
         };
         self.age = u32::MAX;
     }
 
-    /// The crossing springs' forces and axes at `start + d` (see [`spring_forces`]), for a
-    /// substep of squared length `h2`.
-    fn crossing_forces(&mut self, h2: f32, start: &[Vec3A], d: &[Vec3A]) {
-        let crossing = &self.groups.crossing;
-        self.forces.resize(crossing.len(), Vec3A::ZERO);
-        self.axes.resize(crossing.len(), glam::Vec4::ZERO);
-        self.forces
-            .par_chunks_mut(CHUNK)
-            .zip(self.axes.par_chunks_mut(CHUNK))
-            .zip(crossing.par_chunks(CHUNK))
-            .for_each(|((forces, axes), springs)| spring_forces(springs, h2, start, d, forces, axes));
+    /// Each block's sums at `start + d` for a substep of squared length `h2`: its springs'
+    /// forces on their first ends and their clamped Hessians, over the springs with no end in
+    /// `held` (`some_held` false: none is held).
+    fn block_sums(&mut self, h2: f32, held: &[f32], some_held: bool, start: &[Vec3A], d: &[Vec3A]) {
+        let groups = &self.groups;
+        let count = groups.block_aggs.len();
+        self.block_force.resize(count, Vec3A::ZERO);
+        self.block_hessian.resize(count, Sym3::default());
+        self.block_held.resize(count, false);
+        self.block_force
+            .par_chunks_mut(BLOCK_CHUNK)
+            .zip(self.block_hessian.par_chunks_mut(BLOCK_CHUNK))
+            .zip(self.block_held.par_chunks_mut(BLOCK_CHUNK))
+            .enumerate()
+            .for_each(|(chunk, ((forces, hessians), helds))| {
+                for (k, ((force, hessian), any_held)) in forces.iter_mut().zip(hessians).zip(helds).enumerate() {
+                    let (mut f, mut hs, mut any) = (Vec3A::ZERO, Sym3::default(), false);
+                    for s in groups.springs_of_block(chunk * BLOCK_CHUNK + k) {
+                        if some_held && s.ends.iter().any(|&e| held[e as usize] != 0.0) {
+                            any = true;
+                            continue;
+                        }
+                        let (spring_force, axis) = s.force(h2, s.delta(start, d));
+                        f += spring_force;
+                        hs += Sym3::of_axis(s.stiffness, axis);
+                    }
+                    (*force, *hessian, *any_held) = (f, hs, any);
+                }
+            });
     }
 
-    /// Assembles level 1 from the springs that cross aggregates, at the displacements `d` whose
-    /// axes [`Self::crossing_forces`] found (and from those inside an aggregate whose one end a
-    /// collider holds), then every coarser level from the one above it.
+    /// Calls `f(spring, own, other)` for each spring of block `k` that has a held end, with the
+    /// spring's end in aggregate `a` and its other end.
+    fn held_springs_of(&self, k: usize, a: u32, held: &[f32], mut f: impl FnMut(&Spring, usize, usize)) {
+        let first = self.groups.block_aggs[k][0] == a;
+        for s in self.groups.springs_of_block(k) {
+            let [i, j] = s.ends.map(|e| e as usize);
+            if held[i] != 0.0 || held[j] != 0.0 {
+                let (own, other) = if first { (i, j) } else { (j, i) };
+                f(s, own, other);
+            }
+        }
+    }
+
+    /// Assembles level 1 from the blocks' Hessians that [`Self::block_sums`] found at the
+    /// displacements `d` (and from the springs with a held end one by one, and those inside an
+    /// aggregate whose one end a collider holds), then every coarser level from the one above
+    /// it.
     fn assemble(&mut self, topology: &ClothTopology, held: &[f32], start: &[Vec3A], d: &[Vec3A]) {
         let share = topology.mass_share();
         let hessian = |s: &Spring| axis_hessian(s.stiffness, s.force(0.0, s.delta(start, d)).1);
-        self.hessians.resize(self.groups.crossing.len(), Mat3A::ZERO);
-        self.hessians
-            .par_iter_mut()
-            .zip(self.groups.crossing.par_iter().zip(self.axes.par_iter()))
-            .with_min_len(4096)
-            .for_each(|(h, (s, &axis))| *h = axis_hessian(s.stiffness, axis));
-        let Self { groups, hessians, levels, .. } = self;
+        let mut levels = core::mem::take(&mut self.levels);
+        let this = &*self;
+        let groups = &this.groups;
         let level = &mut levels[0];
         let mut rows = split_rows(&mut level.k_off, &level.offsets);
+        let offsets = &level.offsets;
         level
             .mass
             .par_iter_mut()
@@ -882,7 +975,6 @@ impl Multigrid {
             .enumerate()
             .with_min_len(MIN_TASK)
             .for_each(|(a, ((mass, diag), row))| {
-                let row_start = level.offsets[a] as usize;
                 let (mut sum, mut any_held) = (0.0, false);
                 for &i in groups.members_of(a) {
                     if held[i as usize] == 0.0 {
@@ -893,16 +985,29 @@ impl Multigrid {
                 }
                 *mass = sum;
                 *diag = Mat3A::ZERO;
-                row.fill(Mat3A::ZERO);
-                for c in groups.crossings_of(a) {
-                    let [own, other] = c.ends;
-                    if held[own as usize] != 0.0 {
-                        continue;
+                // A spring with a held end adds to the diagonal of its free end's aggregate.
+                let held_block = |k: usize, diag: &mut Mat3A| {
+                    this.held_springs_of(k, a as u32, held, |s, own, other| {
+                        if held[own] == 0.0 && held[other] != 0.0 {
+                            *diag += hessian(s);
+                        }
+                    });
+                };
+                let row_start = offsets[a] as usize;
+                for (g, block) in row.iter_mut().enumerate() {
+                    let k = groups.row_blocks[row_start + g] as usize;
+                    let b = this.block_hessian[k].matrix();
+                    *diag += b;
+                    *block = -b;
+                    if this.block_held[k] {
+                        held_block(k, diag);
                     }
-                    let block = hessians[c.spring as usize];
-                    *diag += block;
-                    if c.slot != NO_NODE && held[other as usize] == 0.0 {
-                        row[c.slot as usize - row_start] -= block;
+                }
+                let pinned = groups.pinned_block[a];
+                if pinned != NO_NODE {
+                    *diag += this.block_hessian[pinned as usize].matrix();
+                    if this.block_held[pinned as usize] {
+                        held_block(pinned as usize, diag);
                     }
                 }
                 if any_held {
@@ -914,6 +1019,7 @@ impl Multigrid {
                 }
             });
         drop(rows);
+        self.levels = levels;
         if self.levels.len() == 1 {
             while self.levels.len() < MAX_LEVELS && self.levels.last().is_some_and(|l| l.len() > COARSEST) {
                 let Some(next) = coarsen(self.levels.last_mut().expect("a level")) else { break };
@@ -944,12 +1050,13 @@ impl Multigrid {
     }
 
     /// `Pᵀ r` at level 1: the mass and damping term of every particle in an aggregate, and the
-    /// force of every spring that crosses out of it, each spring's force found once.
+    /// forces of the springs that cross out of it, block by block.
     #[allow(clippy::too_many_arguments)]
     fn gather_residual(
         &mut self,
         topology: &ClothTopology,
         held: &[f32],
+        some_held: bool,
         damp: f32,
         h2: f32,
         d: &[Vec3A],
@@ -966,12 +1073,16 @@ impl Multigrid {
             let stretch = 1.0 - s.rest / delta.length().max(1.0e-6 * s.rest);
             (s.stiffness * h2 * stretch) * delta
         };
-        let some_held = held.iter().any(|&h| h != 0.0);
-        let Self { groups, forces, residual, mass_now, any_held, .. } = self;
-        let count = groups.len();
+        let count = self.groups.len();
+        let mut residual = core::mem::take(&mut self.residual);
+        let mut mass_now = core::mem::take(&mut self.mass_now);
+        let mut any_held = core::mem::take(&mut self.any_held);
         residual.resize(count, Vec3A::ZERO);
         mass_now.resize(count, 0.0);
         any_held.resize(count, false);
+        let this = &*self;
+        let groups = &this.groups;
+        let offsets = &this.levels[0].offsets;
         residual
             .par_iter_mut()
             .zip(mass_now.par_iter_mut())
@@ -990,12 +1101,25 @@ impl Multigrid {
                         any_held = true;
                     }
                 }
-                for c in groups.crossings_of(a) {
-                    let [own, _] = c.ends;
-                    if !some_held || held[own as usize] == 0.0 {
-                        let f = forces[c.spring as usize];
-                        sum += if c.side == 0 { f } else { -f };
+                // A block's sum, and its springs with a held end whose end here is free.
+                let mut add_block = |k: usize| {
+                    let first = groups.block_aggs[k][0] as usize == a;
+                    let f = this.block_force[k];
+                    sum += if first { f } else { -f };
+                    if this.block_held[k] {
+                        this.held_springs_of(k, a as u32, held, |s, own, _| {
+                            if held[own] == 0.0 {
+                                let f = force(s);
+                                sum += if first { f } else { -f };
+                            }
+                        });
                     }
+                };
+                for g in offsets[a]..offsets[a + 1] {
+                    add_block(groups.row_blocks[g as usize] as usize);
+                }
+                if groups.pinned_block[a] != NO_NODE {
+                    add_block(groups.pinned_block[a] as usize);
                 }
                 if any_held {
                     for s in groups.inner_of(a) {
@@ -1008,39 +1132,42 @@ impl Multigrid {
                 }
                 (*r, *mass_now, *any_held_out) = (sum, mass, any_held);
             });
+        (self.residual, self.mass_now, self.any_held) = (residual, mass_now, any_held);
     }
 
     /// `(Pe)ᵀ H (Pe)` for level 1's `e`, with `H` at this substep's displacements: the mass and
-    /// damping term of the particles no collider holds, and each spring's clamped Hessian on
-    /// the difference of its ends' corrections (zero at a held or pinned end), from the
-    /// directions and stretches the residual's pass kept.
+    /// damping term of the particles no collider holds, each block's clamped Hessian on the
+    /// difference of its aggregates' corrections (a block's springs all move by it), and each
+    /// spring with a held end on the difference of its ends' corrections (zero at a held or
+    /// pinned end).
     fn curvature(&self, held: &[f32], damp: f32, h2: f32, start: &[Vec3A], d: &[Vec3A]) -> f64 {
         let e = &self.levels[0].e;
-        let some_held = self.any_held.contains(&true);
+        let at = |a: u32| if a == NO_NODE { Vec3A::ZERO } else { e[a as usize] };
         // A particle's correction: its aggregate's `e`, none at a pinned or held particle.
-        let moved = |a: u32, i: u32| {
-            if a == NO_NODE || (some_held && held[i as usize] != 0.0) { Vec3A::ZERO } else { e[a as usize] }
-        };
-        let spring_term = |s: &Spring, aggs: [u32; 2], axis: glam::Vec4| {
-            let [i, j] = s.ends;
-            let de = moved(aggs[1], j) - moved(aggs[0], i);
-            let (u, stretch) = (Vec3A::from(axis.truncate()), axis.w);
-            let along = u.dot(de);
-            s.stiffness * h2 * (stretch * de.length_squared() + (1.0 - stretch) * along * along)
-        };
+        let moved = |a: u32, i: u32| if held[i as usize] != 0.0 { Vec3A::ZERO } else { at(a) };
         let groups = &self.groups;
         let partial: Vec<f64> = groups
-            .crossing
-            .par_chunks(CHUNK)
-            .zip(groups.crossing_aggs.par_chunks(CHUNK))
-            .zip(self.axes.par_chunks(CHUNK))
-            .map(|((springs, aggs), axes)| {
-                springs
-                    .iter()
-                    .zip(aggs)
-                    .zip(axes)
-                    .map(|((s, &aggs), &axis)| f64::from(spring_term(s, aggs, axis)))
-                    .sum()
+            .block_aggs
+            .par_chunks(BLOCK_CHUNK)
+            .zip(self.block_hessian.par_chunks(BLOCK_CHUNK))
+            .zip(self.block_held.par_chunks(BLOCK_CHUNK))
+            .enumerate()
+            .map(|(chunk, ((aggs, hessians), helds))| {
+                let mut sum = 0.0f64;
+                for (k, ((&[a, b], hessian), &any_held)) in aggs.iter().zip(hessians).zip(helds).enumerate() {
+                    sum += f64::from(h2 * hessian.quadratic(at(b) - at(a)));
+                    if any_held {
+                        for s in groups.springs_of_block(chunk * BLOCK_CHUNK + k) {
+                            let [i, j] = s.ends;
+                            if held[i as usize] != 0.0 || held[j as usize] != 0.0 {
+                                let axis = s.force(0.0, s.delta(start, d)).1;
+                                let de = moved(b, j) - moved(a, i);
+                                sum += f64::from(h2 * Sym3::of_axis(s.stiffness, axis).quadratic(de));
+                            }
+                        }
+                    }
+                }
+                sum
             })
             .collect();
         let mut sum: f64 = partial.into_iter().sum();
@@ -1049,11 +1176,36 @@ impl Multigrid {
             if any_held {
                 for s in self.groups.inner_of(a) {
                     let axis = s.force(0.0, s.delta(start, d)).1;
-                    sum += f64::from(spring_term(s, [a as u32; 2], axis));
+                    let [i, j] = s.ends;
+                    let de = moved(a as u32, j) - moved(a as u32, i);
+                    sum += f64::from(h2 * Sym3::of_axis(s.stiffness, axis).quadratic(de));
                 }
             }
         }
         sum
+    }
+
+    /// Each aggregate's shares of the crossing springs, CSR, as [`MultigridLayout`] lists them:
+    /// the spring, which of its ends lies in the aggregate, and the off-diagonal entry of
+    /// level 1 it adds to ([`NO_NODE`] for a spring to a pin).
+    fn shares(&self) -> (Vec<u32>, Vec<[u32; 3]>) {
+        let groups = &self.groups;
+        let (mut offsets, mut shares) = (vec![0u32], Vec::new());
+        let Some(level) = self.levels.first() else { return (offsets, shares) };
+        for a in 0..groups.len() {
+            for g in level.offsets[a]..level.offsets[a + 1] {
+                let k = groups.row_blocks[g as usize] as usize;
+                let side = u32::from(groups.block_aggs[k][0] as usize != a);
+                shares.extend((groups.block_offsets[k]..groups.block_offsets[k + 1]).map(|s| [s, side, g]));
+            }
+            let pinned = groups.pinned_block[a];
+            if pinned != NO_NODE {
+                let k = pinned as usize;
+                shares.extend((groups.block_offsets[k]..groups.block_offsets[k + 1]).map(|s| [s, 0, NO_NODE]));
+            }
+            offsets.push(shares.len() as u32);
+        }
+        (offsets, shares)
     }
 
     /// One `cycle` on level `l` for its right-hand side `b`, leaving the answer in its `e`.
@@ -1094,21 +1246,6 @@ impl Multigrid {
             });
             level.smooth(h2);
         }
-    }
-}
-
-/// The force on the first end of each spring (the `k h² / M`-scaled force of the sweep's
-/// units), and each one's direction and clamped stretch `s⁺`, at `start + d`.
-fn spring_forces(
-    springs: &[Spring],
-    h2: f32,
-    start: &[Vec3A],
-    d: &[Vec3A],
-    forces: &mut [Vec3A],
-    axes: &mut [glam::Vec4],
-) {
-    for ((s, force), axis) in springs.iter().zip(forces).zip(axes) {
-        (*force, *axis) = s.force(h2, s.delta(start, d));
     }
 }
 
@@ -1323,7 +1460,8 @@ mod tests {
     }
 
     /// Every free particle lies in exactly one aggregate and no pinned one in any; the springs
-    /// that cross aggregates are each listed once per side, with their blocks in both rows.
+    /// that cross aggregates are each listed once per side, in the block of their two
+    /// aggregates, which is the entry of both their rows.
     #[test]
     fn aggregates_cover_the_free_particles_and_list_each_crossing_spring_once() {
         let topology = grid(24);
@@ -1345,7 +1483,32 @@ mod tests {
         assert_eq!(groups.crossing.len() + groups.inner.len(), springs, "every spring once, crossing or inside");
         let sides: usize =
             groups.crossing.iter().map(|s| if groups.agg[s.ends[1] as usize] == NO_NODE { 1 } else { 2 }).sum();
-        assert_eq!(groups.crossings.len(), sides);
+        let (_, shares) = mg.shares();
+        assert_eq!(shares.len(), sides, "each crossing spring once per aggregate it ends in");
+        // Each block's springs run from its first aggregate to its second (or to a pin), and
+        // each block between two aggregates is the entry of both their rows.
+        let level = &mg.levels[0];
+        let mut entries = vec![0; groups.block_aggs.len()];
+        for (k, &[a, b]) in groups.block_aggs.iter().enumerate() {
+            assert!(a < b, "block {k}: {a} {b}");
+            for s in groups.springs_of_block(k) {
+                assert_eq!(s.ends.map(|e| groups.agg[e as usize]), [a, b], "block {k}");
+            }
+            if b == NO_NODE {
+                assert_eq!(groups.pinned_block[a as usize], k as u32);
+            }
+        }
+        for a in 0..count {
+            for g in level.offsets[a] as usize..level.offsets[a + 1] as usize {
+                let k = groups.row_blocks[g] as usize;
+                let (a, c) = (a as u32, level.cols[g]);
+                assert_eq!(groups.block_aggs[k], [a.min(c), a.max(c)], "row {a}, column {c}");
+                entries[k] += 1;
+            }
+        }
+        for (k, &[_, b]) in groups.block_aggs.iter().enumerate() {
+            assert_eq!(entries[k], if b == NO_NODE { 0 } else { 2 }, "block {k}");
+        }
         assert!(count * 6 < topology.len() && count * 12 > topology.len(), "{count} aggregates of {}", topology.len());
     }
 
