@@ -107,7 +107,7 @@
 //! At 512 x 512 (its substeps past a BDF2 stiffness of 50: the blended step and
 //! [`Cycle::TopW`], below) its sag at 1 s is 0.1 % below RK4's and its p99 strain 1.15x RK4's,
 //! at 0.5 s +4.1 % and 1.00x (`a_512_cloth_swings_like_rk4_at_the_default`). At 1024 x 1024
-//! its sag at 1 s is 7.2 % above RK4's and its p99 strain 1.14x RK4's (the
+//! its sag at 1 s is 7.6 % above RK4's and its p99 strain 1.14x RK4's (the
 //! report's `fine_swing`), where BDF2 and the V-cycle of the coarser cloths leave it at
 //! 13.3 % and 2.72x. Already at 512 x 512 the most stretched springs lie across the cloth,
 //! up to 15 % stretched 128 to 512 springs from the pins, where RK4's past 4.3 % all lie
@@ -116,10 +116,11 @@
 //! the V-cycle do within the machine's noise (47 and 54 s against 49 and 51 s).
 //!
 //! Its cost on the 2-core development machine (an Intel Xeon), against block descent with one
-//! sweep and its tethers at Looper 16 (the report's `motion_cost` section, three runs on
-//! 2026-11-29 from 20:59 UTC): 1.34x, 1.41x and 1.43x at 64 x 64 and 1.36x, 1.32x and 1.38x at
-//! 256 x 256 at Looper 16, 0.99x to 1.12x at Looper 12; the machine is noisy, and a ratio is
-//! good to about a tenth. Timers in a scratch build (64 x 64, 200 ticks, one thread) put the
+//! sweep at Looper 16 (the report's `motion_cost` section, three runs on 2026-11-29 from 21:53
+//! UTC): 1.38x to 1.42x at 64 x 64 and 1.36x to 1.39x at 256 x 256 against block descent with
+//! its tethers, 1.47x to 1.51x and 1.43x to 1.51x without them; at Looper 12, 1.01x to 1.06x
+//! against block descent with its tethers. The machine is noisy, and a ratio is good to about
+//! a tenth. Timers in a scratch build (64 x 64, 200 ticks, one thread) put the
 //! correction at 32 % of the tick: the blocks' sums 18 %, the V-cycle 4.9 %, the residual's
 //! gather 4.0 %, the line search's curvature 1.7 %, the assembly and the factors 1.5 %, the
 //! kept levels' curvature 1.4 % and the step 1.0 %.
@@ -256,8 +257,16 @@ pub const NO_NODE: u32 = u32::MAX;
 /// Blocks one partial sum takes: fixed, so that the sums do not depend on the thread count.
 const BLOCK_CHUNK: usize = 1024;
 
-/// Aggregates one rayon task takes at least.
-const MIN_TASK: usize = 256;
+/// Blocks one rayon task of the blocks' sums takes: each block's sums are its own, so the
+/// split changes no result.
+const BLOCK_TASK: usize = 256;
+
+/// Nodes one partial sum of a level's quadratic form takes: fixed, so that the sums do not
+/// depend on the thread count.
+const NODE_CHUNK: usize = 256;
+
+/// Nodes one rayon task takes at least, in the passes where each node's result is its own.
+const MIN_TASK: usize = 128;
 
 /// One level of the hierarchy: a symmetric matrix of 3x3 blocks over its nodes, stored as the
 /// mass part (a scalar per node) and the stiffness part (diagonal blocks and the rows'
@@ -313,9 +322,9 @@ impl Level {
         let e = &self.e;
         let partial: Vec<f64> = (0..e.len())
             .into_par_iter()
-            .step_by(MIN_TASK)
+            .step_by(NODE_CHUNK)
             .map(|from| {
-                (from..(from + MIN_TASK).min(e.len()))
+                (from..(from + NODE_CHUNK).min(e.len()))
                     .map(|a| f64::from((self.diag_block(a, damp, h2) * e[a] + self.off_product(a, e, h2)).dot(e[a])))
                     .sum()
             })
@@ -920,14 +929,14 @@ impl Multigrid {
         self.block_hessian.resize(count, Sym3::default());
         self.block_held.resize(count, false);
         self.block_force
-            .par_chunks_mut(BLOCK_CHUNK)
-            .zip(self.block_hessian.par_chunks_mut(BLOCK_CHUNK))
-            .zip(self.block_held.par_chunks_mut(BLOCK_CHUNK))
+            .par_chunks_mut(BLOCK_TASK)
+            .zip(self.block_hessian.par_chunks_mut(BLOCK_TASK))
+            .zip(self.block_held.par_chunks_mut(BLOCK_TASK))
             .enumerate()
             .for_each(|(chunk, ((forces, hessians), helds))| {
                 for (k, ((force, hessian), any_held)) in forces.iter_mut().zip(hessians).zip(helds).enumerate() {
                     let (mut f, mut hs, mut any) = (Vec3A::ZERO, Sym3::default(), false);
-                    for s in groups.springs_of_block(chunk * BLOCK_CHUNK + k) {
+                    for s in groups.springs_of_block(chunk * BLOCK_TASK + k) {
                         if some_held && s.ends.iter().any(|&e| held[e as usize] != 0.0) {
                             any = true;
                             continue;
