@@ -1154,6 +1154,13 @@ impl Multigrid {
         let at = |a: u32| if a == NO_NODE { Vec3A::ZERO } else { e[a as usize] };
         // A particle's correction: its aggregate's `e`, none at a pinned or held particle.
         let moved = |a: u32, i: u32| if held[i as usize] != 0.0 { Vec3A::ZERO } else { at(a) };
+        // A spring taken on its own, its ends in aggregates `a` and `b`: its clamped Hessian at
+        // this substep's displacements on the difference of its ends' corrections.
+        let spring_term = |s: &Spring, [a, b]: [u32; 2]| {
+            let axis = s.force(0.0, s.delta(start, d)).1;
+            let de = moved(b, s.ends[1]) - moved(a, s.ends[0]);
+            f64::from(h2 * Sym3::of_axis(s.stiffness, axis).quadratic(de))
+        };
         let groups = &self.groups;
         let partial: Vec<f64> = groups
             .block_aggs
@@ -1167,11 +1174,8 @@ impl Multigrid {
                     sum += f64::from(h2 * hessian.quadratic(at(b) - at(a)));
                     if any_held {
                         for s in groups.springs_of_block(chunk * BLOCK_CHUNK + k) {
-                            let [i, j] = s.ends;
-                            if held[i as usize] != 0.0 || held[j as usize] != 0.0 {
-                                let axis = s.force(0.0, s.delta(start, d)).1;
-                                let de = moved(b, j) - moved(a, i);
-                                sum += f64::from(h2 * Sym3::of_axis(s.stiffness, axis).quadratic(de));
+                            if s.ends.iter().any(|&e| held[e as usize] != 0.0) {
+                                sum += spring_term(s, [a, b]);
                             }
                         }
                     }
@@ -1184,10 +1188,7 @@ impl Multigrid {
             sum += f64::from(damp * mass * e[a].length_squared());
             if any_held {
                 for s in self.groups.inner_of(a) {
-                    let axis = s.force(0.0, s.delta(start, d)).1;
-                    let [i, j] = s.ends;
-                    let de = moved(a as u32, j) - moved(a as u32, i);
-                    sum += f64::from(h2 * Sym3::of_axis(s.stiffness, axis).quadratic(de));
+                    sum += spring_term(s, [a as u32; 2]);
                 }
             }
         }
@@ -1468,6 +1469,28 @@ mod tests {
         g
     }
 
+    /// The substep of the correction tests: a 32 x 32 cloth pinned at its first row's corners
+    /// (`free`), at rest (`start`), a substep of `H` seconds of gravity as its target, and every
+    /// free particle displaced along a smooth bulge (`d`), which a sweep would take many
+    /// substeps to flatten.
+    fn bulged() -> (ClothTopology, Vec<f32>, Vec<Vec3A>, Vec<Vec3A>, Vec<Vec3A>) {
+        let topology = grid(32);
+        let n = topology.len();
+        let mut free = vec![1.0; n];
+        (free[0], free[31]) = (0.0, 0.0);
+        let start: Vec<Vec3A> = topology.rest_positions().iter().map(|&p| p.into()).collect();
+        let target = (0..n).map(|i| free[i] * Vec3A::new(0.0, -H * H * 9.81, 0.0)).collect();
+        let d = start
+            .iter()
+            .enumerate()
+            .map(|(i, p)| free[i] * Vec3A::new(0.0, -0.01 * (p.x * 3.0).sin() * (p.z * 3.0 + 1.0).cos(), 0.0))
+            .collect();
+        (topology, free, start, target, d)
+    }
+
+    /// The substep of [`bulged`].
+    const H: f32 = 1.0 / 960.0;
+
     /// Every free particle lies in exactly one aggregate and no pinned one in any; the springs
     /// that cross aggregates are each listed once per side, in the block of their two
     /// aggregates, which is the entry of both their rows.
@@ -1527,20 +1550,10 @@ mod tests {
     /// stay where they are.
     #[test]
     fn the_correction_lowers_the_incremental_potential() {
-        let topology = grid(32);
-        let n = topology.len();
-        let mut free = vec![1.0; n];
-        (free[0], free[31]) = (0.0, 0.0);
-        let start: Vec<Vec3A> = topology.rest_positions().iter().map(|&p| p.into()).collect();
-        let h = 1.0 / 960.0;
+        let (topology, free, start, target, d) = bulged();
+        let (n, h) = (topology.len(), H);
         for spring_k in [200.0, 1.0e5] {
             let model = ForceModel::new(&ClothParams { spring_k, ..Default::default() });
-            let target: Vec<Vec3A> = (0..n).map(|i| free[i] * Vec3A::new(0.0, -h * h * 9.81, 0.0)).collect();
-            let d: Vec<Vec3A> = start
-                .iter()
-                .enumerate()
-                .map(|(i, p)| free[i] * Vec3A::new(0.0, -0.01 * (p.x * 3.0).sin() * (p.z * 3.0 + 1.0).cos(), 0.0))
-                .collect();
             let held = vec![0.0; n];
             let before = potential(&topology, &model, h, &free, &start, &target, &d);
             let mut corrected = d.clone();
@@ -1565,23 +1578,13 @@ mod tests {
     /// pin.
     #[test]
     fn held_particles_stay_and_the_rest_is_corrected() {
-        let topology = grid(32);
-        let n = topology.len();
-        let mut free = vec![1.0; n];
-        (free[0], free[31]) = (0.0, 0.0);
+        let (topology, free, start, target, d) = bulged();
+        let (n, h) = (topology.len(), H);
         let mut held = vec![0.0; n];
         for i in (10 * 32..12 * 32).chain([1, 30]) {
             held[i] = 1.0;
         }
-        let start: Vec<Vec3A> = topology.rest_positions().iter().map(|&p| p.into()).collect();
-        let h = 1.0 / 960.0;
         let model = ForceModel::new(&ClothParams::default());
-        let target: Vec<Vec3A> = (0..n).map(|i| free[i] * Vec3A::new(0.0, -h * h * 9.81, 0.0)).collect();
-        let d: Vec<Vec3A> = start
-            .iter()
-            .enumerate()
-            .map(|(i, p)| free[i] * Vec3A::new(0.0, -0.01 * (p.x * 3.0).sin() * (p.z * 3.0 + 1.0).cos(), 0.0))
-            .collect();
         let before = potential(&topology, &model, h, &free, &start, &target, &d);
         let mut corrected = d.clone();
         let mut mg = Multigrid::default();
