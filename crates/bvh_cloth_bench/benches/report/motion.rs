@@ -206,7 +206,7 @@ fn best_ticks(a: &ClothSim, b: &ClothSim, rounds: u32) -> (f64, f64) {
 /// The section `motion_cost`: what the tethers cost block descent a tick of a hanging cloth,
 /// the same state ticked with and without them, alternated, best of each; then what the
 /// default (the multigrid integrator) costs against block descent with one sweep, with its
-/// tethers and without (block descent's setting before the tethers), the same way.
+/// tethers and without (`tethers: None`), the same way.
 pub(super) fn motion_cost() {
     let descent = ClothParams { integrator: Integrator::BLOCK_DESCENT, ..ClothParams::default() };
     println!(

@@ -192,7 +192,7 @@
 //!   each spring's Hessian added to level 1 at an assembly. The same timers put the correction
 //!   at 35.5 % of the tick (the forces 9.9 %, the curvature 8.0 %, the gather 6.2 %, the
 //!   assembly 4.6 %) and the report's `motion_cost` at 1.44x to 1.68x at 64 x 64 and 1.48x to
-//!   1.51x at 256 x 256 in three runs: a block's Hessian costs about what its springs' forces
+//!   1.51x at 256 x 256 in three runs (2026-11-29, against block descent with its tethers): a block's Hessian costs about what its springs' forces
 //!   do, and the passes it spares cost more. Summing eight blocks at a time in SIMD lanes was
 //!   slower (a micro-benchmark: 190 against 120 µs for the blocks of a 64 x 64 cloth), and
 //!   four springs at a time, each block padded to a multiple of four, 15 % faster on the sums
