@@ -518,6 +518,12 @@ struct Groups {
     /// The springs inside each aggregate, CSR: they count only when a collider holds one end.
     inner_offsets: Vec<u32>,
     inner: Vec<Spring>,
+    /// The blocks in groups of [`LANES`] of about one size, which [`sum_lanes`] sums at once
+    /// ([`NO_NODE`] fills a last group's spare lanes), and each group's springs laid out lane by
+    /// lane, `lane_springs[lane_offsets[g]..lane_offsets[g + 1]]`.
+    lanes: Vec<[u32; LANES]>,
+    lane_offsets: Vec<u32>,
+    lane_springs: Vec<LaneSprings>,
 }
 
 impl Groups {
@@ -561,6 +567,8 @@ pub(crate) struct Multigrid {
     block_force: Vec<Vec3A>,
     block_hessian: Vec<Sym3>,
     block_held: Vec<bool>,
+    /// The blocks' sums as [`sum_lanes`] leaves them, group by group.
+    lane_sums: Vec<LaneSums>,
     /// Per aggregate, this substep's mass of the particles no collider holds, and whether a
     /// collider holds any of its particles.
     mass_now: Vec<f32>,
@@ -904,7 +912,39 @@ impl Multigrid {
             k_off: vec![Mat3A::ZERO; blocks],
             ..Default::default()
         });
+        // The blocks by their number of springs (a grid's are of one spring or of thirteen),
+        // so that a group's lanes run out together.
+        let mut by_size: Vec<u32> = (0..block_aggs.len() as u32).collect();
+        by_size.sort_by_key(|&k| block_offsets[k as usize + 1] - block_offsets[k as usize]);
+        let lanes: Vec<[u32; LANES]> = by_size
+            .chunks(LANES)
+            .map(|chunk| core::array::from_fn(|l| chunk.get(l).copied().unwrap_or(NO_NODE)))
+            .collect();
+        let (mut lane_offsets, mut lane_springs) = (vec![0u32], Vec::new());
+        for blocks in &lanes {
+            let springs = blocks.map(|k| {
+                if k == NO_NODE {
+                    &[][..]
+                } else {
+                    &crossing[block_offsets[k as usize] as usize..block_offsets[k as usize + 1] as usize]
+                }
+            });
+            let count = springs.iter().map(|s| s.len()).max().unwrap_or(0);
+            lane_springs.extend((0..count).map(|s| {
+                let spring =
+                    |l: usize| springs[l].get(s).copied().unwrap_or(Spring { ends: [0, 0], stiffness: 0.0, rest: 1.0 });
+                LaneSprings {
+                    ends: core::array::from_fn(|l| spring(l).ends),
+                    stiffness: core::array::from_fn(|l| spring(l).stiffness),
+                    rest: core::array::from_fn(|l| spring(l).rest),
+                }
+            }));
+            lane_offsets.push(lane_springs.len() as u32);
+        }
         self.groups = Groups {
+            lanes,
+            lane_offsets,
+            lane_springs,
             agg,
             member_offsets,
             members,
@@ -928,26 +968,26 @@ impl Multigrid {
         self.block_force.resize(count, Vec3A::ZERO);
         self.block_hessian.resize(count, Sym3::default());
         self.block_held.resize(count, false);
-        self.block_force
-            .par_chunks_mut(BLOCK_TASK)
-            .zip(self.block_hessian.par_chunks_mut(BLOCK_TASK))
-            .zip(self.block_held.par_chunks_mut(BLOCK_TASK))
-            .enumerate()
-            .for_each(|(chunk, ((forces, hessians), helds))| {
-                for (k, ((force, hessian), any_held)) in forces.iter_mut().zip(hessians).zip(helds).enumerate() {
-                    let (mut f, mut hs, mut any) = (Vec3A::ZERO, Sym3::default(), false);
-                    for s in groups.springs_of_block(chunk * BLOCK_TASK + k) {
-                        if some_held && s.ends.iter().any(|&e| held[e as usize] != 0.0) {
-                            any = true;
-                            continue;
-                        }
-                        let (spring_force, axis) = s.force(h2, s.delta(start, d));
-                        f += spring_force;
-                        hs += Sym3::of_axis(s.stiffness, axis);
-                    }
-                    (*force, *hessian, *any_held) = (f, hs, any);
+        let mut sums = core::mem::take(&mut self.lane_sums);
+        sums.resize(groups.lanes.len(), LaneSums::default());
+        sums.par_iter_mut().enumerate().with_min_len(BLOCK_TASK / LANES).for_each(|(g, out)| {
+            let springs = &groups.lane_springs[groups.lane_offsets[g] as usize..groups.lane_offsets[g + 1] as usize];
+            *out = sum_lanes(springs, h2, held, some_held, start, d);
+        });
+        for (sums, blocks) in sums.iter().zip(&groups.lanes) {
+            for (l, &k) in blocks.iter().enumerate() {
+                if k != NO_NODE {
+                    let k = k as usize;
+                    self.block_force[k] = Vec3A::new(sums.force[0][l], sums.force[1][l], sums.force[2][l]);
+                    self.block_hessian[k] = Sym3 {
+                        diag: Vec3A::new(sums.diag[0][l], sums.diag[1][l], sums.diag[2][l]),
+                        off: Vec3A::new(sums.off[0][l], sums.off[1][l], sums.off[2][l]),
+                    };
+                    self.block_held[k] = sums.held[l];
                 }
-            });
+            }
+        }
+        self.lane_sums = sums;
     }
 
     /// Calls `f(spring, own, other)` for each spring of block `k` that has a held end, with the
@@ -1257,6 +1297,82 @@ impl Multigrid {
             level.smooth(h2);
         }
     }
+}
+
+/// Blocks [`sum_lanes`] sums at once: two SSE vectors, whose square roots and divisions overlap.
+const LANES: usize = 8;
+
+/// [`LANES`] blocks' sums, lane by lane: their springs' forces on their first ends, their clamped
+/// Hessians (diagonal and off-diagonal entries), and whether any spring has a held end.
+#[derive(Clone, Copy, Debug, Default)]
+struct LaneSums {
+    force: [[f32; LANES]; 3],
+    diag: [[f32; LANES]; 3],
+    off: [[f32; LANES]; 3],
+    held: [bool; LANES],
+}
+
+/// The sums of [`LANES`] blocks' `springs` at once (see [`Multigrid::block_sums`]): lane by
+/// lane the arithmetic of [`Spring::force`] and [`Sym3::of_axis`] in their order, so each sum
+/// is the one a block summed on its own gives, bit for bit, laid out over the lanes so that the
+/// compiler runs the springs' square roots, divisions and products in SIMD lanes. A lane whose
+/// block has run out of springs (or whose spring has a held end) adds a spring of zero
+/// stiffness, which adds exactly zero.
+#[inline]
+fn sum_lanes(
+    springs: &[LaneSprings],
+    h2: f32,
+    held: &[f32],
+    some_held: bool,
+    start: &[Vec3A],
+    d: &[Vec3A],
+) -> LaneSums {
+    let mut sums = LaneSums::default();
+    for lane in springs {
+        let mut k = lane.stiffness;
+        if some_held {
+            for l in 0..LANES {
+                if lane.ends[l].iter().any(|&e| held[e as usize] != 0.0) {
+                    (k[l], sums.held[l]) = (0.0, true);
+                }
+            }
+        }
+        let e: [Vec3A; LANES] = core::array::from_fn(|l| {
+            let [i, j] = lane.ends[l].map(|e| e as usize);
+            (start[j] - start[i]) + (d[j] - d[i])
+        });
+        let delta: [[f32; LANES]; 3] = core::array::from_fn(|axis| core::array::from_fn(|l| e[l][axis]));
+        let rest = lane.rest;
+        let [dx, dy, dz] = delta;
+        for l in 0..LANES {
+            let len = (dx[l] * dx[l] + dy[l] * dy[l] + dz[l] * dz[l]).sqrt();
+            let inv_l = 1.0 / len.max(1.0e-6 * rest[l]);
+            let stretch = 1.0 - rest[l] * inv_l;
+            let pull = k[l] * h2 * stretch;
+            let sp = stretch.max(0.0);
+            let t = k[l] * (1.0 - sp);
+            let along = k[l] * sp;
+            let u = [dx[l] * inv_l, dy[l] * inv_l, dz[l] * inv_l];
+            let tu = [t * u[0], t * u[1], t * u[2]];
+            for axis in 0..3 {
+                sums.force[axis][l] += pull * delta[axis][l];
+                sums.diag[axis][l] += along + tu[axis] * u[axis];
+            }
+            sums.off[0][l] += tu[0] * u[1];
+            sums.off[1][l] += tu[0] * u[2];
+            sums.off[2][l] += tu[1] * u[2];
+        }
+    }
+    sums
+}
+
+/// [`LANES`] springs, one per lane: a group's springs at one step (a lane whose block has run
+/// out of springs holds a spring of zero stiffness between particle 0 and itself).
+#[derive(Clone, Copy, Debug)]
+struct LaneSprings {
+    ends: [[u32; 2]; LANES],
+    stiffness: [f32; LANES],
+    rest: [f32; LANES],
 }
 
 /// `blocks` cut into the rows that `offsets` (CSR) mark.
