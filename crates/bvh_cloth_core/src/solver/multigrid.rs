@@ -336,7 +336,12 @@ impl Level {
     fn smooth_from_zero(&mut self) {
         let Self { b, e, diag_inv, .. } = self;
         e.clear();
-        e.extend(b.iter().zip(diag_inv.iter()).map(|(&b, &inv)| JACOBI_WEIGHT * (inv * b)));
+        e.resize(b.len(), Vec3A::ZERO);
+        e.par_iter_mut().zip(b.par_iter()).zip(diag_inv.par_iter()).with_min_len(MIN_TASK).for_each(
+            |((e, &b), &inv)| {
+                *e = JACOBI_WEIGHT * (inv * b);
+            },
+        );
     }
 
     /// One damped block Jacobi step on `A e = b`: every node at once, from the others' `e`
@@ -518,10 +523,10 @@ struct Groups {
     /// The springs inside each aggregate, CSR: they count only when a collider holds one end.
     inner_offsets: Vec<u32>,
     inner: Vec<Spring>,
-    /// The blocks in groups of [`LANES`] of about one size, which [`sum_lanes`] sums at once
-    /// ([`NO_NODE`] fills a last group's spare lanes), and each group's springs laid out lane by
-    /// lane, `lane_springs[lane_offsets[g]..lane_offsets[g + 1]]`.
-    lanes: Vec<[u32; LANES]>,
+    /// The blocks in groups of [`LANES`] of about one size, which [`sum_lanes`] sums at once:
+    /// each block's place, `LANES g + lane` for lane `lane` of group `g`, and each group's
+    /// springs laid out lane by lane, `lane_springs[lane_offsets[g]..lane_offsets[g + 1]]`.
+    lane_of: Vec<u32>,
     lane_offsets: Vec<u32>,
     lane_springs: Vec<LaneSprings>,
 }
@@ -941,8 +946,12 @@ impl Multigrid {
             }));
             lane_offsets.push(lane_springs.len() as u32);
         }
+        let mut lane_of = vec![0u32; block_aggs.len()];
+        for (place, &k) in by_size.iter().enumerate() {
+            lane_of[k as usize] = place as u32;
+        }
         self.groups = Groups {
-            lanes,
+            lane_of,
             lane_offsets,
             lane_springs,
             agg,
@@ -969,24 +978,26 @@ impl Multigrid {
         self.block_hessian.resize(count, Sym3::default());
         self.block_held.resize(count, false);
         let mut sums = core::mem::take(&mut self.lane_sums);
-        sums.resize(groups.lanes.len(), LaneSums::default());
+        sums.resize(groups.lane_offsets.len() - 1, LaneSums::default());
         sums.par_iter_mut().enumerate().with_min_len(BLOCK_TASK / LANES).for_each(|(g, out)| {
             let springs = &groups.lane_springs[groups.lane_offsets[g] as usize..groups.lane_offsets[g + 1] as usize];
             *out = sum_lanes(springs, h2, held, some_held, start, d);
         });
-        for (sums, blocks) in sums.iter().zip(&groups.lanes) {
-            for (l, &k) in blocks.iter().enumerate() {
-                if k != NO_NODE {
-                    let k = k as usize;
-                    self.block_force[k] = Vec3A::new(sums.force[0][l], sums.force[1][l], sums.force[2][l]);
-                    self.block_hessian[k] = Sym3 {
-                        diag: Vec3A::new(sums.diag[0][l], sums.diag[1][l], sums.diag[2][l]),
-                        off: Vec3A::new(sums.off[0][l], sums.off[1][l], sums.off[2][l]),
-                    };
-                    self.block_held[k] = sums.held[l];
-                }
-            }
-        }
+        self.block_force
+            .par_iter_mut()
+            .zip(self.block_hessian.par_iter_mut())
+            .zip(self.block_held.par_iter_mut())
+            .zip(groups.lane_of.par_iter())
+            .with_min_len(BLOCK_TASK)
+            .for_each(|(((force, hessian), any_held), &place)| {
+                let (sums, l) = (&sums[place as usize / LANES], place as usize % LANES);
+                *force = Vec3A::new(sums.force[0][l], sums.force[1][l], sums.force[2][l]);
+                *hessian = Sym3 {
+                    diag: Vec3A::new(sums.diag[0][l], sums.diag[1][l], sums.diag[2][l]),
+                    off: Vec3A::new(sums.off[0][l], sums.off[1][l], sums.off[2][l]),
+                };
+                *any_held = sums.held[l];
+            });
         self.lane_sums = sums;
     }
 
@@ -1277,17 +1288,23 @@ impl Multigrid {
         self.levels[l].smooth_from_zero();
         let visits = if cycle == Cycle::TopW && l == 0 { 2 } else { 1 };
         for _ in 0..visits {
-            // The restriction of the residual `b - A e`: each coarse node gathers its children's.
+            // The restriction of the residual `b - A e`: every node's, row by row, then each coarse
+            // node gathers its children's.
             let (upper, lower) = self.levels.split_at_mut(l + 1);
-            let (level, next) = (&upper[l], &mut lower[0]);
-            let residual =
-                |a: usize| level.b[a] - level.diag_block(a, damp, h2) * level.e[a] - level.off_product(a, &level.e, h2);
+            let (level, next) = (&mut upper[l], &mut lower[0]);
+            let mut residual = core::mem::take(&mut level.scratch);
+            residual.resize(level.len(), Vec3A::ZERO);
+            let this = &*level;
+            residual.par_iter_mut().enumerate().with_min_len(MIN_TASK).for_each(|(a, r)| {
+                *r = this.b[a] - this.diag_block(a, damp, h2) * this.e[a] - this.off_product(a, &this.e, h2);
+            });
             next.b.clear();
             next.b.resize(next.len(), Vec3A::ZERO);
             let (offsets, children) = (&next.child_offsets, &next.children);
             next.b.par_iter_mut().enumerate().with_min_len(MIN_TASK).for_each(|(c, b)| {
-                *b = children[offsets[c] as usize..offsets[c + 1] as usize].iter().map(|&a| residual(a as usize)).sum();
+                *b = children[offsets[c] as usize..offsets[c + 1] as usize].iter().map(|&a| residual[a as usize]).sum();
             });
+            level.scratch = residual;
             self.cycle(l + 1, damp, h2, cycle);
             let (upper, lower) = self.levels.split_at_mut(l + 1);
             let (level, next) = (&mut upper[l], &lower[0]);
