@@ -510,7 +510,8 @@ struct Groups {
     members: Vec<u32>,
     /// The springs that cross aggregates (or end at a pinned particle), each once, block by
     /// block: a block is the springs between two aggregates, or between one and the pins, each
-    /// spring's first end in the block's first aggregate.
+    /// spring's first end in the block's first aggregate. The blocks are ordered by their number
+    /// of springs, then by their aggregates.
     crossing: Vec<Spring>,
     /// Each block's aggregates (the lower first; [`NO_NODE`] second for the pins), and its
     /// springs, `crossing[block_offsets[k]..block_offsets[k + 1]]`.
@@ -523,10 +524,9 @@ struct Groups {
     /// The springs inside each aggregate, CSR: they count only when a collider holds one end.
     inner_offsets: Vec<u32>,
     inner: Vec<Spring>,
-    /// The blocks in groups of [`LANES`] of about one size, which [`sum_lanes`] sums at once:
-    /// each block's place, `LANES g + lane` for lane `lane` of group `g`, and each group's
-    /// springs laid out lane by lane, `lane_springs[lane_offsets[g]..lane_offsets[g + 1]]`.
-    lane_of: Vec<u32>,
+    /// The springs of each [`LANES`] blocks in a row (blocks `LANES g..LANES (g + 1)`, which
+    /// [`sum_lanes`] sums at once) laid out lane by lane,
+    /// `lane_springs[lane_offsets[g]..lane_offsets[g + 1]]`.
     lane_offsets: Vec<u32>,
     lane_springs: Vec<LaneSprings>,
 }
@@ -572,8 +572,6 @@ pub(crate) struct Multigrid {
     block_force: Vec<Vec3A>,
     block_hessian: Vec<Sym3>,
     block_held: Vec<bool>,
-    /// The blocks' sums as [`sum_lanes`] leaves them, group by group.
-    lane_sums: Vec<LaneSums>,
     /// Per aggregate, this substep's mass of the particles no collider holds, and whether a
     /// collider holds any of its particles.
     mass_now: Vec<f32>,
@@ -872,15 +870,26 @@ impl Multigrid {
         }
         // The blocks, in the order of their aggregates; a block's springs keep their order.
         crossing.sort_by_key(|&(key, _)| key);
-        let (mut block_aggs, mut block_offsets) = (Vec::new(), Vec::new());
+        let mut keys: Vec<([u32; 2], core::ops::Range<usize>)> = Vec::new();
         for (s, &(key, _)) in crossing.iter().enumerate() {
-            if block_aggs.last() != Some(&key) {
-                block_aggs.push(key);
-                block_offsets.push(s as u32);
+            match keys.last_mut() {
+                Some((last, range)) if *last == key => range.end = s + 1,
+                _ => keys.push((key, s..s + 1)),
             }
         }
-        block_offsets.push(crossing.len() as u32);
-        let crossing: Vec<Spring> = crossing.into_iter().map(|(_, spring)| spring).collect();
+        // Then by their number of springs (a grid's have one or thirteen), so that the blocks
+        // [`sum_lanes`] sums together run out of springs together.
+        let mut by_size: Vec<usize> = (0..keys.len()).collect();
+        by_size.sort_by_key(|&k| keys[k].1.len());
+        let mut renumbered = vec![0u32; keys.len()];
+        let (mut block_aggs, mut block_offsets, mut sorted) = (Vec::new(), vec![0u32], Vec::new());
+        for (new, &k) in by_size.iter().enumerate() {
+            renumbered[k] = new as u32;
+            block_aggs.push(keys[k].0);
+            sorted.extend(crossing[keys[k].1.clone()].iter().map(|&(_, spring)| spring));
+            block_offsets.push(sorted.len() as u32);
+        }
+        let crossing = sorted;
         let mut pinned_block = vec![NO_NODE; count];
         for (k, &[a, b]) in block_aggs.iter().enumerate() {
             if b == NO_NODE {
@@ -889,7 +898,9 @@ impl Multigrid {
         }
         // Level 1's structure: the aggregates each aggregate's crossing springs reach, in the
         // order its springs first reach them, and the block of each.
-        let block_of = |pair: [u32; 2]| block_aggs.binary_search(&pair).expect("a block for every pair") as u32;
+        let block_of = |pair: [u32; 2]| {
+            renumbered[keys.binary_search_by_key(&pair, |(key, _)| *key).expect("a block for every pair")]
+        };
         let (mut offsets, mut cols, mut row_blocks) = (vec![0u32], Vec::new(), Vec::new());
         for (a, others) in per_agg.iter().enumerate() {
             let row_start = cols.len();
@@ -917,22 +928,12 @@ impl Multigrid {
             k_off: vec![Mat3A::ZERO; blocks],
             ..Default::default()
         });
-        // The blocks by their number of springs (a grid's are of one spring or of thirteen),
-        // so that a group's lanes run out together.
-        let mut by_size: Vec<u32> = (0..block_aggs.len() as u32).collect();
-        by_size.sort_by_key(|&k| block_offsets[k as usize + 1] - block_offsets[k as usize]);
-        let lanes: Vec<[u32; LANES]> = by_size
-            .chunks(LANES)
-            .map(|chunk| core::array::from_fn(|l| chunk.get(l).copied().unwrap_or(NO_NODE)))
-            .collect();
+        // Each group of lanes' springs, lane by lane.
         let (mut lane_offsets, mut lane_springs) = (vec![0u32], Vec::new());
-        for blocks in &lanes {
-            let springs = blocks.map(|k| {
-                if k == NO_NODE {
-                    &[][..]
-                } else {
-                    &crossing[block_offsets[k as usize] as usize..block_offsets[k as usize + 1] as usize]
-                }
+        for first in (0..block_aggs.len()).step_by(LANES) {
+            let springs: [&[Spring]; LANES] = core::array::from_fn(|l| {
+                let k = (first + l).min(block_aggs.len());
+                &crossing[block_offsets[k] as usize..block_offsets[(first + l + 1).min(block_aggs.len())] as usize]
             });
             let count = springs.iter().map(|s| s.len()).max().unwrap_or(0);
             lane_springs.extend((0..count).map(|s| {
@@ -946,12 +947,7 @@ impl Multigrid {
             }));
             lane_offsets.push(lane_springs.len() as u32);
         }
-        let mut lane_of = vec![0u32; block_aggs.len()];
-        for (place, &k) in by_size.iter().enumerate() {
-            lane_of[k as usize] = place as u32;
-        }
         self.groups = Groups {
-            lane_of,
             lane_offsets,
             lane_springs,
             agg,
@@ -977,28 +973,25 @@ impl Multigrid {
         self.block_force.resize(count, Vec3A::ZERO);
         self.block_hessian.resize(count, Sym3::default());
         self.block_held.resize(count, false);
-        let mut sums = core::mem::take(&mut self.lane_sums);
-        sums.resize(groups.lane_offsets.len() - 1, LaneSums::default());
-        sums.par_iter_mut().enumerate().with_min_len(BLOCK_TASK / LANES).for_each(|(g, out)| {
-            let springs = &groups.lane_springs[groups.lane_offsets[g] as usize..groups.lane_offsets[g + 1] as usize];
-            *out = sum_lanes(springs, h2, held, some_held, start, d);
-        });
         self.block_force
-            .par_iter_mut()
-            .zip(self.block_hessian.par_iter_mut())
-            .zip(self.block_held.par_iter_mut())
-            .zip(groups.lane_of.par_iter())
-            .with_min_len(BLOCK_TASK)
-            .for_each(|(((force, hessian), any_held), &place)| {
-                let (sums, l) = (&sums[place as usize / LANES], place as usize % LANES);
-                *force = Vec3A::new(sums.force[0][l], sums.force[1][l], sums.force[2][l]);
-                *hessian = Sym3 {
-                    diag: Vec3A::new(sums.diag[0][l], sums.diag[1][l], sums.diag[2][l]),
-                    off: Vec3A::new(sums.off[0][l], sums.off[1][l], sums.off[2][l]),
-                };
-                *any_held = sums.held[l];
+            .par_chunks_mut(LANES)
+            .zip(self.block_hessian.par_chunks_mut(LANES))
+            .zip(self.block_held.par_chunks_mut(LANES))
+            .enumerate()
+            .with_min_len(BLOCK_TASK / LANES)
+            .for_each(|(g, ((forces, hessians), helds))| {
+                let springs =
+                    &groups.lane_springs[groups.lane_offsets[g] as usize..groups.lane_offsets[g + 1] as usize];
+                let sums = sum_lanes(springs, h2, held, some_held, start, d);
+                for (l, ((force, hessian), any_held)) in forces.iter_mut().zip(hessians).zip(helds).enumerate() {
+                    *force = Vec3A::new(sums.force[0][l], sums.force[1][l], sums.force[2][l]);
+                    *hessian = Sym3 {
+                        diag: Vec3A::new(sums.diag[0][l], sums.diag[1][l], sums.diag[2][l]),
+                        off: Vec3A::new(sums.off[0][l], sums.off[1][l], sums.off[2][l]),
+                    };
+                    *any_held = sums.held[l];
+                }
             });
-        self.lane_sums = sums;
     }
 
     /// Calls `f(spring, own, other)` for each spring of block `k` that has a held end, with the
