@@ -277,7 +277,11 @@ struct Level {
     k_diag: Vec<Mat3A>,
     offsets: Vec<u32>,
     cols: Vec<u32>,
+    /// The off-diagonal blocks: entry `k`'s is `k_off[k]`, but on level 1, whose entries are the
+    /// blocks of springs between two aggregates and read one matrix for an entry and its
+    /// transpose, `k_off[entry_block[k]]` ([`Self::off_block`]).
     k_off: Vec<Mat3A>,
+    entry_block: Vec<u32>,
     /// Each node's aggregate on the next level (empty on the coarsest).
     parent: Vec<u32>,
     /// The nodes of the level above that each node aggregates, CSR (empty on level 1, whose
@@ -302,12 +306,21 @@ impl Level {
         self.mass.len()
     }
 
+    /// Off-diagonal entry `k`'s block.
+    #[inline]
+    fn off_block(&self, k: usize) -> &Mat3A {
+        match self.entry_block.get(k) {
+            Some(&block) => &self.k_off[block as usize],
+            None => &self.k_off[k],
+        }
+    }
+
     /// `A e` at node `a`, less the diagonal block, with `A = (1 + c h) M + h² K`.
     #[inline]
     fn off_product(&self, a: usize, e: &[Vec3A], h2: f32) -> Vec3A {
         let mut sum = Vec3A::ZERO;
         for k in self.offsets[a] as usize..self.offsets[a + 1] as usize {
-            sum += self.k_off[k] * e[self.cols[k] as usize];
+            sum += *self.off_block(k) * e[self.cols[k] as usize];
         }
         h2 * sum
     }
@@ -383,7 +396,7 @@ impl Dense {
             }
             for k in level.offsets[node] as usize..level.offsets[node + 1] as usize {
                 let other = level.cols[k] as usize;
-                let block = h2 * level.k_off[k];
+                let block = h2 * *level.off_block(k);
                 for (r, c) in (0..3).flat_map(|r| (0..3).map(move |c| (r, c))) {
                     a[(3 * node + r) * dim + 3 * other + c] = f64::from(block.col(c)[r]);
                 }
@@ -517,9 +530,8 @@ struct Groups {
     /// springs, `crossing[block_offsets[k]..block_offsets[k + 1]]`.
     block_aggs: Vec<[u32; 2]>,
     block_offsets: Vec<u32>,
-    /// The block of each off-diagonal entry of level 1 (aligned with its `cols`), and each
-    /// aggregate's block to the pins ([`NO_NODE`] when it has none).
-    row_blocks: Vec<u32>,
+    /// Each aggregate's block to the pins ([`NO_NODE`] when it has none); level 1's
+    /// `entry_block` has the block of each of its off-diagonal entries.
     pinned_block: Vec<u32>,
     /// The springs inside each aggregate, CSR: they count only when a collider holds one end.
     inner_offsets: Vec<u32>,
@@ -919,13 +931,13 @@ impl Multigrid {
             inner.extend(springs);
             inner_offsets.push(inner.len() as u32);
         }
-        let blocks = cols.len();
         self.levels.push(Level {
             mass: vec![0.0; count],
             k_diag: vec![Mat3A::ZERO; count],
             offsets,
             cols,
-            k_off: vec![Mat3A::ZERO; blocks],
+            k_off: vec![Mat3A::ZERO; block_aggs.len()],
+            entry_block: row_blocks,
             ..Default::default()
         });
         // Each group of lanes' springs, lane by lane.
@@ -956,7 +968,6 @@ impl Multigrid {
             crossing,
             block_aggs,
             block_offsets,
-            row_blocks,
             pinned_block,
             inner_offsets,
             inner,
@@ -1018,16 +1029,15 @@ impl Multigrid {
         let this = &*self;
         let groups = &this.groups;
         let level = &mut levels[0];
-        let mut rows = split_rows(&mut level.k_off, &level.offsets);
-        let offsets = &level.offsets;
-        level
-            .mass
-            .par_iter_mut()
-            .zip(level.k_diag.par_iter_mut())
-            .zip(rows.par_iter_mut())
-            .enumerate()
-            .with_min_len(MIN_TASK)
-            .for_each(|(a, ((mass, diag), row))| {
+        // The off-diagonal blocks (the pins' blocks too, which no entry reads).
+        level.k_off.par_iter_mut().zip(this.block_hessian.par_iter()).with_min_len(BLOCK_TASK).for_each(
+            |(block, b)| {
+                *block = -b.matrix();
+            },
+        );
+        let (offsets, entry_block) = (&level.offsets, &level.entry_block);
+        level.mass.par_iter_mut().zip(level.k_diag.par_iter_mut()).enumerate().with_min_len(MIN_TASK).for_each(
+            |(a, (mass, diag))| {
                 let (mut sum, mut any_held) = (0.0, false);
                 for &i in groups.members_of(a) {
                     if held[i as usize] == 0.0 {
@@ -1046,12 +1056,9 @@ impl Multigrid {
                         }
                     });
                 };
-                let row_start = offsets[a] as usize;
-                for (g, block) in row.iter_mut().enumerate() {
-                    let k = groups.row_blocks[row_start + g] as usize;
-                    let b = this.block_hessian[k].matrix();
-                    *diag += b;
-                    *block = -b;
+                for g in offsets[a]..offsets[a + 1] {
+                    let k = entry_block[g as usize] as usize;
+                    *diag += this.block_hessian[k].matrix();
                     if this.block_held[k] {
                         held_block(k, diag);
                     }
@@ -1070,8 +1077,8 @@ impl Multigrid {
                         }
                     }
                 }
-            });
-        drop(rows);
+            },
+        );
         self.levels = levels;
         if self.levels.len() == 1 {
             while self.levels.len() < MAX_LEVELS && self.levels.last().is_some_and(|l| l.len() > COARSEST) {
@@ -1135,7 +1142,8 @@ impl Multigrid {
         any_held.resize(count, false);
         let this = &*self;
         let groups = &this.groups;
-        let offsets = &this.levels[0].offsets;
+        let level = &this.levels[0];
+        let offsets = &level.offsets;
         residual
             .par_iter_mut()
             .zip(mass_now.par_iter_mut())
@@ -1169,7 +1177,7 @@ impl Multigrid {
                     }
                 };
                 for g in offsets[a]..offsets[a + 1] {
-                    add_block(groups.row_blocks[g as usize] as usize);
+                    add_block(level.entry_block[g as usize] as usize);
                 }
                 if groups.pinned_block[a] != NO_NODE {
                     add_block(groups.pinned_block[a] as usize);
@@ -1248,7 +1256,7 @@ impl Multigrid {
         let Some(level) = self.levels.first() else { return (offsets, shares) };
         for a in 0..groups.len() {
             for g in level.offsets[a]..level.offsets[a + 1] {
-                let k = groups.row_blocks[g as usize] as usize;
+                let k = level.entry_block[g as usize] as usize;
                 let side = u32::from(groups.block_aggs[k][0] as usize != a);
                 shares.extend((groups.block_offsets[k]..groups.block_offsets[k + 1]).map(|s| [s, side, g]));
             }
@@ -1472,7 +1480,10 @@ fn invert(agg: &[u32], count: usize) -> (Vec<u32>, Vec<u32>) {
 fn coarsen(fine: &mut Level) -> Option<Level> {
     let level: &Level = fine;
     let n = level.len();
-    let strength = |k: usize| -level.k_off[k].x_axis.x - level.k_off[k].y_axis.y - level.k_off[k].z_axis.z;
+    let strength = |k: usize| {
+        let m = level.off_block(k);
+        -m.x_axis.x - m.y_axis.y - m.z_axis.z
+    };
     let strongest: Vec<f32> = (0..n)
         .map(|a| (level.offsets[a]..level.offsets[a + 1]).map(|k| strength(k as usize)).fold(0.0, f32::max))
         .collect();
@@ -1499,7 +1510,7 @@ fn coarsen(fine: &mut Level) -> Option<Level> {
             for k in level.offsets[a] as usize..level.offsets[a + 1] as usize {
                 let other = parent[level.cols[k] as usize];
                 if other as usize == c {
-                    next.k_diag[c] += level.k_off[k];
+                    next.k_diag[c] += *level.off_block(k);
                     continue;
                 }
                 let at = match next.cols[row_start..].iter().position(|&col| col == other) {
@@ -1510,7 +1521,7 @@ fn coarsen(fine: &mut Level) -> Option<Level> {
                         next.cols.len() - 1
                     }
                 };
-                next.k_off[at] += level.k_off[k];
+                next.k_off[at] += *level.off_block(k);
                 slot[k] = at as u32;
             }
         }
@@ -1544,8 +1555,8 @@ fn galerkin(fine: &Level, coarse: &mut Level) {
                 *diag += fine.k_diag[a];
                 for k in fine.offsets[a] as usize..fine.offsets[a + 1] as usize {
                     match fine.slot[k] {
-                        NO_NODE => *diag += fine.k_off[k],
-                        at => row[at as usize - row_start] += fine.k_off[k],
+                        NO_NODE => *diag += *fine.off_block(k),
+                        at => row[at as usize - row_start] += *fine.off_block(k),
                     }
                 }
             }
@@ -1658,7 +1669,7 @@ mod tests {
         }
         for a in 0..count {
             for g in level.offsets[a] as usize..level.offsets[a + 1] as usize {
-                let k = groups.row_blocks[g] as usize;
+                let k = level.entry_block[g] as usize;
                 let (a, c) = (a as u32, level.cols[g]);
                 assert_eq!(groups.block_aggs[k], [a.min(c), a.max(c)], "row {a}, column {c}");
                 entries[k] += 1;
