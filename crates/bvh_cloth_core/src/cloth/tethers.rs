@@ -53,11 +53,10 @@
 //! | 128 | +134 % | 9.1x | +15.7 % | 1.38x |
 //! | 256 | +284 % | 36.6x | +45 % | 3.4x |
 //!
-//! Their cost, one distance test per particle and substep: 1.08x the untethered tick at
-//! 64 x 64 and 1.06x at 256 x 256 (`cargo bench -p bvh_cloth_bench --bench report --
-//! motion_cost`: the same state ticked with and without, alternated, best of 40 and of 8, on the
-//! 2-core development machine on 2026-11-28; runs that day gave 1.06x to 1.12x and 1.02x to
-//! 1.09x).
+//! Their cost, one distance test per particle and substep: 1.06x to 1.07x the untethered tick
+//! at 64 x 64 and 1.04x to 1.11x at 256 x 256 (`cargo bench -p bvh_cloth_bench --bench report
+//! -- motion_cost`: the same state ticked with and without, alternated, best of 40 and of 20,
+//! three runs on the 2-core development machine, an AMD EPYC, on 2026-11-29 and 30).
 //!
 //! The tethers take out most of the rubber, not all: a tether bounds how fast a particle moves
 //! away from its pin, not each spring's stretch, so at 256 x 256 the springs between still

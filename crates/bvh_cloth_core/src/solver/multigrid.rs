@@ -30,12 +30,16 @@
 //!   the residual and the assembly, each once (12,474 of the 23,938 springs of a 64 x 64 grid,
 //!   202,810 of 390,658 at 256 x 256; 484 and 7,396 aggregates). They are kept in blocks,
 //!   a block being the springs between two aggregates (or between one and the pins), and one
-//!   pass over the blocks sums each block's forces and clamped Hessians (1,787 blocks of 7
-//!   springs on average at 64 x 64). The residual gathers an aggregate's blocks, the assembly
-//!   (when due) takes level 1's off-diagonal blocks from them, and the line search's curvature
-//!   is a sum over blocks, `deᵀ B de`: every spring of a block moves by the same difference
-//!   `de` of its two aggregates' corrections. A spring with an end a collider holds is left
-//!   out of its block's sums and taken on its own by all three.
+//!   pass over the blocks sums each block's forces and clamped Hessians (1,787 blocks at
+//!   64 x 64: 841 of one spring, the aggregates meeting at a corner, 820 of thirteen, the
+//!   aggregates side by side, and 126 of two to ten). The residual gathers an aggregate's blocks, the assembly (when
+//!   due) takes level 1's off-diagonal blocks from them, one matrix for a block's entry and its
+//!   transpose, and the line search's curvature is a sum over blocks, `deᵀ B de`: every spring
+//!   of a block moves by the same difference `de` of its two aggregates' corrections. A spring
+//!   with an end a collider holds is left out of its block's sums and taken on its own by all
+//!   three. The blocks are ordered by their number of springs, and the pass sums eight blocks
+//!   at a time, one per SIMD lane, their springs laid out lane by lane: the eight run out of
+//!   springs together, and each block's sums are, bit for bit, the ones it gives summed alone.
 //! - The coarse matrices are assembled every 12 substeps (`REASSEMBLE_EVERY`) and kept in between.
 //!   The residual is exact in every substep, and the line search measures the step with this
 //!   substep's Hessian (each crossing spring's direction and stretch, kept from the residual's
@@ -115,15 +119,20 @@
 //! each way on the 2-core machine), the blend and the first level's W-cycle cost what BDF2 and
 //! the V-cycle do within the machine's noise (47 and 54 s against 49 and 51 s).
 //!
-//! Its cost on the 2-core development machine (an Intel Xeon), against block descent with one
-//! sweep at Looper 16 (the report's `motion_cost` section, three runs on 2026-11-29 from 21:53
-//! UTC): 1.38x to 1.42x at 64 x 64 and 1.36x to 1.39x at 256 x 256 against block descent with
-//! its tethers, 1.47x to 1.51x and 1.43x to 1.51x without them; at Looper 12, 1.01x to 1.06x
-//! against block descent with its tethers. The machine is noisy, and a ratio is good to about
-//! a tenth. Timers in a scratch build (64 x 64, 200 ticks, one thread) put the
-//! correction at 32 % of the tick: the blocks' sums 18 %, the V-cycle 4.9 %, the residual's
-//! gather 4.0 %, the line search's curvature 1.7 %, the assembly and the factors 1.5 %, the
-//! kept levels' curvature 1.4 % and the step 1.0 %.
+//! Its cost on the 2-core development machine (an AMD EPYC on the day), against block descent
+//! with one sweep at Looper 16 (the report's `motion_cost` section, best of 40 ticks at
+//! 64 x 64 and of 20 at 256 x 256, three runs on 2026-11-29 from 23:59 UTC): 1.39x to 1.41x at
+//! 64 x 64 and 1.42x to 1.53x at 256 x 256 against block descent without its tethers
+//! (`tethers: None`), 1.30x to 1.31x and 1.34x to 1.36x against block descent with them; at
+//! Looper 12, 0.98x to 1.09x against block descent with its tethers. The machine is noisy, and
+//! a ratio is good to about a tenth. Timers in a scratch build (not in the repository;
+//! 2026-11-30, 00:06 UTC) put the correction at 25 % of the tick at 64 x 64 on one thread (the
+//! blocks' sums 10.4 %, the residual's gather 4.8 %, the V-cycle 4.5 %, the line search's
+//! curvature 1.4 %, the assembly and the factors 1.4 %, the kept levels' curvature 1.3 %, the
+//! step 0.9 %) and at 23 % at 256 x 256 on two threads (the blocks' sums 8.9 %, the V-cycle
+//! 5.1 %, the gather 4.5 %, the rest 4.4 %). There the correction's passes stream about 10 MB
+//! a substep, and, each tick timed after another cloth's, the sweep took 2 % to 13 % longer in
+//! the default than in block descent in three of four runs: the two share the caches.
 //!
 //! ## Alternatives, measured
 //! With a scratch program on the same hanging cloth (2026-11-28, the 2-core development
@@ -193,11 +202,19 @@
 //!   at 35.5 % of the tick (the forces 9.9 %, the curvature 8.0 %, the gather 6.2 %, the
 //!   assembly 4.6 %) and the report's `motion_cost` at 1.44x to 1.68x at 64 x 64 and 1.48x to
 //!   1.51x at 256 x 256 in three runs (2026-11-29, against block descent with its tethers): a block's Hessian costs about what its springs' forces
-//!   do, and the passes it spares cost more. Summing eight blocks at a time in SIMD lanes was
-//!   slower (a micro-benchmark: 190 against 120 µs for the blocks of a 64 x 64 cloth), and
-//!   four springs at a time, each block padded to a multiple of four, 15 % faster on the sums
-//!   alone for 41 % more springs: the gathers of the springs' ends and their transposition
-//!   into lanes cost what the lanes save.
+//!   do, and the passes it spares cost more.
+//! - **The blocks' sums, other layouts** (scratch timers, 64 x 64 on one thread unless said,
+//!   2026-11-29): one block at a time took 1.40 ms a tick, eight blocks of any size at a time
+//!   in SIMD lanes more (a micro-benchmark: 190 against 120 µs for a 64 x 64 cloth's blocks:
+//!   a block of one spring waits in its lane for one of thirteen), and four springs at a time,
+//!   each block padded to a multiple of four, 15 % less for 41 % more springs. Blocks of one
+//!   size eight at a time took 1.23 ms reading the springs block by block and 0.76 ms with the
+//!   springs laid out lane by lane (what the module does); reading each spring's stiffness and
+//!   rest length from the topology's spring ends, which the sweep reads too, in place of a copy,
+//!   took 0.89 ms, and 15.5 ms against 7.4 ms at 256 x 256 on two threads. Four lanes in place
+//!   of eight: the same. A packed symmetric block (32 bytes) in place of each of the levels'
+//!   off-diagonal [`Mat3A`]s (48): the V-cycle no faster at 64 x 64 (0.32 against 0.30 ms), the
+//!   shuffles that rebuild its third column costing what the bytes save.
 //! - **Coarse levels grouped by the springs at rest**, at the substep's start rather than after
 //!   its sweep (so that a host could build them from the cloth's shape alone), in the core's
 //!   `motion` tests (2026-11-29): 32 x 32 to 128 x 128 at 1 s -1.0 / +3.0 / +11.7 % off RK4's
