@@ -1366,9 +1366,9 @@ fn sum_lanes(
     for lane in springs {
         let mut k = lane.stiffness;
         if some_held {
-            for l in 0..LANES {
-                if lane.ends[l].iter().any(|&e| held[e as usize] != 0.0) {
-                    (k[l], sums.held[l]) = (0.0, true);
+            for ((ends, k), any_held) in lane.ends.iter().zip(&mut k).zip(&mut sums.held) {
+                if ends.iter().any(|&e| held[e as usize] != 0.0) {
+                    (*k, *any_held) = (0.0, true);
                 }
             }
         }
