@@ -32,12 +32,12 @@
 //!   a block being the springs between two aggregates (or between one and the pins), and one
 //!   pass over the blocks sums each block's forces and clamped Hessians (1,787 blocks at
 //!   64 x 64: 841 of one spring, the aggregates meeting at a corner, 820 of thirteen, the
-//!   aggregates side by side, and 126 of two to ten). The residual gathers an aggregate's blocks, the assembly (when
-//!   due) takes level 1's off-diagonal blocks from them, one matrix for a block's entry and its
-//!   transpose, and the line search's curvature is a sum over blocks, `deᵀ B de`: every spring
-//!   of a block moves by the same difference `de` of its two aggregates' corrections. A spring
-//!   with an end a collider holds is left out of its block's sums and taken on its own by all
-//!   three. The blocks are ordered by their number of springs, and the pass sums eight blocks
+//!   aggregates side by side, and 126 of two to ten). The residual gathers an aggregate's
+//!   blocks, the assembly (when due) takes level 1's off-diagonal blocks from them, one matrix
+//!   for a block's entry and its transpose, and the line search's curvature is a sum over
+//!   blocks, `deᵀ B de`: every spring of a block moves by the same difference `de` of its two
+//!   aggregates' corrections. A spring with an end a collider holds is left out of its block's
+//!   sums and taken on its own by all three. The blocks are ordered by their number of springs, and the pass sums eight blocks
 //!   at a time, one per SIMD lane, their springs laid out lane by lane: the eight run out of
 //!   springs together, and each block's sums are, bit for bit, the ones it gives summed alone.
 //! - The coarse matrices are assembled every 12 substeps (`REASSEMBLE_EVERY`) and kept in between.
@@ -1367,7 +1367,8 @@ fn sum_lanes(
         let mut k = lane.stiffness;
         if some_held {
             for ((ends, k), any_held) in lane.ends.iter().zip(&mut k).zip(&mut sums.held) {
-                if ends.iter().any(|&e| held[e as usize] != 0.0) {
+                // (A spare lane's spring, of zero stiffness, is no block's.)
+                if *k != 0.0 && ends.iter().any(|&e| held[e as usize] != 0.0) {
                     (*k, *any_held) = (0.0, true);
                 }
             }
