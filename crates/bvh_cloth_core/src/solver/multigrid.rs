@@ -1727,6 +1727,44 @@ mod tests {
         }
     }
 
+    /// The blocks' sums, eight blocks at a time in SIMD lanes, are each block's springs summed
+    /// one by one ([`Spring::force`], [`Sym3::of_axis`]) in their order, bit for bit, with and
+    /// without held particles; a block is held exactly when one of its springs has a held end.
+    #[test]
+    fn the_lanes_sum_each_block_as_its_springs_one_by_one() {
+        let (topology, free, start, _, d) = bulged();
+        let model = ForceModel::new(&ClothParams::default());
+        let mut held = vec![0.0; topology.len()];
+        let mut mg = Multigrid::default();
+        mg.build(&topology, &model, &free, &held, &start, &d);
+        for i in (10 * 32..11 * 32).chain([1, 30, 500]) {
+            held[i] = 1.0;
+        }
+        for (h2, held, some_held) in [(H * H, &vec![0.0; topology.len()], false), (H * H, &held, true)] {
+            mg.block_sums(h2, held, some_held, &start, &d);
+            let groups = &mg.groups;
+            assert!(groups.block_aggs.len() > 2 * LANES, "{} blocks", groups.block_aggs.len());
+            for k in 0..groups.block_aggs.len() {
+                let (mut f, mut hs, mut any) = (Vec3A::ZERO, Sym3::default(), false);
+                for s in groups.springs_of_block(k) {
+                    if s.ends.iter().any(|&e| held[e as usize] != 0.0) {
+                        any = true;
+                        continue;
+                    }
+                    let (force, axis) = s.force(h2, s.delta(&start, &d));
+                    f += force;
+                    hs += Sym3::of_axis(s.stiffness, axis);
+                }
+                let bits = |v: Vec3A| v.to_array().map(f32::to_bits);
+                assert_eq!(bits(mg.block_force[k]), bits(f), "block {k}'s force");
+                assert_eq!(bits(mg.block_hessian[k].diag), bits(hs.diag), "block {k}'s Hessian");
+                assert_eq!(bits(mg.block_hessian[k].off), bits(hs.off), "block {k}'s Hessian");
+                assert_eq!(mg.block_held[k], any, "block {k} held");
+            }
+            assert_eq!(mg.block_held.contains(&true), some_held);
+        }
+    }
+
     /// Particles a collider holds stay where they are, and the correction still lowers `G`
     /// over the rest: a band of held particles across a 32 x 32 cloth, which cuts blocks in
     /// two (their springs with a held end are taken one by one), and a held particle beside a
