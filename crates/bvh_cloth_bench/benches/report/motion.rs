@@ -214,15 +214,21 @@ const COST_ROUNDS: [(u32, u32); 2] = [(64, 40), (256, 20)];
 /// tethers and without (`tethers: None`), the same way.
 pub(super) fn motion_cost() {
     let descent = ClothParams { integrator: Integrator::BLOCK_DESCENT, ..ClothParams::default() };
+    // Each side's block-descent states at 0.5 s, with its tethers and without: both tables'.
+    let baselines: Vec<(u32, u32, ClothSim, ClothSim)> = COST_ROUNDS
+        .into_iter()
+        .map(|(side, rounds)| {
+            let tethered = settled(side, descent.clone());
+            (side, rounds, tethered, settled(side, ClothParams { tethers: None, ..descent.clone() }))
+        })
+        .collect();
     println!(
         "\n### What the tethers cost: a cloth of 1 m hanging from two corners for 0.5 s, then one tick of block descent\n"
     );
     println!("| side | tick with tethers ms | without ms | with / without |");
     println!("|---|---|---|---|");
-    for (side, rounds) in COST_ROUNDS {
-        let with = settled(side, descent.clone());
-        let without = settled(side, ClothParams { tethers: None, ..descent.clone() });
-        let (best_with, best_without) = best_ticks(&with, &without, rounds);
+    for (side, rounds, with, without) in &baselines {
+        let (best_with, best_without) = best_ticks(with, without, *rounds);
         println!("| {side} | {:.3} | {:.3} | {:.2}x |", best_with * 1e3, best_without * 1e3, best_with / best_without);
     }
     println!(
@@ -230,17 +236,16 @@ pub(super) fn motion_cost() {
     );
     println!("| side | setting | block descent | tick ms | block descent ms | setting / block descent |");
     println!("|---|---|---|---|---|---|");
-    for (side, rounds) in COST_ROUNDS {
-        let tethered = settled(side, descent.clone());
-        let untethered = settled(side, ClothParams { tethers: None, ..descent.clone() });
+    for (side, rounds, tethered, untethered) in &baselines {
+        let default = settled(*side, ClothParams::default());
+        let looper_12 = settled(*side, ClothParams { looper: 12, ..ClothParams::default() });
         let cases = [
-            ("multigrid, Looper 16 (the default)", 16, "tethers", &tethered),
-            ("multigrid, Looper 16 (the default)", 16, "no tethers", &untethered),
-            ("multigrid, Looper 12", 12, "tethers", &tethered),
+            ("multigrid, Looper 16 (the default)", &default, "tethers", tethered),
+            ("multigrid, Looper 16 (the default)", &default, "no tethers", untethered),
+            ("multigrid, Looper 12", &looper_12, "tethers", tethered),
         ];
-        for (name, looper, baseline_name, baseline) in cases {
-            let setting = settled(side, ClothParams { looper, ..ClothParams::default() });
-            let (best, best_baseline) = best_ticks(&setting, baseline, rounds);
+        for (name, setting, baseline_name, baseline) in cases {
+            let (best, best_baseline) = best_ticks(setting, baseline, *rounds);
             println!(
                 "| {side} | {name} | {baseline_name} | {:.3} | {:.3} | {:.2}x |",
                 best * 1e3,
