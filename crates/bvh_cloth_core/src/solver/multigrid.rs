@@ -570,6 +570,13 @@ impl Groups {
         &self.members[self.member_offsets[a] as usize..self.member_offsets[a + 1] as usize]
     }
 
+    /// Aggregate `a`'s blocks: those of its row of level 1 (`row`, the row's `entry_block`), in
+    /// order, then its block to the pins.
+    fn blocks_of<'a>(&'a self, a: usize, row: &'a [u32]) -> impl Iterator<Item = usize> + 'a {
+        let pinned = self.pinned_block[a];
+        row.iter().map(|&k| k as usize).chain((pinned != NO_NODE).then_some(pinned as usize))
+    }
+
     fn springs_of_block(&self, k: usize) -> &[Spring] {
         &self.crossing[self.block_offsets[k] as usize..self.block_offsets[k + 1] as usize]
     }
@@ -1065,26 +1072,16 @@ impl Multigrid {
                 }
                 *mass = sum;
                 *diag = Mat3A::ZERO;
-                // A spring with a held end adds to the diagonal of its free end's aggregate.
-                let held_block = |k: usize, diag: &mut Mat3A| {
-                    this.held_springs_of(k, a as u32, held, |s, own, other| {
-                        if held[own] == 0.0 && held[other] != 0.0 {
-                            *diag += hessian(s);
-                        }
-                    });
-                };
-                for g in offsets[a]..offsets[a + 1] {
-                    let k = entry_block[g as usize] as usize;
+                let row = &entry_block[offsets[a] as usize..offsets[a + 1] as usize];
+                for k in groups.blocks_of(a, row) {
                     *diag += this.block_hessian[k].matrix();
+                    // A spring with a held end adds to the diagonal of its free end's aggregate.
                     if this.block_held[k] {
-                        held_block(k, diag);
-                    }
-                }
-                let pinned = groups.pinned_block[a];
-                if pinned != NO_NODE {
-                    *diag += this.block_hessian[pinned as usize].matrix();
-                    if this.block_held[pinned as usize] {
-                        held_block(pinned as usize, diag);
+                        this.held_springs_of(k, a as u32, held, |s, own, other| {
+                            if held[own] == 0.0 && held[other] != 0.0 {
+                                *diag += hessian(s);
+                            }
+                        });
                     }
                 }
                 if any_held {
@@ -1193,11 +1190,8 @@ impl Multigrid {
                         });
                     }
                 };
-                for g in offsets[a]..offsets[a + 1] {
-                    add_block(level.entry_block[g as usize] as usize);
-                }
-                if groups.pinned_block[a] != NO_NODE {
-                    add_block(groups.pinned_block[a] as usize);
+                for k in groups.blocks_of(a, &level.entry_block[offsets[a] as usize..offsets[a + 1] as usize]) {
+                    add_block(k);
                 }
                 if any_held {
                     for s in groups.inner_of(a) {
@@ -1646,6 +1640,23 @@ mod tests {
     /// The substep of [`bulged`].
     const H: f32 = 1.0 / 960.0;
 
+    /// One V-cycle correction of [`bulged`]'s substep from a new hierarchy: the multigrid, the
+    /// corrected displacements, and the incremental potential `G` before and after.
+    fn correct_bulged(
+        topology: &ClothTopology,
+        model: &ForceModel,
+        free: &[f32],
+        held: &[f32],
+        (start, target, d): (&[Vec3A], &[Vec3A], &[Vec3A]),
+    ) -> (Multigrid, Vec<Vec3A>, f64, f64) {
+        let before = potential(topology, model, H, free, start, target, d);
+        let mut corrected = d.to_vec();
+        let mut mg = Multigrid::default();
+        mg.correct(topology, model, free, held, H, &mut corrected, start, target, false, Cycle::V);
+        let after = potential(topology, model, H, free, start, target, &corrected);
+        (mg, corrected, before, after)
+    }
+
     /// Every free particle lies in exactly one aggregate and no pinned one in any; the springs
     /// that cross aggregates are each listed once per side, in the block of their two
     /// aggregates, which is the entry of both their rows.
@@ -1706,15 +1717,10 @@ mod tests {
     #[test]
     fn the_correction_lowers_the_incremental_potential() {
         let (topology, free, start, target, d) = bulged();
-        let (n, h) = (topology.len(), H);
         for spring_k in [200.0, 1.0e5] {
             let model = ForceModel::new(&ClothParams { spring_k, ..Default::default() });
-            let held = vec![0.0; n];
-            let before = potential(&topology, &model, h, &free, &start, &target, &d);
-            let mut corrected = d.clone();
-            let mut mg = Multigrid::default();
-            mg.correct(&topology, &model, &free, &held, h, &mut corrected, &start, &target, false, Cycle::V);
-            let after = potential(&topology, &model, h, &free, &start, &target, &corrected);
+            let held = vec![0.0; topology.len()];
+            let (_, corrected, before, after) = correct_bulged(&topology, &model, &free, &held, (&start, &target, &d));
             // The minimum lies near the flat sheet, where `G` is about 1e-13 of this: one
             // correction takes 98 % (SpringK 200) and 95 % (10⁵) of the way there.
             eprintln!("spring_k {spring_k}: G {before:.4e} -> {after:.4e}");
@@ -1772,17 +1778,12 @@ mod tests {
     #[test]
     fn held_particles_stay_and_the_rest_is_corrected() {
         let (topology, free, start, target, d) = bulged();
-        let (n, h) = (topology.len(), H);
-        let mut held = vec![0.0; n];
+        let mut held = vec![0.0; topology.len()];
         for i in (10 * 32..12 * 32).chain([1, 30]) {
             held[i] = 1.0;
         }
         let model = ForceModel::new(&ClothParams::default());
-        let before = potential(&topology, &model, h, &free, &start, &target, &d);
-        let mut corrected = d.clone();
-        let mut mg = Multigrid::default();
-        mg.correct(&topology, &model, &free, &held, h, &mut corrected, &start, &target, false, Cycle::V);
-        let after = potential(&topology, &model, h, &free, &start, &target, &corrected);
+        let (mg, corrected, before, after) = correct_bulged(&topology, &model, &free, &held, (&start, &target, &d));
         eprintln!("held band: G {before:.4e} -> {after:.4e}");
         assert!(mg.block_held.contains(&true), "no block has a held spring");
         // Measured: 11.5 % of `G` left (1.2177e-5 to 1.3986e-6), as with the springs taken one
