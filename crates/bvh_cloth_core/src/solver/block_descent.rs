@@ -595,37 +595,33 @@ impl BlockDescent {
         let inv_damp = 1.0 / damp;
         let uniform = Vec3A::from(model.uniform_accel);
         let axis = AccelAxis::new(uniform);
-        let Self { x, v, accel, start, target, lag, history, multigrid, .. } = self;
-        if let Solve::Multigrid = solve {
-            if contact_moved {
-                // The particles to leave alone: those a collider held, and those contact moved.
-                for (c, &h) in self.contact_moved.iter_mut().zip(held.iter()) {
-                    *c = c.max(h);
-                }
-                multigrid.correct(
-                    topology,
-                    model,
-                    free,
-                    &self.contact_moved,
-                    step,
-                    x,
-                    start,
-                    target,
-                    stiff,
-                    stepping.cycle(),
-                );
-            } else {
-                multigrid.correct(topology, model, free, held, step, x, start, target, stiff, stepping.cycle());
+        let Self { x, v, accel, start, target, lag, history, multigrid, contact_moved: moved, .. } = self;
+        // The particles the correction leaves alone: those a collider held, and those contact
+        // moved.
+        if contact_moved {
+            for (c, &h) in moved.iter_mut().zip(held.iter()) {
+                *c = c.max(h);
             }
         }
-        if contact_moved {
-            self.contact_moved.fill(0.0);
-        }
+        let moved: &[f32] = moved;
+        let correction = match solve {
+            Solve::Multigrid => {
+                let left_alone = if contact_moved { moved } else { &*held };
+                multigrid.correct(topology, model, free, left_alone, step, x, start, target, stiff, stepping.cycle())
+            }
+            Solve::Sweeps { .. } => None,
+        };
+        // Particle `i`'s displacement at the end of the solve (`left_alone` as above).
+        let solved = |i: usize, d: Vec3A, left_alone: f32| match &correction {
+            Some(correction) => correction.apply(i, d, left_alone),
+            None => d,
+        };
         // The springs are internal forces: whatever the sweeps left unconverged, a cloth that
         // nothing holds keeps the centre of mass that inertia, damping and the uniform
         // acceleration give it (the exact minimiser of `G` does).
         let drift = if free_body {
-            centre_of_mass_drift(x, target, topology.mass_share(), free, inv_damp)
+            let left_alone: &[f32] = if contact_moved { moved } else { held };
+            centre_of_mass_drift(|i| solved(i, x[i], left_alone[i]), target, topology.mass_share(), free, inv_damp)
         } else {
             Vec3A::ZERO
         };
@@ -643,13 +639,14 @@ impl BlockDescent {
             .enumerate()
             .with_min_len(MIN_TASK)
             .for_each(|(i, ((((((x, v), estimate), &start), &lag), &free), held))| {
+                let left_alone = if contact_moved { moved[i] } else { *held };
                 *held = 0.0;
                 if free == 0.0 {
                     *x = start;
                     return;
                 }
                 let v_hat = *v;
-                let d = *x - drift;
+                let d = solved(i, *x, left_alone) - drift;
                 *x = start + d;
                 *v = (d - lag) * inv_step;
                 // The pins are held, so their positions are the substep's start.
@@ -674,6 +671,9 @@ impl BlockDescent {
                 }
                 *estimate = axis.estimate(v_hat, *v, step, inv_damp);
             });
+        if contact_moved {
+            self.contact_moved.fill(0.0);
+        }
         let quarantined = quarantined.into_inner();
         // A collider or the quarantine moved particles by more than the springs: BDF2 starts
         // again from implicit Euler, so that its history never runs through a contact.
@@ -772,21 +772,29 @@ pub(crate) fn first_iterate(v: Vec3A, h: f32, inv_damp: f32, accel: Vec3A) -> Ve
 const DRIFT_CHUNK: usize = 4096;
 
 /// How far the sweeps moved the centre of mass of the free particles from where inertia,
-/// damping and the uniform acceleration take it, from the particles' displacements `d` and
-/// inertial targets `target` (both less the substep's start; `inv_damp = 1 / (1 + c h)`):
+/// damping and the uniform acceleration take it, from the particles' displacements (`d(i)`
+/// particle `i`'s) and inertial targets `target` (both less the substep's start;
+/// `inv_damp = 1 / (1 + c h)`):
 /// `Σ m_i (d_i - d*_i) / Σ m_i` with `d*_i = target_i / (1 + c h)`, where a particle that
 /// only inertia, damping and the uniform acceleration moved would be. The exact minimiser of
 /// `G` moves the centre of mass by nothing more (the springs' forces cancel in pairs); an
 /// unconverged Gauss–Seidel sweep does not, and shifting the free particles back by this much
 /// restores the cloth's momentum without changing any spring's length.
-pub(crate) fn centre_of_mass_drift(d: &[Vec3A], target: &[Vec3A], share: &[f32], free: &[f32], inv_damp: f32) -> Vec3A {
-    let partial: Vec<(glam::DVec3, f64)> = (0..d.len().div_ceil(DRIFT_CHUNK))
+pub(crate) fn centre_of_mass_drift(
+    d: impl Fn(usize) -> Vec3A + Sync,
+    target: &[Vec3A],
+    share: &[f32],
+    free: &[f32],
+    inv_damp: f32,
+) -> Vec3A {
+    let n = target.len();
+    let partial: Vec<(glam::DVec3, f64)> = (0..n.div_ceil(DRIFT_CHUNK))
         .into_par_iter()
         .map(|chunk| {
-            let range = chunk * DRIFT_CHUNK..((chunk + 1) * DRIFT_CHUNK).min(d.len());
+            let range = chunk * DRIFT_CHUNK..((chunk + 1) * DRIFT_CHUNK).min(n);
             let mut sum = (glam::DVec3::ZERO, 0.0f64);
             for i in range {
-                let off = d[i] - target[i] * inv_damp;
+                let off = d(i) - target[i] * inv_damp;
                 // A particle that went non-finite is quarantined after the sums; it must not
                 // carry the rest of the cloth with it.
                 if free[i] != 0.0 && off.is_finite() {

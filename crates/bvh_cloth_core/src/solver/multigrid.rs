@@ -278,8 +278,8 @@ const BLOCK_CHUNK: usize = 1024;
 /// split changes no result.
 const BLOCK_TASK: usize = 256;
 
-/// Nodes one partial sum of a level's quadratic form takes: fixed, so that the sums do not
-/// depend on the thread count.
+/// Nodes one partial sum of the kept level 1's diagonal part of its curvature takes: fixed, so
+/// that the sums do not depend on the thread count.
 const NODE_CHUNK: usize = 256;
 
 /// Nodes one rayon task takes at least, in the passes where each node's result is its own.
@@ -345,21 +345,6 @@ impl Level {
     #[inline]
     fn diag_block(&self, a: usize, damp: f32, h2: f32) -> Mat3A {
         Mat3A::from_diagonal(glam::Vec3::splat(damp * self.mass[a])) + h2 * self.k_diag[a]
-    }
-
-    /// `eᵀ A e` for the level's `e`, summed in chunks of fixed length.
-    fn quadratic_form(&self, damp: f32, h2: f32) -> f64 {
-        let e = &self.e;
-        let partial: Vec<f64> = (0..e.len())
-            .into_par_iter()
-            .step_by(NODE_CHUNK)
-            .map(|from| {
-                (from..(from + NODE_CHUNK).min(e.len()))
-                    .map(|a| f64::from((self.diag_block(a, damp, h2) * e[a] + self.off_product(a, e, h2)).dot(e[a])))
-                    .sum()
-            })
-            .collect();
-        partial.into_iter().sum()
     }
 
     /// [`Self::smooth`] from `e = 0`: `e ← ω D⁻¹ b`, with no off-diagonal product to form.
@@ -754,7 +739,32 @@ impl MultigridCorrection {
         assemble: bool,
         cycle: Cycle,
     ) {
-        self.inner.correct(&self.topology, &self.model, &self.free, held, h, d, start, target, assemble, cycle);
+        let step =
+            self.inner.correct(&self.topology, &self.model, &self.free, held, h, d, start, target, assemble, cycle);
+        if let Some(step) = step {
+            d.par_iter_mut().zip(held.par_iter()).enumerate().with_min_len(4096).for_each(|(i, (d, &held))| {
+                *d = step.apply(i, *d, held);
+            });
+        }
+    }
+}
+
+/// A substep's correction, found by [`Multigrid::correct`] and added to the sweep's
+/// displacements where the substep finishes: `alpha e[a]` on each particle of aggregate `a`
+/// that the correction does not leave alone.
+#[derive(Clone, Copy, Debug)]
+pub(crate) struct CorrectionStep<'a> {
+    alpha: f32,
+    agg: &'a [u32],
+    e: &'a [Vec3A],
+}
+
+impl CorrectionStep<'_> {
+    /// Particle `i`'s displacement `d` corrected; `held` is the correction's `held[i]`.
+    #[inline]
+    pub(crate) fn apply(&self, i: usize, d: Vec3A, held: f32) -> Vec3A {
+        let a = self.agg[i];
+        if a != NO_NODE && held == 0.0 { d + self.alpha * self.e[a as usize] } else { d }
     }
 }
 
@@ -765,13 +775,14 @@ impl From<&Spring> for LayoutSpring {
 }
 
 impl Multigrid {
-    /// Corrects the sweep's displacements `d` of one substep of `h` seconds (`start` the
-    /// particles' positions at its start, `target` their inertial targets less `start`, as the
-    /// sweep takes them); `free[i]` is 0 for a pinned particle, `held[i]` 1 for a particle the
-    /// correction must leave where it is (a collider touched it in the last substep, or
+    /// The correction of the sweep's displacements `d` of one substep of `h` seconds (`start`
+    /// the particles' positions at its start, `target` their inertial targets less `start`, as
+    /// the sweep takes them); `free[i]` is 0 for a pinned particle, `held[i]` 1 for a particle
+    /// the correction must leave where it is (a collider touched it in the last substep, or
     /// self-contact moved it after that). `stiff` asks for the levels to be assembled in
-    /// this substep, whatever their age. Does nothing when the correction's sums are not finite
-    /// (a particle the quarantine will stop must not carry the rest with it).
+    /// this substep, whatever their age. `None` when there is nothing to correct, or when the
+    /// correction's sums are not finite (a particle the quarantine will stop must not carry
+    /// the rest with it). The caller adds the step where it next passes over the particles.
     #[allow(clippy::too_many_arguments)]
     pub(crate) fn correct(
         &mut self,
@@ -780,21 +791,25 @@ impl Multigrid {
         free: &[f32],
         held: &[f32],
         h: f32,
-        d: &mut [Vec3A],
+        d: &[Vec3A],
         start: &[Vec3A],
         target: &[Vec3A],
         stiff: bool,
         cycle: Cycle,
-    ) {
-        if self.built_for.as_slice() != free || self.built_k != model.k_over_mass {
+    ) -> Option<CorrectionStep<'_>> {
+        // Compared bit for bit, which runs as one memory comparison (an `f32` comparison does
+        // not; a -0 for a 0 only builds the hierarchy again).
+        let same_pins = bytemuck::cast_slice::<f32, u32>(&self.built_for) == bytemuck::cast_slice::<f32, u32>(free);
+        if !same_pins || self.built_k != model.k_over_mass {
             self.build(topology, model, free, held, start, d);
         }
         if self.groups.len() == 0 {
-            return;
+            return None;
         }
         let damp = 1.0 + model.damping * h;
         let h2 = h * h;
-        let some_held = held.iter().any(|&h| h != 0.0);
+        // A fold without an early exit, which runs in SIMD lanes.
+        let some_held = held.iter().fold(false, |any, &h| any | (h != 0.0));
         self.block_sums(h2, held, some_held, start, d);
         if self.age >= REASSEMBLE_EVERY || stiff {
             self.assemble(topology, held, start, d);
@@ -805,7 +820,7 @@ impl Multigrid {
         }
         self.gather_residual(topology, held, some_held, damp, h2, d, start, target);
         if !self.residual.iter().all(|r| r.is_finite()) {
-            return;
+            return None;
         }
         let level = &mut self.levels[0];
         level.b.clone_from(&self.residual);
@@ -814,26 +829,19 @@ impl Multigrid {
         // which may be a few substeps old): `α = rᵀe / (Pe)ᵀ H (Pe)`.
         let e = &self.levels[0].e;
         let along: f64 = self.residual.iter().zip(e).map(|(r, e)| f64::from(r.dot(*e))).sum();
-        let curvature = self.curvature(held, damp, h2, start, d);
+        let (curvature, kept) = self.curvature(held, damp, h2, start, d);
         // The kept levels' curvature along `e` against this substep's: when they differ by more
         // than `STALE_CURVATURE` of it, the cloth has changed under them (a cloth snapping taut), and
         // they are assembled again in the next substep.
-        let level = &self.levels[0];
-        let kept: f64 = level.quadratic_form(damp, h2);
         if (kept / curvature - 1.0).abs() > STALE_CURVATURE {
             self.age = REASSEMBLE_EVERY;
         }
         let alpha = (along / curvature).clamp(0.0, 1.0) as f32;
-        if !(curvature > 0.0 && alpha.is_finite() && alpha > 0.0) {
-            return;
-        }
-        let agg = &self.groups.agg;
-        let e = &self.levels[0].e;
-        d.par_iter_mut().zip(agg.par_iter()).zip(held.par_iter()).with_min_len(4096).for_each(|((d, &a), &held)| {
-            if a != NO_NODE && held == 0.0 {
-                *d += alpha * e[a as usize];
-            }
-        });
+        (curvature > 0.0 && alpha.is_finite() && alpha > 0.0).then(|| CorrectionStep {
+            alpha,
+            agg: &self.groups.agg,
+            e: &self.levels[0].e,
+        })
     }
 
     /// Groups the particles, and the coarse levels by the springs at `start + d`, assembling
@@ -1211,8 +1219,10 @@ impl Multigrid {
     /// damping term of the particles no collider holds, each block's clamped Hessian on the
     /// difference of its aggregates' corrections (a block's springs all move by it), and each
     /// spring with a held end on the difference of its ends' corrections (zero at a held or
-    /// pinned end).
-    fn curvature(&self, held: &[f32], damp: f32, h2: f32, start: &[Vec3A], d: &[Vec3A]) -> f64 {
+    /// pinned end). Then the same along `e` for the kept level 1, `eᵀ A e`: its diagonal blocks,
+    /// and each block's off-diagonal matrix twice (for its entry and its transpose), summed in
+    /// the same pass over the blocks.
+    fn curvature(&self, held: &[f32], damp: f32, h2: f32, start: &[Vec3A], d: &[Vec3A]) -> (f64, f64) {
         let e = &self.levels[0].e;
         let at = |a: u32| if a == NO_NODE { Vec3A::ZERO } else { e[a as usize] };
         // A particle's correction: its aggregate's `e`, none at a pinned or held particle.
@@ -1225,16 +1235,23 @@ impl Multigrid {
             f64::from(h2 * Sym3::of_axis(s.stiffness, axis).quadratic(de))
         };
         let groups = &self.groups;
-        let partial: Vec<f64> = groups
+        let level = &self.levels[0];
+        let partial: Vec<(f64, f64)> = groups
             .block_aggs
             .par_chunks(BLOCK_CHUNK)
             .zip(self.block_hessian.par_chunks(BLOCK_CHUNK))
             .zip(self.block_held.par_chunks(BLOCK_CHUNK))
+            .zip(level.k_off.par_chunks(BLOCK_CHUNK))
             .enumerate()
-            .map(|(chunk, ((aggs, hessians), helds))| {
-                let mut sum = 0.0f64;
-                for (k, ((&[a, b], hessian), &any_held)) in aggs.iter().zip(hessians).zip(helds).enumerate() {
+            .map(|(chunk, (((aggs, hessians), helds), kept_blocks))| {
+                let (mut sum, mut kept) = (0.0f64, 0.0f64);
+                for (k, (((&[a, b], hessian), &any_held), kept_block)) in
+                    aggs.iter().zip(hessians).zip(helds).zip(kept_blocks).enumerate()
+                {
                     sum += f64::from(h2 * hessian.quadratic(at(b) - at(a)));
+                    if b != NO_NODE {
+                        kept += f64::from(h2 * at(a).dot(*kept_block * at(b)));
+                    }
                     if any_held {
                         for s in groups.springs_of_block(chunk * BLOCK_CHUNK + k) {
                             if s.ends.iter().any(|&e| held[e as usize] != 0.0) {
@@ -1243,10 +1260,21 @@ impl Multigrid {
                         }
                     }
                 }
-                sum
+                (sum, kept)
             })
             .collect();
-        let mut sum: f64 = partial.into_iter().sum();
+        let kept_diagonal: Vec<f64> = e
+            .par_chunks(NODE_CHUNK)
+            .enumerate()
+            .map(|(chunk, e)| {
+                let diagonal = |(a, e): (usize, &Vec3A)| {
+                    f64::from((level.diag_block(chunk * NODE_CHUNK + a, damp, h2) * *e).dot(*e))
+                };
+                e.iter().enumerate().map(diagonal).sum()
+            })
+            .collect();
+        let kept = kept_diagonal.into_iter().sum::<f64>() + 2.0 * partial.iter().map(|p| p.1).sum::<f64>();
+        let mut sum: f64 = partial.into_iter().map(|p| p.0).sum();
         for (a, (&mass, &any_held)) in self.mass_now.iter().zip(&self.any_held).enumerate() {
             sum += f64::from(damp * mass * e[a].length_squared());
             if any_held {
@@ -1255,7 +1283,7 @@ impl Multigrid {
                 }
             }
         }
-        sum
+        (sum, kept)
     }
 
     /// Each aggregate's shares of the crossing springs, CSR, as [`MultigridLayout`] lists them:
@@ -1650,9 +1678,12 @@ mod tests {
         (start, target, d): (&[Vec3A], &[Vec3A], &[Vec3A]),
     ) -> (Multigrid, Vec<Vec3A>, f64, f64) {
         let before = potential(topology, model, H, free, start, target, d);
-        let mut corrected = d.to_vec();
         let mut mg = Multigrid::default();
-        mg.correct(topology, model, free, held, H, &mut corrected, start, target, false, Cycle::V);
+        let corrected: Vec<Vec3A> = match mg.correct(topology, model, free, held, H, d, start, target, false, Cycle::V)
+        {
+            Some(step) => d.iter().zip(held).enumerate().map(|(i, (&d, &held))| step.apply(i, d, held)).collect(),
+            None => d.to_vec(),
+        };
         let after = potential(topology, model, H, free, start, target, &corrected);
         (mg, corrected, before, after)
     }
