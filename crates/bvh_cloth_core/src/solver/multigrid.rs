@@ -274,16 +274,20 @@ pub const NO_NODE: u32 = u32::MAX;
 /// Blocks one partial sum takes: fixed, so that the sums do not depend on the thread count.
 const BLOCK_CHUNK: usize = 1024;
 
-/// Blocks one rayon task of the blocks' sums takes: each block's sums are its own, so the
-/// split changes no result.
-const BLOCK_TASK: usize = 256;
+/// Blocks one rayon task of a pass over the blocks takes at least: each block's sums are its
+/// own, so the split changes no result. A smaller pass runs on the calling thread: a 64 x 64
+/// cloth's correction (1,787 blocks, 484 aggregates) cost more handed between two threads pass
+/// by pass than run on one (with tasks of 256 blocks and 128 nodes, its tick 1.41x block
+/// descent's against 1.34x; scratch timings, alternated, 2026-11-30).
+const BLOCK_TASK: usize = 2048;
 
 /// Nodes one partial sum of the kept level 1's diagonal part of its curvature takes: fixed, so
 /// that the sums do not depend on the thread count.
 const NODE_CHUNK: usize = 256;
 
-/// Nodes one rayon task takes at least, in the passes where each node's result is its own.
-const MIN_TASK: usize = 128;
+/// Nodes one rayon task takes at least, in the passes where each node's result is its own (as
+/// [`BLOCK_TASK`] for the blocks).
+const MIN_TASK: usize = 1024;
 
 /// One level of the hierarchy: a symmetric matrix of 3x3 blocks over its nodes, stored as the
 /// mass part (a scalar per node) and the stiffness part (diagonal blocks and the rows'
@@ -1243,6 +1247,7 @@ impl Multigrid {
             .zip(self.block_held.par_chunks(BLOCK_CHUNK))
             .zip(level.k_off.par_chunks(BLOCK_CHUNK))
             .enumerate()
+            .with_min_len(BLOCK_TASK / BLOCK_CHUNK)
             .map(|(chunk, (((aggs, hessians), helds), kept_blocks))| {
                 let (mut sum, mut kept) = (0.0f64, 0.0f64);
                 for (k, (((&[a, b], hessian), &any_held), kept_block)) in
@@ -1266,6 +1271,7 @@ impl Multigrid {
         let kept_diagonal: Vec<f64> = e
             .par_chunks(NODE_CHUNK)
             .enumerate()
+            .with_min_len(MIN_TASK / NODE_CHUNK)
             .map(|(chunk, e)| {
                 let diagonal = |(a, e): (usize, &Vec3A)| {
                     f64::from((level.diag_block(chunk * NODE_CHUNK + a, damp, h2) * *e).dot(*e))
