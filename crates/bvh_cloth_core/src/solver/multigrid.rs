@@ -753,6 +753,16 @@ impl MultigridCorrection {
     }
 }
 
+/// The sums of the line search along level 1's `e` ([`Multigrid::line_sums`]).
+struct LineSums {
+    /// `rᵀe`, with `r` the residual.
+    along: f64,
+    /// `(Pe)ᵀ H (Pe)`, with `H` at this substep's displacements.
+    curvature: f64,
+    /// `eᵀ A e`, with `A` the kept level 1.
+    kept: f64,
+}
+
 /// A substep's correction, found by [`Multigrid::correct`] and added to the sweep's
 /// displacements where the substep finishes: `alpha e[a]` on each particle of aggregate `a`
 /// that the correction does not leave alone.
@@ -823,7 +833,8 @@ impl Multigrid {
             self.factor(damp, h2);
         }
         self.gather_residual(topology, held, some_held, damp, h2, d, start, target);
-        if !self.residual.iter().all(|r| r.is_finite()) {
+        // A fold without an early exit, which runs in SIMD lanes.
+        if !self.residual.iter().fold(true, |finite, r| finite & r.is_finite()) {
             return None;
         }
         let level = &mut self.levels[0];
@@ -831,9 +842,7 @@ impl Multigrid {
         self.cycle(0, damp, h2, cycle);
         // The line search along `P e` on this substep's quadratic model (not the kept levels',
         // which may be a few substeps old): `α = rᵀe / (Pe)ᵀ H (Pe)`.
-        let e = &self.levels[0].e;
-        let along: f64 = self.residual.iter().zip(e).map(|(r, e)| f64::from(r.dot(*e))).sum();
-        let (curvature, kept) = self.curvature(held, damp, h2, start, d);
+        let LineSums { along, curvature, kept } = self.line_sums(held, damp, h2, start, d);
         // The kept levels' curvature along `e` against this substep's: when they differ by more
         // than `STALE_CURVATURE` of it, the cloth has changed under them (a cloth snapping taut), and
         // they are assembled again in the next substep.
@@ -1219,14 +1228,15 @@ impl Multigrid {
         (self.residual, self.mass_now, self.any_held) = (residual, mass_now, any_held);
     }
 
-    /// `(Pe)ᵀ H (Pe)` for level 1's `e`, with `H` at this substep's displacements: the mass and
+    /// The line search's sums for level 1's `e`: `rᵀe` with the residual `r`, and
+    /// `(Pe)ᵀ H (Pe)`, with `H` at this substep's displacements: the mass and
     /// damping term of the particles no collider holds, each block's clamped Hessian on the
     /// difference of its aggregates' corrections (a block's springs all move by it), and each
     /// spring with a held end on the difference of its ends' corrections (zero at a held or
     /// pinned end). Then the same along `e` for the kept level 1, `eᵀ A e`: its diagonal blocks,
     /// and each block's off-diagonal matrix twice (for its entry and its transpose), summed in
     /// the same pass over the blocks.
-    fn curvature(&self, held: &[f32], damp: f32, h2: f32, start: &[Vec3A], d: &[Vec3A]) -> (f64, f64) {
+    fn line_sums(&self, held: &[f32], damp: f32, h2: f32, start: &[Vec3A], d: &[Vec3A]) -> LineSums {
         let e = &self.levels[0].e;
         let at = |a: u32| if a == NO_NODE { Vec3A::ZERO } else { e[a as usize] };
         // A particle's correction: its aggregate's `e`, none at a pinned or held particle.
@@ -1281,7 +1291,9 @@ impl Multigrid {
             .collect();
         let kept = kept_diagonal.into_iter().sum::<f64>() + 2.0 * partial.iter().map(|p| p.1).sum::<f64>();
         let mut sum: f64 = partial.into_iter().map(|p| p.0).sum();
+        let mut along = -0.0f64;
         for (a, (&mass, &any_held)) in self.mass_now.iter().zip(&self.any_held).enumerate() {
+            along += f64::from(self.residual[a].dot(e[a]));
             sum += f64::from(damp * mass * e[a].length_squared());
             if any_held {
                 for s in self.groups.inner_of(a) {
@@ -1289,7 +1301,7 @@ impl Multigrid {
                 }
             }
         }
-        (sum, kept)
+        LineSums { along, curvature: sum, kept }
     }
 
     /// Each aggregate's shares of the crossing springs, CSR, as [`MultigridLayout`] lists them:
