@@ -120,19 +120,28 @@
 //! the V-cycle do within the machine's noise (47 and 54 s against 49 and 51 s).
 //!
 //! Its cost on the 2-core development machine (an AMD EPYC on the day), against block descent
-//! with one sweep at Looper 16 (the report's `motion_cost` section, best of 40 ticks at
-//! 64 x 64 and of 20 at 256 x 256, three runs on 2026-11-29 from 23:59 UTC): 1.39x to 1.41x at
-//! 64 x 64 and 1.42x to 1.53x at 256 x 256 against block descent without its tethers
-//! (`tethers: None`), 1.30x to 1.31x and 1.34x to 1.36x against block descent with them; at
-//! Looper 12, 0.98x to 1.09x against block descent with its tethers. The machine is noisy, and
-//! a ratio is good to about a tenth. Timers in a scratch build (not in the repository;
-//! 2026-11-30, 00:06 UTC) put the correction at 25 % of the tick at 64 x 64 on one thread (the
-//! blocks' sums 10.4 %, the residual's gather 4.8 %, the V-cycle 4.5 %, the line search's
-//! curvature 1.4 %, the assembly and the factors 1.4 %, the kept levels' curvature 1.3 %, the
-//! step 0.9 %) and at 23 % at 256 x 256 on two threads (the blocks' sums 8.9 %, the V-cycle
-//! 5.1 %, the gather 4.5 %, the rest 4.4 %). There the correction's passes stream about 10 MB
-//! a substep, and, each tick timed after another cloth's, the sweep took 2 % to 13 % longer in
-//! the default than in block descent in three of four runs: the two share the caches.
+//! with one sweep at Looper 16 (the report's `motion_cost` section: 40 rounds at 64 x 64 and 20
+//! at 256 x 256, each a tick of both in turns; six runs on 2026-11-30 from 02:50 UTC), as the
+//! median of the rounds' ratios: 1.31x to 1.38x at 64 x 64 and 1.20x to 1.35x at 256 x 256
+//! against block descent without its tethers (`tethers: None`), 1.23x to 1.29x and 1.19x to
+//! 1.43x against block descent with them; at Looper 12, 0.91x to 0.97x. The ratio of the two
+//! best ticks gave 1.34x to 1.37x at 64 x 64, and at 256 x 256 1.18x to 1.49x in three runs
+//! and 1.53x to 1.76x in three whose default's best of 20 ticks came out 106 to 131 ms, where
+//! the others' was 79 to 100 ms: the machine's noise can lie over every tick of one side, and
+//! the median of the pairs, each timed at one moment, stands up to it better. On a quiet machine
+//! the 256 x 256 ratio is about 1.45x (scratch timings of both sharing one topology). Timers in
+//! a scratch build (not in the repository; 2026-11-30, 02:45 UTC) put the correction at 22 % of
+//! the tick at 64 x 64 on one thread (the blocks' sums 10.7 %, the V-cycle 4.0 %, the
+//! residual's gather 2.9 %, the line search's sums 2.4 %, the assembly and the factors 1.4 %)
+//! and at 22 % at 256 x 256 on two threads (the blocks' sums 9.2 %, the V-cycle 5.6 %, the
+//! gather 3.4 %, the line search's sums 2.1 %). There the correction's passes stream about
+//! 10 MB a substep, and the sweep took 7 % to 15 % longer in the default than in block
+//! descent (four pairs of scratch timings): between sweeps the correction pushes the sweep's
+//! springs (12.5 MB at 256 x 256) out of the caches. With the correction replaced by a pass
+//! that reads and writes a buffer of 5, 10 or 20 MB, the default's sweep took 0.5, 3.7 and
+//! 6.5 ms a tick longer than block descent's (a scratch build, one noisy run each). A pass over fewer than 2,048 blocks or 1,024 nodes runs on one thread
+//! (`BLOCK_TASK`, `MIN_TASK`): a 64 x 64 cloth's correction (1,787 blocks, 484 aggregates)
+//! runs faster on one thread than handed between two, pass by pass.
 //!
 //! ## Alternatives, measured
 //! With a scratch program on the same hanging cloth (2026-11-28, the 2-core development

@@ -29,7 +29,7 @@ pub const MAX_DENSITY: f32 = 10.0;
 /// substeps) and gets that cost, stable whatever the stiffness, and a cloth that falls,
 /// swings and stretches as RK4's does (the hanging cloth's sag at 1 s within 10 % of RK4's
 /// and its strain within 1.5x from 32 x 32 to 1024 x 1024; BENCHMARKS.md, "Motion"). Its
-/// tick costs 1.3x to 1.5x block descent's with one sweep, which converges a
+/// tick costs 1.2x to 1.45x block descent's with one sweep, which converges a
 /// fine cloth's load only one ring of springs per colour pass and so lets a big sheet stretch
 /// like rubber while it moves (held by the tethers, 45 % more sag than RK4 at 256 x 256). With RK4 a
 /// 64x64 sheet made 100x stiffer (200 to 20,000 N/m) takes 157 substeps a tick instead of 16
