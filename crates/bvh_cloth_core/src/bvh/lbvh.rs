@@ -80,6 +80,17 @@ fn common_prefix(keys: &[u64], i: i64, j: i64) -> i32 {
     }
 }
 
+/// The split of the inner node over the leaves `first..=last` (`first < last`) of the sorted,
+/// distinct `keys`: its left child is `first..=split`, its right `split + 1..=last`. The keys of
+/// the range share their bits above the highest one in which its first and last differ, and
+/// that bit is clear up to the split and set after it ([`build_inner_node`] finds the same
+/// split from one end of the range).
+#[inline]
+pub(crate) fn split(keys: &[u64], first: usize, last: usize) -> usize {
+    let bit = 1u64 << (63 - (keys[first] ^ keys[last]).leading_zeros());
+    first + keys[first..=last].partition_point(|&k| k & bit == 0) - 1
+}
+
 /// Builds inner node `i` from the sorted keys: its key range, its split and its children.
 fn build_inner_node(keys: &[u64], i: usize) -> BvhNode {
     let i = i as i64;
@@ -147,8 +158,26 @@ impl Lbvh {
     }
 
     /// The inner nodes of the tree over `spheres`, their boxes not fitted, and the input index
-    /// of every leaf (a triangle surface keeps its triangles in leaf order, not their spheres).
+    /// of every leaf.
     pub(crate) fn build_topology(spheres: &[Sphere]) -> (Vec<BvhNode>, Vec<u32>) {
+        let (keys, order) = Self::sorted_keys(spheres);
+        if keys.is_empty() {
+            return (Vec::new(), order);
+        }
+        let inner = keys.len() - 1;
+        let nodes: Vec<BvhNode> = if keys.len() >= PARALLEL_BUILD_MIN_LEAVES {
+            (0..inner).into_par_iter().map(|i| build_inner_node(&keys, i)).collect()
+        } else {
+            (0..inner).map(|i| build_inner_node(&keys, i)).collect()
+        };
+        (nodes, order)
+    }
+
+    /// The leaves' keys in leaf order (each Morton code above the leaf's index, so that all are
+    /// distinct), which define the tree: an inner node is a range of leaves split where their
+    /// keys first differ ([`split`]). And the input index of every leaf (a triangle surface
+    /// keeps its triangles in leaf order, not their spheres).
+    pub(crate) fn sorted_keys(spheres: &[Sphere]) -> (Vec<u64>, Vec<u32>) {
         if spheres.is_empty() {
             return (Vec::new(), Vec::new());
         }
@@ -171,14 +200,8 @@ impl Lbvh {
         } else {
             keyed.iter().enumerate().map(|(k, ci)| key(k, ci)).collect()
         };
-        let inner = keys.len() - 1;
-        let nodes: Vec<BvhNode> = if parallel {
-            (0..inner).into_par_iter().map(|i| build_inner_node(&keys, i)).collect()
-        } else {
-            (0..inner).map(|i| build_inner_node(&keys, i)).collect()
-        };
         let order = keyed.into_iter().map(|(_, i)| i).collect();
-        (nodes, order)
+        (keys, order)
     }
 
     /// Fits every inner node's box to `leaf_box(k)` for leaf `k` instead of its sphere's box:

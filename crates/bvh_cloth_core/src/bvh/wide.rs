@@ -17,7 +17,7 @@
 use glam::{BVec4A, Vec3, Vec4};
 use rayon::prelude::*;
 
-use crate::bvh::lbvh::{BvhNode, LEAF_BIT, Lbvh};
+use crate::bvh::lbvh::{BvhNode, LEAF_BIT, Lbvh, split};
 use crate::bvh::traversal::STACK_SIZE;
 
 /// A node of the wide tree, one 64-byte cache line: the boxes of up to four children, one SIMD
@@ -86,9 +86,11 @@ impl WideNode {
         // written.
         let lane_box = |lane: usize| boxes.get(lane).unwrap_or(&boxes[0]);
         let (one, top) = (Vec4::ONE, Vec4::splat(255.0));
+        // The three axes' inverse steps in one division (0 for a flat axis).
+        let inverses = Vec4::select(step.cmpgt(Vec4::ZERO), Vec4::ONE / step, Vec4::ZERO);
         let axes: [_; 3] = std::array::from_fn(|axis| {
             let (origin4, step4) = (Vec4::splat(origin[axis]), Vec4::splat(step[axis]));
-            let inverse = Vec4::splat(if step[axis] > 0.0 { 1.0 / step[axis] } else { 0.0 });
+            let inverse = Vec4::splat(inverses[axis]);
             let mins = Vec4::from_array(std::array::from_fn(|lane| lane_box(lane).0[axis]));
             let maxs = Vec4::from_array(std::array::from_fn(|lane| lane_box(lane).1[axis]));
             // A first guess in whole steps, rounded outwards below with the queries'
@@ -112,7 +114,9 @@ impl WideNode {
                 break;
             }
         }
+        // Whole steps in [0, 255], converted four lanes at a time.
         for (axis, (q_lo, q_hi)) in q.iter().enumerate() {
+            let (q_lo, q_hi) = (q_lo.as_uvec4().to_array(), q_hi.as_uvec4().to_array());
             for lane in 0..boxes.len() {
                 node.lo[axis][lane] = q_lo[lane] as u8;
                 node.hi[axis][lane] = q_hi[lane] as u8;
@@ -206,36 +210,56 @@ impl WideBvh {
         leaves: usize,
         leaf_box: impl Fn(u32) -> (Vec3, Vec3) + Sync,
     ) -> (Self, (Vec3, Vec3)) {
-        if binary.is_empty() {
+        Self::fold_tree(&Nodes(binary), 0, leaves, &leaf_box)
+    }
+
+    /// [`Self::from_unfitted`] for the tree of the leaves' sorted keys
+    /// ([`Lbvh::sorted_keys`]), whose binary nodes are never built: each is found as a range of
+    /// leaves and its split ([`split`]) as the fold meets it. The same tree, so the same wide
+    /// nodes.
+    pub(crate) fn from_keys(keys: &[u64], leaf_box: impl Fn(u32) -> (Vec3, Vec3) + Sync) -> (Self, (Vec3, Vec3)) {
+        let last = keys.len().saturating_sub(1) as u32;
+        Self::fold_tree(&Keys(keys), (0, last), keys.len(), &leaf_box)
+    }
+
+    /// Folds the binary `tree` of `leaves` leaves, whose root is `root` (when it has two leaves
+    /// or more).
+    fn fold_tree<B: Binary>(
+        tree: &B,
+        root: B::Node,
+        leaves: usize,
+        leaf_box: &(impl Fn(u32) -> (Vec3, Vec3) + Sync),
+    ) -> (Self, (Vec3, Vec3)) {
+        if leaves < 2 {
             if leaves == 0 {
                 return (Self::default(), (Vec3::ZERO, Vec3::ZERO));
             }
             let only = leaf_box(0);
             return (Self { nodes: vec![WideNode::new(&[LEAF_BIT], &[only])] }, only);
         }
-        let fold = Fold { nodes: binary, leaf_box: &leaf_box };
+        let fold = Fold { tree, leaf_box };
         let mut nodes = Vec::new();
-        if binary.len() < PARALLEL_FOLD_MIN_NODES {
-            let root = fold.fold(0, 0, &mut nodes, &mut None);
-            return (Self { nodes }, root);
+        if leaves - 1 < PARALLEL_FOLD_MIN_NODES {
+            let box_ = fold.fold(root, 0, &mut nodes, &mut None);
+            return (Self { nodes }, box_);
         }
         // The subtrees under the top `PART_DEPTH` levels are folded in parallel, each into its
         // own nodes; the top is folded here, each part copied in after the node that points to
         // it, so the whole stays in depth-first order.
         let mut roots = Vec::new();
-        fold.part_roots(0, 0, &mut roots);
+        fold.part_roots(root, 0, &mut roots);
         let parts: Vec<FoldedPart> = roots
             .par_iter()
-            .map(|&root| {
-                let mut part = Vec::new();
-                let root_box = fold.fold(root, 0, &mut part, &mut None);
+            .map(|&part_root| {
+                let mut part = Vec::with_capacity(tree.wide_bound(part_root));
+                let root_box = fold.fold(part_root, 0, &mut part, &mut None);
                 (part, root_box)
             })
             .collect();
         nodes.reserve(parts.iter().map(|(part, _)| part.len()).sum::<usize>() + PART_DEPTH_NODES);
         let mut parts = parts.into_iter();
-        let root = fold.fold(0, 0, &mut nodes, &mut Some(&mut parts));
-        (Self { nodes }, root)
+        let box_ = fold.fold(root, 0, &mut nodes, &mut Some(&mut parts));
+        (Self { nodes }, box_)
     }
 
     /// Calls `visit(leaf)` for every leaf whose box overlaps `[lo, hi]` grown by `margin`, in
@@ -334,22 +358,81 @@ const PART_DEPTH: usize = 3;
 /// The most wide nodes above the parts: 1 + 4 + 16.
 const PART_DEPTH_NODES: usize = 21;
 
+/// A binary tree as the fold reads it: each inner node's two children.
+trait Binary: Sync {
+    /// An inner node.
+    type Node: Copy + Send + Sync;
+    /// Inner node `node`'s children: left, then right.
+    fn children(&self, node: Self::Node) -> [Child<Self::Node>; 2];
+    /// At least as many as the wide nodes of the subtree under `node` (0 when unknown).
+    fn wide_bound(&self, node: Self::Node) -> usize;
+}
+
+/// A binary node's child.
+#[derive(Clone, Copy)]
+enum Child<N> {
+    /// Leaf `k`.
+    Leaf(u32),
+    /// An inner node.
+    Inner(N),
+}
+
+/// An [`Lbvh`]'s inner nodes, each named by its index.
+struct Nodes<'a>(&'a [BvhNode]);
+
+impl Binary for Nodes<'_> {
+    type Node = u32;
+
+    #[inline]
+    fn children(&self, node: u32) -> [Child<u32>; 2] {
+        let node = &self.0[node as usize];
+        [node.left, node.right].map(|c| if c & LEAF_BIT != 0 { Child::Leaf(c & !LEAF_BIT) } else { Child::Inner(c) })
+    }
+
+    fn wide_bound(&self, _: u32) -> usize {
+        0
+    }
+}
+
+/// The tree of the leaves' sorted, distinct keys, each inner node named by its range of leaves
+/// (first and last).
+struct Keys<'a>(&'a [u64]);
+
+impl Binary for Keys<'_> {
+    type Node = (u32, u32);
+
+    #[inline]
+    fn children(&self, (first, last): (u32, u32)) -> [Child<(u32, u32)>; 2] {
+        let at = split(self.0, first as usize, last as usize) as u32;
+        let child =
+            |first: u32, last: u32| if first == last { Child::Leaf(first) } else { Child::Inner((first, last)) };
+        [child(first, at), child(at + 1, last)]
+    }
+
+    /// The subtree's binary inner nodes, one fewer than its leaves: a wide node stands for one.
+    fn wide_bound(&self, (first, last): (u32, u32)) -> usize {
+        (last - first) as usize
+    }
+}
+
 /// Folding a binary tree whose leaf `k` has the box `leaf_box(k)`.
-struct Fold<'a, F> {
-    nodes: &'a [BvhNode],
+struct Fold<'a, B, F> {
+    tree: &'a B,
     leaf_box: &'a F,
 }
 
-impl<F: Fn(u32) -> (Vec3, Vec3) + Sync> Fold<'_, F> {
+impl<B: Binary, F: Fn(u32) -> (Vec3, Vec3) + Sync> Fold<'_, B, F> {
     /// Pushes, in depth-first order, the binary nodes whose wide nodes lie `PART_DEPTH` wide
     /// levels under binary node `binary` (at wide level `level`): the roots of the parts.
-    fn part_roots(&self, binary: u32, level: usize, roots: &mut Vec<u32>) {
-        let (children, count) = wide_children(self.nodes, binary);
-        for &child in children[..count].iter().filter(|&&c| c & LEAF_BIT == 0) {
-            if level + 1 == PART_DEPTH {
-                roots.push(child);
-            } else {
-                self.part_roots(child, level + 1, roots);
+    fn part_roots(&self, binary: B::Node, level: usize, roots: &mut Vec<B::Node>) {
+        let (children, count) = wide_children(self.tree, binary);
+        for child in &children[..count] {
+            if let Child::Inner(child) = *child {
+                if level + 1 == PART_DEPTH {
+                    roots.push(child);
+                } else {
+                    self.part_roots(child, level + 1, roots);
+                }
             }
         }
     }
@@ -360,22 +443,25 @@ impl<F: Fn(u32) -> (Vec3, Vec3) + Sync> Fold<'_, F> {
     /// down come from it, folded already, each with its root's box. Returns the subtree's box.
     fn fold(
         &self,
-        binary: u32,
+        binary: B::Node,
         level: usize,
         out: &mut Vec<WideNode>,
         parts: &mut Option<&mut dyn Iterator<Item = FoldedPart>>,
     ) -> (Vec3, Vec3) {
         let at = out.len();
         out.push(WideNode::EMPTY);
-        let (mut children, count) = wide_children(self.nodes, binary);
+        let (children, count) = wide_children(self.tree, binary);
+        let mut refs = [u32::MAX; 4];
         let mut boxes = [(Vec3::ZERO, Vec3::ZERO); 4];
         for lane in 0..count {
-            let child = children[lane];
-            if child & LEAF_BIT != 0 {
-                boxes[lane] = (self.leaf_box)(child & !LEAF_BIT);
-                continue;
-            }
-            children[lane] = out.len() as u32;
+            let child = match children[lane] {
+                Child::Leaf(k) => {
+                    (refs[lane], boxes[lane]) = (LEAF_BIT | k, (self.leaf_box)(k));
+                    continue;
+                }
+                Child::Inner(child) => child,
+            };
+            refs[lane] = out.len() as u32;
             boxes[lane] = match parts.as_deref_mut() {
                 Some(parts) if level + 1 == PART_DEPTH => {
                     let (part, part_box) = parts.next().expect("a part for every root");
@@ -385,7 +471,7 @@ impl<F: Fn(u32) -> (Vec3, Vec3) + Sync> Fold<'_, F> {
                 _ => self.fold(child, level + 1, out, parts),
             };
         }
-        out[at] = WideNode::new(&children[..count], &boxes[..count]);
+        out[at] = WideNode::new(&refs[..count], &boxes[..count]);
         union(&boxes[..count])
     }
 }
@@ -415,33 +501,101 @@ fn union(boxes: &[(Vec3, Vec3)]) -> (Vec3, Vec3) {
 /// children at once (right, then left), then walks its left subtree, then its right one; so
 /// the grandchildren under each inner child come as that child's leaves (right, then left) and
 /// then its inner children (left, then right).
-fn wide_children(nodes: &[BvhNode], binary: u32) -> ([u32; 4], usize) {
-    let node = &nodes[binary as usize];
-    let mut children = [u32::MAX; 4];
+#[inline]
+fn wide_children<B: Binary>(tree: &B, binary: B::Node) -> ([Child<B::Node>; 4], usize) {
+    let [left, right] = tree.children(binary);
+    let mut children = [Child::Leaf(u32::MAX); 4];
     let mut count = 0;
-    let mut push = |child: u32| {
+    let mut push = |child: Child<B::Node>| {
         children[count] = child;
         count += 1;
     };
-    for child in [node.right, node.left] {
-        if child & LEAF_BIT != 0 {
+    for child in [right, left] {
+        if let Child::Leaf(_) = child {
             push(child);
         }
     }
-    for child in [node.left, node.right] {
-        if child & LEAF_BIT == 0 {
-            let inner = &nodes[child as usize];
-            for grandchild in [inner.right, inner.left] {
-                if grandchild & LEAF_BIT != 0 {
+    for child in [left, right] {
+        if let Child::Inner(inner) = child {
+            let [inner_left, inner_right] = tree.children(inner);
+            for grandchild in [inner_right, inner_left] {
+                if let Child::Leaf(_) = grandchild {
                     push(grandchild);
                 }
             }
-            for grandchild in [inner.left, inner.right] {
-                if grandchild & LEAF_BIT == 0 {
+            for grandchild in [inner_left, inner_right] {
+                if let Child::Inner(_) = grandchild {
                     push(grandchild);
                 }
             }
         }
     }
     (children, count)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::bvh::lbvh::Sphere;
+
+    /// Spheres at seeded centres in the unit cube, a share of them on a coarse lattice so that
+    /// many Morton codes repeat.
+    fn spheres(count: usize, seed: u32) -> Vec<Sphere> {
+        let mut state = seed;
+        let mut unit = move || {
+            state ^= state << 13;
+            state ^= state >> 17;
+            state ^= state << 5;
+            (state >> 8) as f32 / (1u32 << 24) as f32
+        };
+        (0..count)
+            .map(|k| {
+                let c = Vec3::new(unit(), unit(), unit());
+                let c = if k % 3 == 0 { (c * 4.0).floor() / 4.0 } else { c };
+                Sphere::new(c, 0.01 + 0.02 * unit())
+            })
+            .collect()
+    }
+
+    /// The tree of the sorted keys, each node found from its range and [`split`], is the
+    /// binary tree the LBVH builds node by node from one end of each range, and folds into the
+    /// same wide tree: from no leaf to a tree folded in parallel, with repeated codes.
+    #[test]
+    fn the_keys_tree_is_the_lbvh_and_folds_the_same() {
+        for (count, seed) in [(0, 1), (1, 2), (2, 3), (3, 4), (17, 5), (1000, 6), (40_000, 7)] {
+            let spheres = spheres(count, seed);
+            let (keys, order) = Lbvh::sorted_keys(&spheres);
+            let (nodes, order_again) = Lbvh::build_topology(&spheres);
+            assert_eq!(order, order_again, "{count} leaves");
+            // Node `i` of the LBVH over leaves `first..=last`: its children are `split` and
+            // `split + 1` (a leaf when its range is one leaf).
+            let mut ranges = if count > 1 { vec![(0u32, 0, count - 1)] } else { Vec::new() };
+            let mut inner = 0;
+            while let Some((i, first, last)) = ranges.pop() {
+                inner += 1;
+                let at = split(&keys, first, last);
+                let node = nodes[i as usize];
+                let expect = |first: usize, last: usize, index: usize| {
+                    if first == last { LEAF_BIT | index as u32 } else { index as u32 }
+                };
+                assert_eq!(node.left, expect(first, at, at), "{count} leaves, node {i}");
+                assert_eq!(node.right, expect(at + 1, last, at + 1), "{count} leaves, node {i}");
+                if first < at {
+                    ranges.push((at as u32, first, at));
+                }
+                if at + 1 < last {
+                    ranges.push((at as u32 + 1, at + 1, last));
+                }
+            }
+            assert_eq!(inner, count.saturating_sub(1), "{count} leaves: every inner node once");
+            let leaf_box = |k: u32| {
+                let s = spheres[order[k as usize] as usize];
+                (s.centre() - s.radius, s.centre() + s.radius)
+            };
+            let (from_keys, keys_box) = WideBvh::from_keys(&keys, leaf_box);
+            let (from_nodes, nodes_box) = WideBvh::from_unfitted(&nodes, count, leaf_box);
+            assert!(from_keys.nodes == from_nodes.nodes, "{count} leaves: another wide tree");
+            assert_eq!(keys_box, nodes_box, "{count} leaves");
+        }
+    }
 }

@@ -159,20 +159,20 @@ impl TriangleSurface {
         // triangles' own, not their spheres' (up to twice as wide), so that a query descends
         // only where a triangle may be.
         let max_radius = spheres.iter().fold(0.0f32, |r, s| r.max(s.radius));
-        let (nodes, order) = Lbvh::build_topology(&spheres);
+        let (keys, order) = Lbvh::sorted_keys(&spheres);
         drop(spheres);
         let triangles: Vec<[Vec3; 3]> = if parallel {
             order.par_iter().map(|&k| kept_triangle(kept[k as usize])).collect()
         } else {
             order.iter().map(|&k| kept_triangle(kept[k as usize])).collect()
         };
-        // The wide tree's boxes are found on the way up as it is folded: the binary tree's are
-        // never fitted (the GPU's binary tree is built again, fitted, when it is uploaded).
+        // The wide tree is folded straight from the sorted keys, its boxes found on the way up:
+        // the binary tree is never built (the GPU's is built, fitted, when it is uploaded).
         let leaf_box = |k: u32| triangle_box(&triangles[k as usize]);
-        let (wide, (lo, hi)) = WideBvh::from_unfitted(&nodes, triangles.len(), leaf_box);
+        let (wide, (lo, hi)) = WideBvh::from_keys(&keys, leaf_box);
+        drop(keys);
         let magnitude = lo.abs().max(hi.abs()).max_element();
         let min_thickness = (1.0e-6 * lo.distance(hi)).max(ROUNDING_THICKNESS * magnitude);
-        drop(nodes);
         Ok(Self { wide, triangles, dropped: count - kept.len(), min_thickness, max_radius })
     }
 
