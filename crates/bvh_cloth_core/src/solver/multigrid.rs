@@ -127,7 +127,7 @@
 //! 1.43x against block descent with them; at Looper 12, 0.91x to 0.97x. The ratio of the two
 //! best ticks gave 1.34x to 1.37x at 64 x 64, and at 256 x 256 1.18x to 1.49x in three runs
 //! and 1.53x to 1.76x in three whose default's best of 20 ticks came out 106 to 131 ms, where
-//! the others' was 79 to 100 ms: the machine's noise can lie over every tick of one side, and
+//! the others' was 89 to 100 ms: the machine's noise can lie over every tick of one side, and
 //! the median of the pairs, each timed at one moment, stands up to it better. On a quiet machine
 //! the 256 x 256 ratio is about 1.45x (scratch timings of both sharing one topology). Timers in
 //! a scratch build (not in the repository; 2026-11-30, 02:45 UTC) put the correction at 22 % of
