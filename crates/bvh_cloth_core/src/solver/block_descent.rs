@@ -598,7 +598,7 @@ impl BlockDescent {
         let Self { x, v, accel, start, target, lag, history, multigrid, contact_moved: moved, .. } = self;
         // The particles the correction leaves alone: those a collider held, and those contact
         // moved.
-        if contact_moved {
+        if contact_moved && matches!(solve, Solve::Multigrid) {
             for (c, &h) in moved.iter_mut().zip(held.iter()) {
                 *c = c.max(h);
             }

@@ -755,9 +755,7 @@ impl MultigridCorrection {
         let step =
             self.inner.correct(&self.topology, &self.model, &self.free, held, h, d, start, target, assemble, cycle);
         if let Some(step) = step {
-            d.par_iter_mut().zip(held.par_iter()).enumerate().with_min_len(4096).for_each(|(i, (d, &held))| {
-                *d = step.apply(i, *d, held);
-            });
+            step.apply_all(d, held);
         }
     }
 }
@@ -788,6 +786,14 @@ impl CorrectionStep<'_> {
     pub(crate) fn apply(&self, i: usize, d: Vec3A, held: f32) -> Vec3A {
         let a = self.agg[i];
         if a != NO_NODE && held == 0.0 { d + self.alpha * self.e[a as usize] } else { d }
+    }
+
+    /// Every particle's displacement in `d` corrected ([`Self::apply`]), for a caller with no
+    /// pass of its own to add the step in.
+    fn apply_all(&self, d: &mut [Vec3A], held: &[f32]) {
+        d.par_iter_mut().zip(held.par_iter()).enumerate().with_min_len(4096).for_each(|(i, (d, &held))| {
+            *d = self.apply(i, *d, held);
+        });
     }
 }
 
@@ -1706,11 +1712,10 @@ mod tests {
     ) -> (Multigrid, Vec<Vec3A>, f64, f64) {
         let before = potential(topology, model, H, free, start, target, d);
         let mut mg = Multigrid::default();
-        let corrected: Vec<Vec3A> = match mg.correct(topology, model, free, held, H, d, start, target, false, Cycle::V)
-        {
-            Some(step) => d.iter().zip(held).enumerate().map(|(i, (&d, &held))| step.apply(i, d, held)).collect(),
-            None => d.to_vec(),
-        };
+        let mut corrected = d.to_vec();
+        if let Some(step) = mg.correct(topology, model, free, held, H, d, start, target, false, Cycle::V) {
+            step.apply_all(&mut corrected, held);
+        }
         let after = potential(topology, model, H, free, start, target, &corrected);
         (mg, corrected, before, after)
     }
