@@ -293,12 +293,17 @@ impl WideBvh {
         }
     }
 
-    /// A nearest-first search: `leaf(k, best)` is called for every leaf whose box lies closer
-    /// to `p` than `best`, the squared distance found so far (`limit` at first), and returns the
-    /// new `best` (its own squared distance to `p` when nearer). Returns the last `best`, which
-    /// is `limit` for a point with a NaN or a `limit` that is not positive.
+    /// A nearest-first search: `leaves(ks, best)` is called with the leaves of a node whose
+    /// boxes lie closer to `p` than `best`, the squared distance found so far (`limit` at
+    /// first), up to four at once, and returns the new `best` (the least of its own and the
+    /// leaves' squared distances to `p`). Returns the last `best`, which is `limit` for a
+    /// point with a NaN or a `limit` that is not positive.
+    ///
+    /// The walk waits on memory more than on arithmetic: the children it will visit are
+    /// fetched into the cache while it tests a node's leaves, and a node's leaves come
+    /// together, so that a caller can test them side by side.
     #[inline]
-    pub fn nearest(&self, p: Vec3, limit: f32, mut leaf: impl FnMut(u32, f32) -> f32) -> f32 {
+    pub fn nearest(&self, p: Vec3, limit: f32, mut leaves: impl FnMut(&[u32], f32) -> f32) -> f32 {
         let mut best = limit;
         // A NaN coordinate would count as inside every box along its axis (the lanes' `max`
         // keeps the zero), and a NaN limit would let the unused lanes through, so both are
@@ -316,26 +321,36 @@ impl WideBvh {
                 continue;
             }
             let node = &self.nodes[index as usize];
-            let distances = node.distances_squared(p).to_array();
-            // The leaves at once; the inner children sorted farthest first, so that the
-            // nearest is popped first.
+            let distances = node.distances_squared(p);
+            // Unused lanes are infinitely far, so they are never near.
+            let near = distances.cmplt(Vec4::splat(best)).bitmask();
+            let distances = distances.to_array();
+            // The inner children sorted farthest first, so that the nearest is popped first,
+            // each fetched while the leaves are tested; the leaves in lane order.
             let mut inner = [(0u32, 0.0f32); 4];
             let mut inner_count = 0;
-            for (&child, &d2) in node.child.iter().zip(&distances) {
-                if d2 >= best {
+            let mut found = [0u32; 4];
+            let mut found_count = 0;
+            for (lane, (&child, &d2)) in node.child.iter().zip(&distances).enumerate() {
+                if near & (1 << lane) == 0 {
                     continue;
                 }
                 if child & LEAF_BIT != 0 {
-                    best = leaf(child & !LEAF_BIT, best);
-                } else {
-                    let mut slot = inner_count;
-                    while slot > 0 && inner[slot - 1].1 < d2 {
-                        inner[slot] = inner[slot - 1];
-                        slot -= 1;
-                    }
-                    inner[slot] = (child, d2);
-                    inner_count += 1;
+                    found[found_count] = child & !LEAF_BIT;
+                    found_count += 1;
+                    continue;
                 }
+                prefetch(&self.nodes[child as usize]);
+                let mut slot = inner_count;
+                while slot > 0 && inner[slot - 1].1 < d2 {
+                    inner[slot] = inner[slot - 1];
+                    slot -= 1;
+                }
+                inner[slot] = (child, d2);
+                inner_count += 1;
+            }
+            if found_count > 0 {
+                best = leaves(&found[..found_count], best);
             }
             for &(child, d2) in &inner[..inner_count] {
                 if d2 < best {
@@ -346,6 +361,15 @@ impl WideBvh {
         }
         best
     }
+}
+
+/// Asks for the node's cache line ahead of its use (a hint: nothing waits on it).
+#[inline(always)]
+fn prefetch(node: &WideNode) {
+    #[cfg(target_arch = "x86_64")]
+    safe_arch::prefetch_t0(node);
+    #[cfg(not(target_arch = "x86_64"))]
+    let _ = node;
 }
 
 /// Below this many binary nodes a tree is folded on one thread.

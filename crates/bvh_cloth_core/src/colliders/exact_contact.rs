@@ -76,7 +76,9 @@ use crate::colliders::error::ColliderError;
 use crate::colliders::pose::ColliderPose;
 use crate::colliders::response::{CONTACT_BAND, MAX_PASSES, Response};
 use crate::mesh::MeshRef;
-use crate::mesh::triangles::{EDGE_SLACK, closest_point, face_normal, has_area, segment_hit};
+use crate::mesh::triangles::{
+    EDGE_SLACK, closest_point, face_normal, has_area, lane_bound, segment_hit, squared_distances_4,
+};
 
 /// The triangles of a mesh in an LBVH, for exact contact.
 ///
@@ -185,18 +187,28 @@ impl TriangleSurface {
     ///
     /// A nearest-first descent of the wide tree: the reach shrinks to the closest triangle
     /// found so far, the nearer children are visited first, and a child is skipped when its box
-    /// lies farther than that.
+    /// lies farther than that. A node's leaves are measured four at a time, side by side in
+    /// SIMD lanes without a branch, and only a triangle that may be nearer than the closest so
+    /// far is measured again exactly ([`closest_point`]), which gives the answer.
     pub fn closest_within(&self, p: Vec3, reach: f32) -> Option<Vec3> {
         let mut point = None;
-        self.wide.nearest(p, reach * reach, |k, best| {
-            let q = closest_point(p, self.triangles[k as usize]);
-            let d2 = q.distance_squared(p);
-            if d2 < best {
-                point = Some(q);
-                d2
-            } else {
-                best
+        self.wide.nearest(p, reach * reach, |leaves, mut best| {
+            // The lanes past the leaves repeat the first.
+            let tris = std::array::from_fn(|lane| self.triangles[leaves[lane.min(leaves.len() - 1)] as usize]);
+            let lanes = squared_distances_4(p, tris).to_array();
+            // A triangle nearer than `best` has its corners within `best` and its width of `p`.
+            let bound = lane_bound(best, best.sqrt() + 2.0 * self.max_radius);
+            for (tri, lane) in tris.iter().zip(lanes).take(leaves.len()) {
+                if lane <= bound {
+                    let q = closest_point(p, *tri);
+                    let d2 = q.distance_squared(p);
+                    if d2 < best {
+                        point = Some(q);
+                        best = d2;
+                    }
+                }
             }
+            best
         });
         point
     }

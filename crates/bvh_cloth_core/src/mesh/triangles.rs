@@ -2,7 +2,7 @@
 //! [`crate::colliders::exact_contact`]). Every query is total: a degenerate triangle (a sliver, a segment,
 //! a point) answers as the segment or point it is, never with a NaN.
 
-use glam::Vec3;
+use glam::{Vec3, Vec4};
 
 /// The point of the triangle `[a, b, c]` closest to `p`.
 ///
@@ -62,6 +62,66 @@ fn closest_on_longest_edge(p: Vec3, [a, b, c]: [Vec3; 3]) -> Vec3 {
     }
     s + d * ((p - s).dot(d) / len).clamp(0.0, 1.0)
 }
+
+/// Four triangles' squared distances from `p` at once, one SIMD lane each, as a filter for
+/// [`closest_point`]: no lane exceeds [`lane_bound`] of its triangle's squared distance (its
+/// rounding), and each lane is that distance to its rounding unless the triangle is nearly
+/// degenerate, whose lane is 0 (its distance left to the exact test).
+///
+/// Where `p`'s foot on the plane lies within the triangle, the lane is the distance to the
+/// plane; elsewhere the least distance to the three edges, which is the distance to the
+/// triangle when the foot lies outside it. Within rounding of an edge the foot may land on
+/// either side, and either answer is the distance to the triangle to that rounding. The foot's
+/// barycentric coordinates are solved in the basis of the edges from the first corner, whose
+/// rounding grows as the square of that corner's sine shrinks: a triangle counts as nearly
+/// degenerate when the squared sine is below [`WELL_SHAPED_SINE_SQUARED`]. No branch: a walk
+/// that meets up to four leaves at once tests them together.
+#[inline]
+pub fn squared_distances_4(p: Vec3, tris: [[Vec3; 3]; 4]) -> Vec4 {
+    let axis = |corner: usize, axis: usize| Vec4::from_array(std::array::from_fn(|lane| tris[lane][corner][axis]));
+    let corner = |corner: usize| [axis(corner, 0), axis(corner, 1), axis(corner, 2)];
+    let (a, b, c) = (corner(0), corner(1), corner(2));
+    let sub = |x: [Vec4; 3], y: [Vec4; 3]| [x[0] - y[0], x[1] - y[1], x[2] - y[2]];
+    let dot = |x: [Vec4; 3], y: [Vec4; 3]| x[0] * y[0] + x[1] * y[1] + x[2] * y[2];
+    let p = [Vec4::splat(p.x), Vec4::splat(p.y), Vec4::splat(p.z)];
+    let (ab, ac, bc, ap, bp) = (sub(b, a), sub(c, a), sub(c, b), sub(p, a), sub(p, b));
+    let (d00, d01, d11, d20, d21) = (dot(ab, ab), dot(ab, ac), dot(ac, ac), dot(ap, ab), dot(ap, ac));
+    // The squared distance to an edge's closest point.
+    let edge = |from: [Vec4; 3], e: [Vec4; 3], along: Vec4, length2: Vec4| {
+        let t = (along / length2).clamp(Vec4::ZERO, Vec4::ONE);
+        let off = [from[0] - t * e[0], from[1] - t * e[1], from[2] - t * e[2]];
+        dot(off, off)
+    };
+    let edges = edge(ap, ab, d20, d00).min(edge(ap, ac, d21, d11)).min(edge(bp, bc, dot(bp, bc), dot(bc, bc)));
+    // The foot's barycentric coordinates along `ab` and `ac`; `area2` is |ab x ac|^2.
+    let area2 = d00 * d11 - d01 * d01;
+    let (v, w) = ((d11 * d20 - d01 * d21) / area2, (d00 * d21 - d01 * d20) / area2);
+    let inside = v.cmpge(Vec4::ZERO) & w.cmpge(Vec4::ZERO) & (v + w).cmple(Vec4::ONE);
+    let n = [ab[1] * ac[2] - ab[2] * ac[1], ab[2] * ac[0] - ab[0] * ac[2], ab[0] * ac[1] - ab[1] * ac[0]];
+    let height = dot(ap, n);
+    let plane = height * height / dot(n, n);
+    let well_shaped = area2.cmpge(Vec4::splat(WELL_SHAPED_SINE_SQUARED) * d00 * d11);
+    Vec4::select(well_shaped, Vec4::select(inside, plane.min(edges), edges), Vec4::ZERO)
+}
+
+/// The least squared sine of a triangle's first angle for which [`squared_distances_4`] solves
+/// the foot of a point on its plane.
+pub const WELL_SHAPED_SINE_SQUARED: f32 = 0.01;
+
+/// The largest lane [`squared_distances_4`] gives a triangle whose squared distance from `p` is
+/// `squared`, when `p` lies within `span` of the triangle's first corner: the distance grown by
+/// its relative rounding and by [`LANE_ROUNDING`] of `span` (a distance measured across a
+/// long way is rounded at that length). A caller that measures exactly every triangle whose
+/// lane is at most `lane_bound(best, span)` measures every triangle nearer than `best`.
+#[inline]
+pub fn lane_bound(squared: f32, span: f32) -> f32 {
+    let reach = squared.sqrt() * (1.0 + LANE_ROUNDING) + LANE_ROUNDING * span;
+    reach * reach
+}
+
+/// The rounding [`lane_bound`] allows: 16 times `f32::EPSILON`, several times the rounding of
+/// a lane's dot products and of the exact test's own.
+pub const LANE_ROUNDING: f32 = 16.0 * f32::EPSILON;
 
 /// Barycentric slack allowed at a triangle's edges by [`segment_hit`], relative to the
 /// triangle.
@@ -228,6 +288,78 @@ mod tests {
             assert!(got <= best + 1e-5, "answer {got} farther than a sample {best}");
             assert!(got >= best - 0.2, "answer {got} far closer than any sample {best}");
         }
+    }
+
+    /// The four-lane filter against the exact distance: never above it (to its rounding), 0
+    /// for a nearly degenerate triangle, and equal to it for nearly every well-shaped one, on
+    /// triangles from a millimetre to a metre wide, slivers among them, and points from on
+    /// the plane to a hundred widths away.
+    #[test]
+    fn four_distances_never_exceed_the_exact_one() {
+        let mut seed = 29u32;
+        let mut unit = || {
+            seed ^= seed << 13;
+            seed ^= seed >> 17;
+            seed ^= seed << 5;
+            seed as f32 / u32::MAX as f32
+        };
+        let (mut well_shaped, mut equal) = (0, 0);
+        for _ in 0..20000 {
+            let tris: [[Vec3; 3]; 4] = std::array::from_fn(|_| {
+                let size = 10f32.powf(-3.0 * unit());
+                let origin = Vec3::new(unit(), unit(), unit()) * 4.0 - 2.0;
+                let corner = |unit: &mut dyn FnMut() -> f32| Vec3::new(unit(), unit(), unit()) * 2.0 - 1.0;
+                let (b, c) = (corner(&mut unit), corner(&mut unit));
+                // A quarter are slivers (the third corner squashed onto the line of the other
+                // two) and a quarter have a sharp first angle, a sine of 0.1 to 0.25.
+                let c = match unit() {
+                    x if x < 0.25 => b * unit() + (c - b * unit()) * 10f32.powf(-2.0 - 4.0 * unit()),
+                    x if x < 0.5 => {
+                        let (along, across) = (b.normalize(), b.any_orthonormal_vector());
+                        let sine = 0.1 + 0.15 * unit();
+                        (along * (1.0 - sine * sine).sqrt() + across * sine) * (0.2 + unit())
+                    }
+                    _ => c,
+                };
+                [origin, origin + b * size, origin + c * size]
+            });
+            let (centre, size) = (tris[0][0], (tris[0][1] - tris[0][0]).length().max(1.0e-3));
+            let reach = size * 10f32.powf(2.0 * unit() - 1.0);
+            let [a, b, c] = tris[0];
+            let p = match unit() {
+                x if x < 0.5 => centre + (Vec3::new(unit(), unit(), unit()) * 2.0 - 1.0) * reach,
+                // Just off the first triangle's plane over a point near an edge, or over its
+                // middle, where the foot's rounding decides between the plane and the edges.
+                x => {
+                    let on = if x < 0.75 {
+                        a + (b - a) * (1.0 + unit()) * 0.5
+                            + (c - a) * (10f32.powf(-3.0 - 4.0 * unit()) * (unit() - 0.5))
+                    } else {
+                        (a + b + c) / 3.0
+                    };
+                    on + face_normal(tris[0]).unwrap_or(Vec3::Z) * size * 10f32.powf(-6.0 * unit())
+                }
+            };
+            let lanes = squared_distances_4(p, tris).to_array();
+            for (tri, lane) in tris.iter().zip(lanes) {
+                // Measured from the first corner, as the lanes are: an answer in the world's
+                // coordinates is rounded at their magnitude, far above a short distance's.
+                let (a, local) = (tri[0], tri.map(|corner| corner - tri[0]));
+                let exact = closest_point(p - a, local).distance_squared(p - a);
+                let span = (p - a).length();
+                assert!(lane <= lane_bound(exact, span), "{p} to {tri:?}: {lane} above the exact {exact}");
+                let (ab, ac) = (tri[1] - tri[0], tri[2] - tri[0]);
+                let sine2 = ab.cross(ac).length_squared() / (ab.length_squared() * ac.length_squared());
+                if sine2 < WELL_SHAPED_SINE_SQUARED * 0.99 {
+                    assert_eq!(lane, 0.0, "a sliver's lane is left to the exact test");
+                } else if sine2 > WELL_SHAPED_SINE_SQUARED * 1.01 {
+                    well_shaped += 1;
+                    equal += usize::from(lane_bound(lane, span) >= exact);
+                }
+            }
+        }
+        assert!(well_shaped > 10_000, "{well_shaped} well-shaped triangles");
+        assert!(equal as f32 > 0.97 * well_shaped as f32, "{equal} of {well_shaped} lanes at the exact distance");
     }
 
     #[test]

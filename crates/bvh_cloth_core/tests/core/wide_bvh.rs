@@ -81,9 +81,10 @@ fn check_nearest(bvh: &Lbvh, wide: &WideBvh, rng: &mut Rng, queries: usize) {
         let p = rng.vec3(-1.6, 1.6);
         let limit = rng.range(0.0, 0.5).powi(2);
         let mut calls = 0;
-        let got = wide.nearest(p, limit, |k, best| {
-            calls += 1;
-            to_sphere(&bvh.spheres[k as usize], p).min(best)
+        let got = wide.nearest(p, limit, |leaves, best| {
+            assert!((1..=4).contains(&leaves.len()));
+            calls += leaves.len();
+            leaves.iter().fold(best, |best, &k| to_sphere(&bvh.spheres[k as usize], p).min(best))
         });
         let want = bvh.spheres.iter().map(|s| to_sphere(s, p)).fold(limit, f32::min);
         assert_eq!(got, want, "nearest from {p} within {limit}");
@@ -128,13 +129,13 @@ fn a_nan_query_meets_nothing() {
         bvh.for_each_overlapping(lo, hi, margin, |k, _| panic!("the binary walk met leaf {k}"));
     }
     for p in [nan, Vec3::new(0.0, 0.0, f32::NAN)] {
-        let best = wide.nearest(p, 1.0, |k, _| panic!("leaf {k} tried from {p}"));
+        let best = wide.nearest(p, 1.0, |k, _| panic!("leaves {k:?} tried from {p}"));
         assert_eq!(best, 1.0);
     }
     // Small trees too: their root has leaves and unused lanes.
     for count in [1, 2, 3, 5, 1000] {
         let (_, wide) = trees(&random_spheres(&mut rng, count));
-        let best = wide.nearest(Vec3::ZERO, f32::NAN, |k, _| panic!("leaf {k} tried within a NaN limit"));
+        let best = wide.nearest(Vec3::ZERO, f32::NAN, |k, _| panic!("leaves {k:?} tried within a NaN limit"));
         assert!(best.is_nan());
     }
 }
