@@ -331,10 +331,11 @@ impl WideBvh {
             let mut inner_count = 0;
             let mut found = [0u32; 4];
             let mut found_count = 0;
-            for (lane, (&child, &d2)) in node.child.iter().zip(&distances).enumerate() {
-                if near & (1 << lane) == 0 {
-                    continue;
-                }
+            let mut lanes = near;
+            while lanes != 0 {
+                let lane = lanes.trailing_zeros() as usize;
+                lanes &= lanes - 1;
+                let (child, d2) = (node.child[lane], distances[lane]);
                 if child & LEAF_BIT != 0 {
                     found[found_count] = child & !LEAF_BIT;
                     found_count += 1;

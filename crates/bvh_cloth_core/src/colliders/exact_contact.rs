@@ -196,11 +196,12 @@ impl TriangleSurface {
             // The lanes past the leaves repeat the first.
             let tris = std::array::from_fn(|lane| self.triangles[leaves[lane.min(leaves.len() - 1)] as usize]);
             let lanes = squared_distances_4(p, tris).to_array();
-            // A triangle nearer than `best` has its corners within `best` and its width of `p`.
-            let bound = lane_bound(best, best.sqrt() + 2.0 * self.max_radius);
-            for (tri, lane) in tris.iter().zip(lanes).take(leaves.len()) {
-                if lane <= bound {
-                    let q = closest_point(p, *tri);
+            // The nearest lane first, so that the others meet the least `best`.
+            let first = (1..leaves.len()).fold(0, |m, lane| if lanes[lane] < lanes[m] { lane } else { m });
+            for lane in std::iter::once(first).chain((0..leaves.len()).filter(|&lane| lane != first)) {
+                // A triangle nearer than `best` has its corners within `best` and its width of `p`.
+                if lanes[lane] <= lane_bound(best, best.sqrt() + 2.0 * self.max_radius) {
+                    let q = closest_point(p, tris[lane]);
                     let d2 = q.distance_squared(p);
                     if d2 < best {
                         point = Some(q);
