@@ -4,11 +4,14 @@
 //!
 //! The wide tree is the binary tree with every other level folded into its parent: a wide node
 //! stands for a binary node, and its children are that node's grandchildren (or its children
-//! where those are leaves). Its boxes are the binary tree's, and a leaf's is the box the tree
-//! was fitted to (a triangle's own box for exact contact), each rounded outwards to 8 bits a
-//! bound across its node ([`WideNode`]), so a node is one 64-byte cache line. A query finds what
-//! a descent of the binary tree would have found, with half the dependent loads, and may meet a
-//! few more leaves, whose rounded box reaches the query where their own does not.
+//! where those are leaves). A grandchild over two leaves, the most common node at the bottom
+//! of the tree, is no node of its own: the lane holds the pair of leaves, with the box of the
+//! two, and the wide tree has a third fewer nodes. Its boxes are the binary tree's, and a leaf's
+//! is the box the tree was fitted to (a triangle's own box for exact contact), each rounded
+//! outwards to 8 bits a bound across its node ([`WideNode`]), so a node is one 64-byte cache
+//! line. A query finds what a descent of the binary tree would have found, with half the
+//! dependent loads or fewer, and may meet a few more leaves, whose rounded box (or their
+//! pair's) reaches the query where their own does not.
 //!
 //! [`WideBvh::for_each_overlapping`] meets the leaves the binary walk
 //! ([`Lbvh::for_each_overlapping`], the GPU's) meets in the same order, so a response that
@@ -39,10 +42,22 @@ pub struct WideNode {
     lo: [[u8; 4]; 3],
     /// The children's box maxima in steps.
     hi: [[u8; 4]; 3],
-    /// `LEAF_BIT | leaf` or a wide node's index, in the order a depth-first walk of the binary
-    /// tree meets them; the used lanes come first, and an unused lane holds `u32::MAX`.
+    /// `LEAF_BIT | leaf`, `LEAF_BIT | PAIR_BIT | leaf` for the leaves `leaf` and `leaf + 1`
+    /// (the two children of one binary node), or a wide node's index, in the order a
+    /// depth-first walk of the binary tree meets them; the used lanes come first, and an unused
+    /// lane holds `u32::MAX`.
     pub child: [u32; 4],
 }
+
+/// The bit of a wide node's child reference that marks a pair of leaves: the lane holds the
+/// leaves `k` and `k + 1` of `LEAF_BIT | PAIR_BIT | k`.
+pub const PAIR_BIT: u32 = 1 << 30;
+
+/// The leaf index in a child reference that holds one or two leaves.
+const LEAF_INDEX: u32 = !(LEAF_BIT | PAIR_BIT);
+
+/// The most leaves a wide tree holds: a leaf's index leaves room for [`PAIR_BIT`].
+pub const MAX_LEAVES: usize = PAIR_BIT as usize;
 
 /// The bounds `q` steps from `origin`, as the queries compute them: the build rounds each
 /// bound outwards with the same arithmetic (a product, then a sum, each rounded once), so that
@@ -222,14 +237,15 @@ impl WideBvh {
         Self::fold_tree(&Keys(keys), (0, last), keys.len(), &leaf_box)
     }
 
-    /// Folds the binary `tree` of `leaves` leaves, whose root is `root` (when it has two leaves
-    /// or more).
+    /// Folds the binary `tree` of `leaves` leaves (at most [`MAX_LEAVES`]), whose root is
+    /// `root` (when it has two leaves or more).
     fn fold_tree<B: Binary>(
         tree: &B,
         root: B::Node,
         leaves: usize,
         leaf_box: &(impl Fn(u32) -> (Vec3, Vec3) + Sync),
     ) -> (Self, (Vec3, Vec3)) {
+        assert!(leaves <= MAX_LEAVES, "{leaves} leaves in a wide tree, above {MAX_LEAVES}");
         if leaves < 2 {
             if leaves == 0 {
                 return (Self::default(), (Vec3::ZERO, Vec3::ZERO));
@@ -279,7 +295,12 @@ impl WideBvh {
             top -= 1;
             let entry = stack[top];
             if entry & LEAF_BIT != 0 {
-                visit(entry & !LEAF_BIT);
+                // A pair's two leaves as the binary walk meets a node's: right, then left.
+                let leaf = entry & LEAF_INDEX;
+                if entry & PAIR_BIT != 0 {
+                    visit(leaf + 1);
+                }
+                visit(leaf);
                 continue;
             }
             let node = &self.nodes[entry as usize];
@@ -294,8 +315,8 @@ impl WideBvh {
     }
 
     /// A nearest-first search: `leaves(ks, best)` is called with the leaves of a node whose
-    /// boxes lie closer to `p` than `best`, the squared distance found so far (`limit` at
-    /// first), up to four at once, and returns the new `best` (the least of its own and the
+    /// boxes (or pairs' boxes) lie closer to `p` than `best`, the squared distance found so far
+    /// (`limit` at first), up to eight at once, and returns the new `best` (the least of its own and the
     /// leaves' squared distances to `p`). Returns the last `best`, which is `limit` for a
     /// point with a NaN or a `limit` that is not positive.
     ///
@@ -329,7 +350,7 @@ impl WideBvh {
             // each fetched while the leaves are tested; the leaves in lane order.
             let mut inner = [(0u32, 0.0f32); 4];
             let mut inner_count = 0;
-            let mut found = [0u32; 4];
+            let mut found = [0u32; 8];
             let mut found_count = 0;
             let mut lanes = near;
             while lanes != 0 {
@@ -337,8 +358,12 @@ impl WideBvh {
                 lanes &= lanes - 1;
                 let (child, d2) = (node.child[lane], distances[lane]);
                 if child & LEAF_BIT != 0 {
-                    found[found_count] = child & !LEAF_BIT;
+                    found[found_count] = child & LEAF_INDEX;
                     found_count += 1;
+                    if child & PAIR_BIT != 0 {
+                        found[found_count] = (child & LEAF_INDEX) + 1;
+                        found_count += 1;
+                    }
                     continue;
                 }
                 prefetch(&self.nodes[child as usize]);
@@ -389,6 +414,8 @@ trait Binary: Sync {
     type Node: Copy + Send + Sync;
     /// Inner node `node`'s children: left, then right.
     fn children(&self, node: Self::Node) -> [Child<Self::Node>; 2];
+    /// `Some(k)` when inner node `node`'s children are the leaves `k` and `k + 1`.
+    fn pair(&self, node: Self::Node) -> Option<u32>;
     /// At least as many as the wide nodes of the subtree under `node` (0 when unknown).
     fn wide_bound(&self, node: Self::Node) -> usize;
 }
@@ -414,6 +441,13 @@ impl Binary for Nodes<'_> {
         [node.left, node.right].map(|c| if c & LEAF_BIT != 0 { Child::Leaf(c & !LEAF_BIT) } else { Child::Inner(c) })
     }
 
+    #[inline]
+    fn pair(&self, node: u32) -> Option<u32> {
+        // An LBVH's node covers a range of leaves, so two leaf children are neighbours.
+        let node = &self.0[node as usize];
+        (node.left & node.right & LEAF_BIT != 0).then_some(node.left & !LEAF_BIT)
+    }
+
     fn wide_bound(&self, _: u32) -> usize {
         0
     }
@@ -434,6 +468,11 @@ impl Binary for Keys<'_> {
         [child(first, at), child(at + 1, last)]
     }
 
+    #[inline]
+    fn pair(&self, (first, last): (u32, u32)) -> Option<u32> {
+        (last == first + 1).then_some(first)
+    }
+
     /// The subtree's binary inner nodes, one fewer than its leaves: a wide node stands for one.
     fn wide_bound(&self, (first, last): (u32, u32)) -> usize {
         (last - first) as usize
@@ -452,7 +491,9 @@ impl<B: Binary, F: Fn(u32) -> (Vec3, Vec3) + Sync> Fold<'_, B, F> {
     fn part_roots(&self, binary: B::Node, level: usize, roots: &mut Vec<B::Node>) {
         let (children, count) = wide_children(self.tree, binary);
         for child in &children[..count] {
-            if let Child::Inner(child) = *child {
+            if let Child::Inner(child) = *child
+                && self.tree.pair(child).is_none()
+            {
                 if level + 1 == PART_DEPTH {
                     roots.push(child);
                 } else {
@@ -484,7 +525,14 @@ impl<B: Binary, F: Fn(u32) -> (Vec3, Vec3) + Sync> Fold<'_, B, F> {
                     (refs[lane], boxes[lane]) = (LEAF_BIT | k, (self.leaf_box)(k));
                     continue;
                 }
-                Child::Inner(child) => child,
+                Child::Inner(child) => match self.tree.pair(child) {
+                    Some(k) => {
+                        refs[lane] = LEAF_BIT | PAIR_BIT | k;
+                        boxes[lane] = union(&[(self.leaf_box)(k), (self.leaf_box)(k + 1)]);
+                        continue;
+                    }
+                    None => child,
+                },
             };
             refs[lane] = out.len() as u32;
             boxes[lane] = match parts.as_deref_mut() {

@@ -115,6 +115,13 @@ pub enum ColliderError {
     },
     /// No triangle of the mesh has an area: exact contact has no surface to hold the cloth off.
     NoArea,
+    /// More triangles with an area than exact contact's tree holds.
+    TooManyTriangles {
+        /// The mesh's triangles with an area.
+        triangles: usize,
+        /// The most accepted.
+        max: usize,
+    },
     /// A skinned collider's refit data and tree do not belong together.
     SkinTreeMismatch {
         /// Leaves of the tree.
@@ -190,6 +197,11 @@ impl fmt::Display for ColliderError {
                 f,
                 "collider mesh has no triangle with an area, so exact contact has no surface (sphere contact \
                  collides with its voxel spheres)"
+            ),
+            Self::TooManyTriangles { triangles, max } => write!(
+                f,
+                "collider mesh has {triangles} triangles with an area, more than exact contact holds ({max}); \
+                 build it with sphere contact, or split the mesh"
             ),
             Self::SkinTreeMismatch { leaves, expected } => {
                 write!(f, "skinned collider refit data holds {expected} spheres but its tree has {leaves}")

@@ -71,7 +71,7 @@ use glam::Vec3;
 use rayon::prelude::*;
 
 use crate::bvh::lbvh::{Lbvh, Sphere};
-use crate::bvh::wide::{WideBvh, WideNode};
+use crate::bvh::wide::{MAX_LEAVES, WideBvh, WideNode};
 use crate::colliders::error::ColliderError;
 use crate::colliders::pose::ColliderPose;
 use crate::colliders::response::{CONTACT_BAND, MAX_PASSES, Response};
@@ -118,7 +118,8 @@ const PARALLEL_MIN: usize = 16_384;
 
 impl TriangleSurface {
     /// The triangles of `mesh` with an area, in an LBVH of their bounding spheres. Fails with
-    /// [`ColliderError::NoArea`] when none has an area; indices out of range are skipped (a
+    /// [`ColliderError::NoArea`] when none has an area, and with
+    /// [`ColliderError::TooManyTriangles`] above 2^30 of them; indices out of range are skipped (a
     /// collider's mesh is checked before it gets here).
     pub fn build(mesh: MeshRef<'_>) -> Result<Self, ColliderError> {
         let corner = |i: u32| mesh.positions.get(i as usize).map(|&p| Vec3::from(p));
@@ -153,6 +154,9 @@ impl TriangleSurface {
         };
         if kept.is_empty() {
             return Err(ColliderError::NoArea);
+        }
+        if kept.len() > MAX_LEAVES {
+            return Err(ColliderError::TooManyTriangles { triangles: kept.len(), max: MAX_LEAVES });
         }
         // Every kept triangle has its corners.
         let kept_triangle = |t: u32| corners(t).unwrap_or_default();
@@ -193,19 +197,22 @@ impl TriangleSurface {
     pub fn closest_within(&self, p: Vec3, reach: f32) -> Option<Vec3> {
         let mut point = None;
         self.wide.nearest(p, reach * reach, |leaves, mut best| {
-            // The lanes past the leaves repeat the first.
-            let tris = std::array::from_fn(|lane| self.triangles[leaves[lane.min(leaves.len() - 1)] as usize]);
-            let lanes = squared_distances_4(p, tris).to_array();
-            // The nearest lane first, so that the others meet the least `best`.
-            let first = (1..leaves.len()).fold(0, |m, lane| if lanes[lane] < lanes[m] { lane } else { m });
-            for lane in std::iter::once(first).chain((0..leaves.len()).filter(|&lane| lane != first)) {
-                // A triangle nearer than `best` has its corners within `best` and its width of `p`.
-                if lanes[lane] <= lane_bound(best, best.sqrt() + 2.0 * self.max_radius) {
-                    let q = closest_point(p, tris[lane]);
-                    let d2 = q.distance_squared(p);
-                    if d2 < best {
-                        point = Some(q);
-                        best = d2;
+            for leaves in leaves.chunks(4) {
+                // The lanes past the leaves repeat the first.
+                let tris = std::array::from_fn(|lane| self.triangles[leaves[lane.min(leaves.len() - 1)] as usize]);
+                let lanes = squared_distances_4(p, tris).to_array();
+                // The nearest lane first, so that the others meet the least `best`.
+                let first = (1..leaves.len()).fold(0, |m, lane| if lanes[lane] < lanes[m] { lane } else { m });
+                for lane in std::iter::once(first).chain((0..leaves.len()).filter(|&lane| lane != first)) {
+                    // A triangle nearer than `best` has its corners within `best` and its width
+                    // of `p`.
+                    if lanes[lane] <= lane_bound(best, best.sqrt() + 2.0 * self.max_radius) {
+                        let q = closest_point(p, tris[lane]);
+                        let d2 = q.distance_squared(p);
+                        if d2 < best {
+                            point = Some(q);
+                            best = d2;
+                        }
                     }
                 }
             }
