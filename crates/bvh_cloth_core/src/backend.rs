@@ -9,7 +9,7 @@
 pub use crate::air::{Air, AirModel, AirSource, NOISE_TIME_PERIOD, SOURCE_BLAST, SOURCE_FAN};
 pub use crate::bvh::lbvh::LEAF_BIT;
 pub use crate::bvh::traversal::{STACK_SIZE, SURFACE_TOLERANCE};
-pub use crate::bvh::wide::{PAIR_BIT, WideBvh};
+pub use crate::bvh::wide::WideBvh;
 pub use crate::cloth::colouring::{MAX_COLOURS, ParticleColouring};
 pub use crate::cloth::normals::particle_normal;
 pub use crate::cloth::tethers::{TetherSet, UNTETHERED};

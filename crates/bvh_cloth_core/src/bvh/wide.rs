@@ -4,14 +4,14 @@
 //!
 //! The wide tree is the binary tree with every other level folded into its parent: a wide node
 //! stands for a binary node, and its children are that node's grandchildren (or its children
-//! where those are leaves). A grandchild over two leaves, the most common node at the bottom
-//! of the tree, is no node of its own: the lane holds the pair of leaves, with the box of the
-//! two, and the wide tree has a third fewer nodes. Its boxes are the binary tree's, and a leaf's
+//! where those are leaves). A grandchild over two or three leaves, the most common nodes at
+//! the bottom of the tree, is no node of its own: the lane holds the run of leaves, with their
+//! box, and the wide tree has three fifths fewer nodes. Its boxes are the binary tree's, and a leaf's
 //! is the box the tree was fitted to (a triangle's own box for exact contact), each rounded
 //! outwards to 8 bits a bound across its node ([`WideNode`]), so a node is one 64-byte cache
 //! line. A query finds what a descent of the binary tree would have found, with half the
 //! dependent loads or fewer, and may meet a few more leaves, whose rounded box (or their
-//! pair's) reaches the query where their own does not.
+//! run's) reaches the query where their own does not.
 //!
 //! [`WideBvh::for_each_overlapping`] meets the leaves the binary walk
 //! ([`Lbvh::for_each_overlapping`], the GPU's) meets in the same order, so a response that
@@ -42,22 +42,36 @@ pub struct WideNode {
     lo: [[u8; 4]; 3],
     /// The children's box maxima in steps.
     hi: [[u8; 4]; 3],
-    /// `LEAF_BIT | leaf`, `LEAF_BIT | PAIR_BIT | leaf` for the leaves `leaf` and `leaf + 1`
-    /// (the two children of one binary node), or a wide node's index, in the order a
-    /// depth-first walk of the binary tree meets them; the used lanes come first, and an unused
-    /// lane holds `u32::MAX`.
+    /// `LEAF_BIT | run << RUN_SHIFT | leaf` for a run of one to three leaves from `leaf` on
+    /// (the leaves of one binary node of two or three, [`WideNode::leaves`]), or a wide node's
+    /// index, in the order a depth-first walk of the binary tree meets them; the used lanes come
+    /// first, and an unused lane holds `u32::MAX`.
     pub child: [u32; 4],
 }
 
-/// The bit of a wide node's child reference that marks a pair of leaves: the lane holds the
-/// leaves `k` and `k + 1` of `LEAF_BIT | PAIR_BIT | k`.
-pub const PAIR_BIT: u32 = 1 << 30;
+/// Where a child reference's run of leaves begins: bits 29 and 30 say which of [`RUNS`] its
+/// lane holds, and the bits below are the first leaf's index.
+pub const RUN_SHIFT: u32 = 29;
 
-/// The leaf index in a child reference that holds one or two leaves.
-const LEAF_INDEX: u32 = !(LEAF_BIT | PAIR_BIT);
+/// The first leaf's index in a child reference that holds leaves.
+const LEAF_INDEX: u32 = (1 << RUN_SHIFT) - 1;
 
-/// The most leaves a wide tree holds: a leaf's index leaves room for [`PAIR_BIT`].
-pub const MAX_LEAVES: usize = PAIR_BIT as usize;
+/// The most leaves a wide tree holds: a leaf's index leaves room for the run's bits.
+pub const MAX_LEAVES: usize = 1 << RUN_SHIFT;
+
+/// The runs of leaves a lane holds, by their bits: how many, and the offsets from the first in
+/// the order the binary walk meets them (a node's leaf children right, then left, then its
+/// inner children's): one leaf; the two children of a node; a leaf and a pair after it (the
+/// node's left child alone); a pair and a leaf after it.
+const RUNS: [(usize, [u32; 3]); 4] = [(1, [0, 0, 0]), (2, [1, 0, 0]), (3, [0, 2, 1]), (3, [2, 1, 0])];
+
+/// The leaves of a child reference that holds leaves, in the binary walk's order, and how many.
+#[inline]
+fn run_leaves(reference: u32) -> ([u32; 3], usize) {
+    let first = reference & LEAF_INDEX;
+    let (count, offsets) = RUNS[((reference >> RUN_SHIFT) & 3) as usize];
+    (offsets.map(|offset| first + offset), count)
+}
 
 /// The bounds `q` steps from `origin`, as the queries compute them: the build rounds each
 /// bound outwards with the same arithmetic (a product, then a sum, each rounded once), so that
@@ -153,6 +167,15 @@ impl WideNode {
     #[inline]
     fn used(&self) -> u32 {
         self.child.iter().enumerate().fold(0, |m, (lane, &c)| m | (((c != u32::MAX) as u32) << lane))
+    }
+
+    /// The leaves lane `lane` holds, in the order the binary walk meets them (none for an inner
+    /// or unused lane).
+    pub fn leaves(&self, lane: usize) -> impl Iterator<Item = u32> {
+        let reference = self.child[lane];
+        let (leaves, count) =
+            if reference != u32::MAX && reference & LEAF_BIT != 0 { run_leaves(reference) } else { ([0; 3], 0) };
+        leaves.into_iter().take(count)
     }
 
     /// The box of child `lane`, as the queries see it.
@@ -295,12 +318,8 @@ impl WideBvh {
             top -= 1;
             let entry = stack[top];
             if entry & LEAF_BIT != 0 {
-                // A pair's two leaves as the binary walk meets a node's: right, then left.
-                let leaf = entry & LEAF_INDEX;
-                if entry & PAIR_BIT != 0 {
-                    visit(leaf + 1);
-                }
-                visit(leaf);
+                let (leaves, count) = run_leaves(entry);
+                leaves[..count].iter().for_each(|&k| visit(k));
                 continue;
             }
             let node = &self.nodes[entry as usize];
@@ -316,7 +335,7 @@ impl WideBvh {
 
     /// A nearest-first search: `leaves(ks, best)` is called with the leaves of a node whose
     /// boxes (or pairs' boxes) lie closer to `p` than `best`, the squared distance found so far
-    /// (`limit` at first), up to eight at once, and returns the new `best` (the least of its own and the
+    /// (`limit` at first), up to twelve at once, and returns the new `best` (the least of its own and the
     /// leaves' squared distances to `p`). Returns the last `best`, which is `limit` for a
     /// point with a NaN or a `limit` that is not positive.
     ///
@@ -350,7 +369,7 @@ impl WideBvh {
             // each fetched while the leaves are tested; the leaves in lane order.
             let mut inner = [(0u32, 0.0f32); 4];
             let mut inner_count = 0;
-            let mut found = [0u32; 8];
+            let mut found = [0u32; 12];
             let mut found_count = 0;
             let mut lanes = near;
             while lanes != 0 {
@@ -358,12 +377,9 @@ impl WideBvh {
                 lanes &= lanes - 1;
                 let (child, d2) = (node.child[lane], distances[lane]);
                 if child & LEAF_BIT != 0 {
-                    found[found_count] = child & LEAF_INDEX;
-                    found_count += 1;
-                    if child & PAIR_BIT != 0 {
-                        found[found_count] = (child & LEAF_INDEX) + 1;
-                        found_count += 1;
-                    }
+                    let (leaves, count) = run_leaves(child);
+                    found[found_count..found_count + count].copy_from_slice(&leaves[..count]);
+                    found_count += count;
                     continue;
                 }
                 prefetch(&self.nodes[child as usize]);
@@ -414,8 +430,9 @@ trait Binary: Sync {
     type Node: Copy + Send + Sync;
     /// Inner node `node`'s children: left, then right.
     fn children(&self, node: Self::Node) -> [Child<Self::Node>; 2];
-    /// `Some(k)` when inner node `node`'s children are the leaves `k` and `k + 1`.
-    fn pair(&self, node: Self::Node) -> Option<u32>;
+    /// `Some((k, run))` when inner node `node` stands over two or three leaves from `k` on, as
+    /// the run `run` of [`RUNS`] says.
+    fn run(&self, node: Self::Node) -> Option<(u32, u32)>;
     /// At least as many as the wide nodes of the subtree under `node` (0 when unknown).
     fn wide_bound(&self, node: Self::Node) -> usize;
 }
@@ -442,10 +459,19 @@ impl Binary for Nodes<'_> {
     }
 
     #[inline]
-    fn pair(&self, node: u32) -> Option<u32> {
-        // An LBVH's node covers a range of leaves, so two leaf children are neighbours.
+    fn run(&self, node: u32) -> Option<(u32, u32)> {
+        // An LBVH's node covers a range of leaves, so its leaves are neighbours.
         let node = &self.0[node as usize];
-        (node.left & node.right & LEAF_BIT != 0).then_some(node.left & !LEAF_BIT)
+        let pair = |child: u32| {
+            let node = self.0.get(child as usize)?;
+            (node.left & node.right & LEAF_BIT != 0).then_some(node.left & !LEAF_BIT)
+        };
+        match (node.left & LEAF_BIT != 0, node.right & LEAF_BIT != 0) {
+            (true, true) => Some((node.left & !LEAF_BIT, 1)),
+            (true, false) => pair(node.right).map(|_| (node.left & !LEAF_BIT, 2)),
+            (false, true) => pair(node.left).map(|k| (k, 3)),
+            (false, false) => None,
+        }
     }
 
     fn wide_bound(&self, _: u32) -> usize {
@@ -469,8 +495,13 @@ impl Binary for Keys<'_> {
     }
 
     #[inline]
-    fn pair(&self, (first, last): (u32, u32)) -> Option<u32> {
-        (last == first + 1).then_some(first)
+    fn run(&self, (first, last): (u32, u32)) -> Option<(u32, u32)> {
+        match last - first {
+            1 => Some((first, 1)),
+            2 if split(self.0, first as usize, last as usize) == first as usize => Some((first, 2)),
+            2 => Some((first, 3)),
+            _ => None,
+        }
     }
 
     /// The subtree's binary inner nodes, one fewer than its leaves: a wide node stands for one.
@@ -492,7 +523,7 @@ impl<B: Binary, F: Fn(u32) -> (Vec3, Vec3) + Sync> Fold<'_, B, F> {
         let (children, count) = wide_children(self.tree, binary);
         for child in &children[..count] {
             if let Child::Inner(child) = *child
-                && self.tree.pair(child).is_none()
+                && self.tree.run(child).is_none()
             {
                 if level + 1 == PART_DEPTH {
                     roots.push(child);
@@ -525,10 +556,14 @@ impl<B: Binary, F: Fn(u32) -> (Vec3, Vec3) + Sync> Fold<'_, B, F> {
                     (refs[lane], boxes[lane]) = (LEAF_BIT | k, (self.leaf_box)(k));
                     continue;
                 }
-                Child::Inner(child) => match self.tree.pair(child) {
-                    Some(k) => {
-                        refs[lane] = LEAF_BIT | PAIR_BIT | k;
-                        boxes[lane] = union(&[(self.leaf_box)(k), (self.leaf_box)(k + 1)]);
+                Child::Inner(child) => match self.tree.run(child) {
+                    Some((k, run)) => {
+                        let count = RUNS[run as usize].0 as u32;
+                        refs[lane] = LEAF_BIT | run << RUN_SHIFT | k;
+                        boxes[lane] = (k + 1..k + count).fold((self.leaf_box)(k), |(lo, hi), leaf| {
+                            let (l, h) = (self.leaf_box)(leaf);
+                            (lo.min(l), hi.max(h))
+                        });
                         continue;
                     }
                     None => child,

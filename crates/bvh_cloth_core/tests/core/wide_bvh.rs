@@ -3,8 +3,8 @@
 
 use crate::common;
 
+use bvh_cloth_core::backend::LEAF_BIT;
 use bvh_cloth_core::backend::WideBvh;
-use bvh_cloth_core::backend::{LEAF_BIT, PAIR_BIT};
 use bvh_cloth_core::{Lbvh, Sphere, Vec3};
 use common::Rng;
 
@@ -22,12 +22,12 @@ fn trees(spheres: &[Sphere]) -> (Lbvh, WideBvh) {
     (bvh, wide)
 }
 
-/// No node but the root holds two leaves and nothing else: its parent's lane holds the pair.
-fn assert_no_pair_nodes(wide: &WideBvh) {
+/// No node but the root stands over three leaves or fewer: its parent's lane holds them.
+fn assert_no_small_nodes(wide: &WideBvh) {
     for (index, node) in wide.nodes.iter().enumerate().skip(1) {
-        let used: Vec<u32> = node.child.iter().copied().filter(|&c| c != u32::MAX).collect();
-        let single = |c: u32| c & LEAF_BIT != 0 && c & PAIR_BIT == 0;
-        assert!(!(used.len() == 2 && used.iter().all(|&c| single(c))), "node {index} holds only the leaves {used:?}");
+        let inner = node.child.iter().any(|&c| c & LEAF_BIT == 0);
+        let leaves: Vec<u32> = (0..4).flat_map(|lane| node.leaves(lane)).collect();
+        assert!(inner || leaves.len() > 3, "node {index} holds only the leaves {leaves:?}");
     }
 }
 
@@ -91,7 +91,7 @@ fn check_nearest(bvh: &Lbvh, wide: &WideBvh, rng: &mut Rng, queries: usize) {
         let limit = rng.range(0.0, 0.5).powi(2);
         let mut calls = 0;
         let got = wide.nearest(p, limit, |leaves, best| {
-            assert!((1..=8).contains(&leaves.len()));
+            assert!((1..=12).contains(&leaves.len()));
             calls += leaves.len();
             leaves.iter().fold(best, |best, &k| to_sphere(&bvh.spheres[k as usize], p).min(best))
         });
@@ -120,11 +120,11 @@ fn random_sets_meet_the_same_leaves_in_the_same_order() {
     let mut rng = Rng::new(9);
     for count in [6, 17, 64, 100, 1000, 20_000] {
         let (bvh, wide) = trees(&random_spheres(&mut rng, count));
-        // A wide node folds two binary levels into one, and a pair of leaves is no node: the
-        // deepest path may end a level higher.
+        // A wide node folds two binary levels into one, and a run of two or three leaves is no
+        // node: the deepest path may end a level higher.
         let folded = bvh.depth.div_ceil(2);
         assert!((folded - 1..=folded).contains(&levels(&wide)), "{count} leaves: {} levels", levels(&wide));
-        assert_no_pair_nodes(&wide);
+        assert_no_small_nodes(&wide);
         check_order(&bvh, &wide, &mut rng, 2000);
         check_nearest(&bvh, &wide, &mut rng, 2000);
     }
@@ -164,12 +164,11 @@ fn rounded_boxes_hold_their_children_within_a_step() {
             if child == u32::MAX || child & LEAF_BIT == 0 {
                 continue;
             }
-            // A pair's lane holds the box of its two leaves.
-            let first = child & !(LEAF_BIT | PAIR_BIT);
-            let leaves = if child & PAIR_BIT != 0 { first..first + 2 } else { first..first + 1 };
+            // A run's lane holds the box of its leaves.
+            let leaves: Vec<u32> = node.leaves(lane).collect();
             let (lo, hi) = leaves
-                .clone()
-                .map(|k| bvh.spheres[k as usize])
+                .iter()
+                .map(|&k| bvh.spheres[k as usize])
                 .fold((Vec3::INFINITY, Vec3::NEG_INFINITY), |(lo, hi), s| {
                     (lo.min(s.centre() - s.radius), hi.max(s.centre() + s.radius))
                 });
