@@ -119,7 +119,7 @@ const PARALLEL_MIN: usize = 16_384;
 impl TriangleSurface {
     /// The triangles of `mesh` with an area, in an LBVH of their bounding spheres. Fails with
     /// [`ColliderError::NoArea`] when none has an area, and with
-    /// [`ColliderError::TooManyTriangles`] above 2^30 of them; indices out of range are skipped (a
+    /// [`ColliderError::TooManyTriangles`] above 2^29 of them; indices out of range are skipped (a
     /// collider's mesh is checked before it gets here).
     pub fn build(mesh: MeshRef<'_>) -> Result<Self, ColliderError> {
         let corner = |i: u32| mesh.positions.get(i as usize).map(|&p| Vec3::from(p));
