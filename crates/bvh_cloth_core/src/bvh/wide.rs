@@ -334,10 +334,10 @@ impl WideBvh {
     }
 
     /// A nearest-first search: `leaves(ks, best)` is called with the leaves of a node whose
-    /// boxes (or pairs' boxes) lie closer to `p` than `best`, the squared distance found so far
-    /// (`limit` at first), up to twelve at once, and returns the new `best` (the least of its own and the
-    /// leaves' squared distances to `p`). Returns the last `best`, which is `limit` for a
-    /// point with a NaN or a `limit` that is not positive.
+    /// boxes (or runs' boxes) lie closer to `p` than `best`, the squared distance found so far
+    /// (`limit` at first), up to twelve at once, and returns the new `best` (the least of its
+    /// own and the leaves' squared distances to `p`). Returns the last `best`, which is `limit`
+    /// for a point with a NaN or a `limit` that is not positive.
     ///
     /// The walk waits on memory more than on arithmetic: the children it will visit are
     /// fetched into the cache while it tests a node's leaves, and a node's leaves come

@@ -292,8 +292,9 @@ mod tests {
 
     /// The four-lane filter against the exact distance: never above it (to its rounding), 0
     /// for a nearly degenerate triangle, and equal to it for nearly every well-shaped one, on
-    /// triangles from a millimetre to a metre wide, slivers among them, and points from on
-    /// the plane to a hundred widths away.
+    /// triangles from a millimetre to a metre wide, slivers and sharp corners among them, and
+    /// points from a millionth of a width off the plane (over an edge or the middle) to ten
+    /// widths away.
     #[test]
     fn four_distances_never_exceed_the_exact_one() {
         let mut seed = 29u32;
