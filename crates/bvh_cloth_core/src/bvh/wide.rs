@@ -3,15 +3,15 @@
 //! descends two levels of the binary tree or more per node.
 //!
 //! The wide tree is the binary tree with every other level folded into its parent: a wide node
-//! stands for a binary node, and its children are that node's grandchildren (or its children
-//! where those are leaves). A grandchild over two or three leaves, the most common nodes at the
-//! bottom of the tree, is no node of its own: the lane holds the run of leaves, with their box,
-//! and the wide tree has about half as many nodes (the bundled dragon's surface 47,968 against
-//! 101,278). Its boxes are the binary tree's, and a leaf's is the box the tree was fitted to (a
-//! triangle's own box for exact contact), each rounded outwards to 8 bits a bound across its
+//! stands for a binary node, and its children are that node's grandchildren (or its children where
+//! those are leaves). A grandchild over two or three leaves, the most common nodes at the bottom of
+//! the tree, is no node of its own: the lane holds the run of leaves, with their box, and the wide
+//! tree has about half as many nodes (the bundled dragon's surface 47,968, against 101,278 with a
+//! node over each). Its boxes are the binary tree's, and a leaf's is the box the tree was fitted to
+//! (a triangle's own box for exact contact), each rounded outwards to 8 bits a bound across its
 //! node ([`WideNode`]), so a node is one 64-byte cache line. A query finds what a descent of the
-//! binary tree would have found, with half the dependent loads or fewer, and may meet a few
-//! more leaves, whose rounded box (or their run's) reaches the query where their own does not.
+//! binary tree would have found, with half the dependent loads or fewer, and may meet a few more
+//! leaves, whose rounded box (or their run's) reaches the query where their own does not.
 //!
 //! [`WideBvh::for_each_overlapping`] meets the leaves the binary walk
 //! ([`Lbvh::for_each_overlapping`], the GPU's) meets in the same order, so a response that
