@@ -431,8 +431,17 @@ trait Binary: Sync {
     /// Inner node `node`'s children: left, then right.
     fn children(&self, node: Self::Node) -> [Child<Self::Node>; 2];
     /// `Some((k, run))` when inner node `node` stands over two or three leaves from `k` on, as
-    /// the run `run` of [`RUNS`] says.
-    fn run(&self, node: Self::Node) -> Option<(u32, u32)>;
+    /// the run `run` of [`RUNS`] says (a node's leaves are a range, so they are neighbours).
+    #[inline]
+    fn run(&self, node: Self::Node) -> Option<(u32, u32)> {
+        let pair = |inner| matches!(self.children(inner), [Child::Leaf(_), Child::Leaf(_)]);
+        match self.children(node) {
+            [Child::Leaf(k), Child::Leaf(_)] => Some((k, 1)),
+            [Child::Leaf(k), Child::Inner(right)] => pair(right).then_some((k, 2)),
+            [Child::Inner(left), Child::Leaf(last)] => pair(left).then_some((last - 2, 3)),
+            [Child::Inner(_), Child::Inner(_)] => None,
+        }
+    }
     /// At least as many as the wide nodes of the subtree under `node` (0 when unknown).
     fn wide_bound(&self, node: Self::Node) -> usize;
 }
@@ -458,22 +467,6 @@ impl Binary for Nodes<'_> {
         [node.left, node.right].map(|c| if c & LEAF_BIT != 0 { Child::Leaf(c & !LEAF_BIT) } else { Child::Inner(c) })
     }
 
-    #[inline]
-    fn run(&self, node: u32) -> Option<(u32, u32)> {
-        // An LBVH's node covers a range of leaves, so its leaves are neighbours.
-        let node = &self.0[node as usize];
-        let pair = |child: u32| {
-            let node = self.0.get(child as usize)?;
-            (node.left & node.right & LEAF_BIT != 0).then_some(node.left & !LEAF_BIT)
-        };
-        match (node.left & LEAF_BIT != 0, node.right & LEAF_BIT != 0) {
-            (true, true) => Some((node.left & !LEAF_BIT, 1)),
-            (true, false) => pair(node.right).map(|_| (node.left & !LEAF_BIT, 2)),
-            (false, true) => pair(node.left).map(|k| (k, 3)),
-            (false, false) => None,
-        }
-    }
-
     fn wide_bound(&self, _: u32) -> usize {
         0
     }
@@ -494,6 +487,7 @@ impl Binary for Keys<'_> {
         [child(first, at), child(at + 1, last)]
     }
 
+    /// From the range's length: no split is searched for a range of four leaves or more.
     #[inline]
     fn run(&self, (first, last): (u32, u32)) -> Option<(u32, u32)> {
         match last - first {

@@ -241,6 +241,16 @@ mod tests {
 
     const T: [Vec3; 3] = [Vec3::ZERO, Vec3::X, Vec3::Y];
 
+    /// Seeded xorshift numbers in `[0, 1]`.
+    fn unit_numbers(mut seed: u32) -> impl FnMut() -> f32 {
+        move || {
+            seed ^= seed << 13;
+            seed ^= seed >> 17;
+            seed ^= seed << 5;
+            seed as f32 / u32::MAX as f32
+        }
+    }
+
     #[test]
     fn closest_points_in_every_region() {
         let cases = [
@@ -266,13 +276,8 @@ mod tests {
     /// the answer, for random triangles and points.
     #[test]
     fn closest_point_beats_sampling() {
-        let mut seed = 17u32;
-        let mut next = || {
-            seed ^= seed << 13;
-            seed ^= seed >> 17;
-            seed ^= seed << 5;
-            seed as f32 / u32::MAX as f32 * 4.0 - 2.0
-        };
+        let mut unit = unit_numbers(17);
+        let mut next = || unit() * 4.0 - 2.0;
         for _ in 0..300 {
             let tri = [0; 3].map(|_| Vec3::new(next(), next(), next()));
             let p = Vec3::new(next(), next(), next());
@@ -297,13 +302,7 @@ mod tests {
     /// widths away.
     #[test]
     fn four_distances_never_exceed_the_exact_one() {
-        let mut seed = 29u32;
-        let mut unit = || {
-            seed ^= seed << 13;
-            seed ^= seed >> 17;
-            seed ^= seed << 5;
-            seed as f32 / u32::MAX as f32
-        };
+        let mut unit = unit_numbers(29);
         let (mut well_shaped, mut equal) = (0, 0);
         for _ in 0..20000 {
             let tris: [[Vec3; 3]; 4] = std::array::from_fn(|_| {
