@@ -223,6 +223,11 @@ impl WideNode {
 pub struct WideBvh {
     /// The nodes, each before its children (a depth-first order).
     pub nodes: Vec<WideNode>,
+    /// The least leaf under each node. The leaves under a node are a range of the leaves'
+    /// numbers (the binary tree's leaves are in key order), so they are that one and those
+    /// after it, up to twelve for a node at the bottom of the tree: [`WideBvh::nearest`] asks
+    /// for their data ahead of its visit.
+    pub first_leaf: Vec<u32>,
 }
 
 /// The traversal stack. The binary tree has fewer than [`STACK_SIZE`] levels, so the wide one
@@ -274,13 +279,13 @@ impl WideBvh {
                 return (Self::default(), (Vec3::ZERO, Vec3::ZERO));
             }
             let only = leaf_box(0);
-            return (Self { nodes: vec![WideNode::new(&[LEAF_BIT], &[only])] }, only);
+            return (Self::with_first_leaves(vec![WideNode::new(&[LEAF_BIT], &[only])]), only);
         }
         let fold = Fold { tree, leaf_box };
         let mut nodes = Vec::new();
         if leaves - 1 < PARALLEL_FOLD_MIN_NODES {
             let box_ = fold.fold(root, 0, &mut nodes, &mut None);
-            return (Self { nodes }, box_);
+            return (Self::with_first_leaves(nodes), box_);
         }
         // The subtrees under the top `PART_DEPTH` levels are folded in parallel, each into its
         // own nodes; the top is folded here, each part copied in after the node that points to
@@ -298,7 +303,28 @@ impl WideBvh {
         nodes.reserve(parts.iter().map(|(part, _)| part.len()).sum::<usize>() + PART_DEPTH_NODES);
         let mut parts = parts.into_iter();
         let box_ = fold.fold(root, 0, &mut nodes, &mut Some(&mut parts));
-        (Self { nodes }, box_)
+        (Self::with_first_leaves(nodes), box_)
+    }
+
+    /// The tree of `nodes`, with each node's least leaf: the least of its lanes' (a run's
+    /// first leaf, an inner child's least), found from the last node up (a node's children
+    /// follow it).
+    fn with_first_leaves(nodes: Vec<WideNode>) -> Self {
+        let mut first_leaf = vec![0u32; nodes.len()];
+        for index in (0..nodes.len()).rev() {
+            let least = |child: u32| match child {
+                u32::MAX => u32::MAX,
+                leaves if leaves & LEAF_BIT != 0 => leaves & LEAF_INDEX,
+                inner => first_leaf[inner as usize],
+            };
+            first_leaf[index] = nodes[index].child.iter().map(|&child| least(child)).min().unwrap_or(0);
+        }
+        Self { nodes, first_leaf }
+    }
+
+    /// The bytes the tree keeps on the heap.
+    pub fn bytes(&self) -> usize {
+        self.nodes.capacity() * size_of::<WideNode>() + self.first_leaf.capacity() * size_of::<u32>()
     }
 
     /// Calls `visit(leaf)` for every leaf whose box overlaps `[lo, hi]` grown by `margin`, in
@@ -337,13 +363,17 @@ impl WideBvh {
     /// boxes (or runs' boxes) lie closer to `p` than `best`, the squared distance found so far
     /// (`limit` at first), up to twelve at once, and returns the new `best` (the least of its
     /// own and the leaves' squared distances to `p`). Returns the last `best`, which is `limit`
-    /// for a point with a NaN or a `limit` that is not positive.
+    /// for a point with a NaN or a `limit` that is not positive. `leaf_data` is what `leaves`
+    /// reads, one item per leaf in the leaves' order (or nothing).
     ///
     /// The walk waits on memory more than on arithmetic: the children it will visit are
-    /// fetched into the cache while it tests a node's leaves, and a node's leaves come
-    /// together, so that a caller can test them side by side.
+    /// fetched into the cache while it tests a node's leaves, and with each the node after it
+    /// (its first inner child when it has one: the nodes are in depth-first order) and its
+    /// first leaves' data (six cache lines of `leaf_data` from its least leaf on: most of a
+    /// bottom node's triangles); a node's leaves come together, so that a caller can test them
+    /// side by side.
     #[inline]
-    pub fn nearest(&self, p: Vec3, limit: f32, mut leaves: impl FnMut(&[u32], f32) -> f32) -> f32 {
+    pub fn nearest<T>(&self, p: Vec3, limit: f32, leaf_data: &[T], mut leaves: impl FnMut(&[u32], f32) -> f32) -> f32 {
         let mut best = limit;
         // A NaN coordinate would count as inside every box along its axis (the lanes' `max`
         // keeps the zero), and a NaN limit would let the unused lanes through, so both are
@@ -369,6 +399,8 @@ impl WideBvh {
             // each fetched while the leaves are tested; the leaves in lane order.
             let mut inner = [(0u32, 0.0f32); 4];
             let mut inner_count = 0;
+            // Room for a run of three after nine leaves: each run is copied whole (a copy of a
+            // length known at compile time), and only its `count` leaves are kept.
             let mut found = [0u32; 12];
             let mut found_count = 0;
             let mut lanes = near;
@@ -378,11 +410,15 @@ impl WideBvh {
                 let (child, d2) = (node.child[lane], distances[lane]);
                 if child & LEAF_BIT != 0 {
                     let (leaves, count) = run_leaves(child);
-                    found[found_count..found_count + count].copy_from_slice(&leaves[..count]);
+                    found[found_count..found_count + 3].copy_from_slice(&leaves);
                     found_count += count;
                     continue;
                 }
                 prefetch(&self.nodes[child as usize]);
+                if let Some(first_inner) = self.nodes.get(child as usize + 1) {
+                    prefetch(first_inner);
+                }
+                prefetch_lines(leaf_data, self.first_leaf[child as usize]);
                 let mut slot = inner_count;
                 while slot > 0 && inner[slot - 1].1 < d2 {
                     inner[slot] = inner[slot - 1];
@@ -405,13 +441,30 @@ impl WideBvh {
     }
 }
 
-/// Asks for the node's cache line ahead of its use (a hint: nothing waits on it).
+/// Asks for the cache line that holds `value` ahead of its use (a hint: nothing waits on it).
 #[inline(always)]
-fn prefetch(node: &WideNode) {
+fn prefetch<T>(value: &T) {
     #[cfg(target_arch = "x86_64")]
-    safe_arch::prefetch_t0(node);
+    safe_arch::prefetch_t0(value);
     #[cfg(not(target_arch = "x86_64"))]
-    let _ = node;
+    let _ = value;
+}
+
+/// The cache lines of leaf data [`WideBvh::nearest`] asks for ahead of a node's visit: 384
+/// bytes, ten triangles' corners, most of what a node at the bottom of the tree holds.
+const LEAF_DATA_LINES: usize = 6;
+
+/// Asks for [`LEAF_DATA_LINES`] cache lines of `data` from item `first` on: one item in each
+/// 64 bytes, none when they run past the end (a tree's last few leaves).
+#[inline(always)]
+fn prefetch_lines<T>(data: &[T], first: u32) {
+    let size = size_of::<T>().max(1);
+    let span = (64 * (LEAF_DATA_LINES - 1)).div_ceil(size) + 1;
+    if let Some(items) = data.get(first as usize..first as usize + span) {
+        for line in 0..LEAF_DATA_LINES {
+            prefetch(&items[(64 * line).div_ceil(size)]);
+        }
+    }
 }
 
 /// Below this many binary nodes a tree is folded on one thread.

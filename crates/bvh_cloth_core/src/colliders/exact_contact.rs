@@ -67,11 +67,11 @@
 //! built; duplicated, sliver, inverted and intersecting triangles are used as they are, since
 //! the response needs neither a winding nor a closed mesh.
 
-use glam::Vec3;
+use glam::{Vec3, Vec4};
 use rayon::prelude::*;
 
 use crate::bvh::lbvh::{Lbvh, Sphere};
-use crate::bvh::wide::{MAX_LEAVES, WideBvh, WideNode};
+use crate::bvh::wide::{MAX_LEAVES, WideBvh};
 use crate::colliders::error::ColliderError;
 use crate::colliders::pose::ColliderPose;
 use crate::colliders::response::{CONTACT_BAND, MAX_PASSES, Response};
@@ -184,7 +184,7 @@ impl TriangleSurface {
 
     /// The bytes the surface keeps on the heap: its triangles and its wide tree.
     pub fn heap_bytes(&self) -> usize {
-        self.triangles.capacity() * size_of::<[Vec3; 3]>() + self.wide.nodes.capacity() * size_of::<WideNode>()
+        self.triangles.capacity() * size_of::<[Vec3; 3]>() + self.wide.bytes()
     }
 
     /// The point of the surface closest to `p` within `reach`, if any is.
@@ -196,24 +196,39 @@ impl TriangleSurface {
     /// far is measured again exactly ([`closest_point`]), which gives the answer.
     pub fn closest_within(&self, p: Vec3, reach: f32) -> Option<Vec3> {
         let mut point = None;
-        self.wide.nearest(p, reach * reach, |leaves, mut best| {
+        // A triangle nearer than `best` has its corners within `best` and its width of `p`.
+        let bound = |best: f32| lane_bound(best, best.sqrt() + 2.0 * self.max_radius);
+        self.wide.nearest(p, reach * reach, &self.triangles, |leaves, mut best| {
+            let mut within = bound(best);
             for leaves in leaves.chunks(4) {
                 // The lanes past the leaves repeat the first.
-                let tris = std::array::from_fn(|lane| self.triangles[leaves[lane.min(leaves.len() - 1)] as usize]);
-                let lanes = squared_distances_4(p, tris).to_array();
-                // The nearest lane first, so that the others meet the least `best`.
+                let tris: [&[Vec3; 3]; 4] =
+                    std::array::from_fn(|lane| &self.triangles[leaves[lane.min(leaves.len() - 1)] as usize]);
+                let lanes = squared_distances_4(p, tris);
+                // The bound only shrinks, so a lane above it now stays above it: most batches
+                // end here.
+                let mut candidates = lanes.cmple(Vec4::splat(within)).bitmask() & ((1 << leaves.len()) - 1);
+                if candidates == 0 {
+                    continue;
+                }
+                // The nearest lane first, so that the others meet the least `best`; then the
+                // other candidates in lane order.
+                let lanes = lanes.to_array();
                 let first = (1..leaves.len()).fold(0, |m, lane| if lanes[lane] < lanes[m] { lane } else { m });
-                for lane in std::iter::once(first).chain((0..leaves.len()).filter(|&lane| lane != first)) {
-                    // A triangle nearer than `best` has its corners within `best` and its width
-                    // of `p`.
-                    if lanes[lane] <= lane_bound(best, best.sqrt() + 2.0 * self.max_radius) {
-                        let q = closest_point(p, tris[lane]);
+                let mut lane = first;
+                loop {
+                    if lanes[lane] <= within {
+                        let q = closest_point(p, *tris[lane]);
                         let d2 = q.distance_squared(p);
                         if d2 < best {
-                            point = Some(q);
-                            best = d2;
+                            (point, best, within) = (Some(q), d2, bound(d2));
                         }
                     }
+                    candidates &= !(1 << first) & !(1 << lane);
+                    if candidates == 0 {
+                        break;
+                    }
+                    lane = candidates.trailing_zeros() as usize;
                 }
             }
             best

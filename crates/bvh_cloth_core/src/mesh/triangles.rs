@@ -75,9 +75,10 @@ fn closest_on_longest_edge(p: Vec3, [a, b, c]: [Vec3; 3]) -> Vec3 {
 /// barycentric coordinates are solved in the basis of the edges from the first corner, whose
 /// rounding grows as the square of that corner's sine shrinks: a triangle counts as nearly
 /// degenerate when the squared sine is below [`WELL_SHAPED_SINE_SQUARED`]. No branch: a walk
-/// that meets up to four leaves at once tests them together.
+/// that meets up to four leaves at once tests them together, read where they lie (the four
+/// need not be copied side by side first).
 #[inline]
-pub fn squared_distances_4(p: Vec3, tris: [[Vec3; 3]; 4]) -> Vec4 {
+pub fn squared_distances_4(p: Vec3, tris: [&[Vec3; 3]; 4]) -> Vec4 {
     let axis = |corner: usize, axis: usize| Vec4::from_array(std::array::from_fn(|lane| tris[lane][corner][axis]));
     let corner = |corner: usize| [axis(corner, 0), axis(corner, 1), axis(corner, 2)];
     let (a, b, c) = (corner(0), corner(1), corner(2));
@@ -340,7 +341,7 @@ mod tests {
                     on + face_normal(tris[0]).unwrap_or(Vec3::Z) * size * 10f32.powf(-6.0 * unit())
                 }
             };
-            let lanes = squared_distances_4(p, tris).to_array();
+            let lanes = squared_distances_4(p, tris.each_ref()).to_array();
             for (tri, lane) in tris.iter().zip(lanes) {
                 // Measured from the first corner, as the lanes are: an answer in the world's
                 // coordinates is rounded at their magnitude, far above a short distance's.

@@ -8,6 +8,9 @@ use bvh_cloth_core::backend::WideBvh;
 use bvh_cloth_core::{Lbvh, Sphere, Vec3};
 use common::Rng;
 
+/// Leaf data for a walk that reads none.
+const NO_DATA: &[u8] = &[];
+
 fn random_spheres(rng: &mut Rng, count: usize) -> Vec<Sphere> {
     (0..count).map(|_| Sphere::new(rng.vec3(-1.0, 1.0), rng.range(0.0, 0.3))).collect()
 }
@@ -28,6 +31,29 @@ fn assert_no_small_nodes(wide: &WideBvh) {
         let inner = node.child.iter().any(|&c| c & LEAF_BIT == 0);
         let leaves: Vec<u32> = (0..4).flat_map(|lane| node.leaves(lane)).collect();
         assert!(inner || leaves.len() > 3, "node {index} holds only the leaves {leaves:?}");
+    }
+}
+
+/// Each node's `first_leaf` is the least leaf under it, and the leaves under it are the next
+/// ones: the walk asks for their data from there on.
+fn assert_first_leaves(wide: &WideBvh) {
+    assert_eq!(wide.first_leaf.len(), wide.nodes.len());
+    for index in 0..wide.nodes.len() {
+        let mut under = Vec::new();
+        let mut stack = vec![index as u32];
+        while let Some(node) = stack.pop() {
+            let node = &wide.nodes[node as usize];
+            for lane in 0..4 {
+                under.extend(node.leaves(lane));
+                if node.child[lane] != u32::MAX && node.child[lane] & LEAF_BIT == 0 {
+                    stack.push(node.child[lane]);
+                }
+            }
+        }
+        under.sort_unstable();
+        let first = wide.first_leaf[index];
+        let want: Vec<u32> = (first..first + under.len() as u32).collect();
+        assert_eq!(under, want, "the leaves under node {index}");
     }
 }
 
@@ -90,7 +116,7 @@ fn check_nearest(bvh: &Lbvh, wide: &WideBvh, rng: &mut Rng, queries: usize) {
         let p = rng.vec3(-1.6, 1.6);
         let limit = rng.range(0.0, 0.5).powi(2);
         let mut calls = 0;
-        let got = wide.nearest(p, limit, |leaves, best| {
+        let got = wide.nearest(p, limit, &bvh.spheres, |leaves, best| {
             assert!((1..=12).contains(&leaves.len()));
             calls += leaves.len();
             leaves.iter().fold(best, |best, &k| to_sphere(&bvh.spheres[k as usize], p).min(best))
@@ -106,13 +132,14 @@ fn tiny_trees() {
     let mut rng = Rng::new(2);
     for count in 1..=5 {
         let (bvh, wide) = trees(&random_spheres(&mut rng, count));
+        assert_first_leaves(&wide);
         check_order(&bvh, &wide, &mut rng, 2000);
         check_nearest(&bvh, &wide, &mut rng, 2000);
     }
     let (bvh, wide) = trees(&[]);
     assert!(wide.nodes.is_empty());
     check_order(&bvh, &wide, &mut rng, 10);
-    assert_eq!(wide.nearest(Vec3::ZERO, 1.0, |_, _| unreachable!("no leaf")), 1.0);
+    assert_eq!(wide.nearest(Vec3::ZERO, 1.0, NO_DATA, |_, _| unreachable!("no leaf")), 1.0);
 }
 
 #[test]
@@ -125,6 +152,7 @@ fn random_sets_meet_the_same_leaves_in_the_same_order() {
         let folded = bvh.depth.div_ceil(2);
         assert!((folded - 1..=folded).contains(&levels(&wide)), "{count} leaves: {} levels", levels(&wide));
         assert_no_small_nodes(&wide);
+        assert_first_leaves(&wide);
         check_order(&bvh, &wide, &mut rng, 2000);
         check_nearest(&bvh, &wide, &mut rng, 2000);
     }
@@ -141,13 +169,13 @@ fn a_nan_query_meets_nothing() {
         bvh.for_each_overlapping(lo, hi, margin, |k, _| panic!("the binary walk met leaf {k}"));
     }
     for p in [nan, Vec3::new(0.0, 0.0, f32::NAN)] {
-        let best = wide.nearest(p, 1.0, |k, _| panic!("leaves {k:?} tried from {p}"));
+        let best = wide.nearest(p, 1.0, NO_DATA, |k, _| panic!("leaves {k:?} tried from {p}"));
         assert_eq!(best, 1.0);
     }
     // Small trees too: their root has leaves and unused lanes.
     for count in [1, 2, 3, 5, 1000] {
         let (_, wide) = trees(&random_spheres(&mut rng, count));
-        let best = wide.nearest(Vec3::ZERO, f32::NAN, |k, _| panic!("leaves {k:?} tried within a NaN limit"));
+        let best = wide.nearest(Vec3::ZERO, f32::NAN, NO_DATA, |k, _| panic!("leaves {k:?} tried within a NaN limit"));
         assert!(best.is_nan());
     }
 }
