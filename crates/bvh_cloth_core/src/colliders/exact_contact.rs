@@ -82,7 +82,7 @@ use crate::mesh::triangles::{
 
 /// The triangles of a mesh in an LBVH, for exact contact.
 ///
-/// It keeps the triangles and the four-wide tree the CPU's queries walk, about 51 bytes a
+/// It keeps the triangles and the four-wide tree the CPU's queries walk, about 52 bytes a
 /// triangle; the binary tree the GPU walks is built again from the triangles when it is
 /// uploaded ([`Self::binary_tree`]).
 #[derive(Clone, Debug)]
