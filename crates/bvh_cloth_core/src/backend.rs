@@ -23,8 +23,8 @@ pub use crate::mesh::triangles::{
     EDGE_SLACK, PLANE_ROUNDING, closest_point, crossing_pairs, face_normal, intersecting_pairs, segment_hit,
 };
 pub use crate::self_contact::{
-    ContactBody, ContactSolver, MAX_CANDIDATES, MAX_HELD_SCALE, MAX_PATH_SPAN, MAX_SPAN, particle_spacing,
-    shared_substeps,
+    ContactBody, ContactSolver, MAX_CANDIDATES, MAX_HELD_SCALE, MAX_PATH_SPAN, MAX_SPAN, MAX_TESTS_PER_TRIANGLE,
+    particle_spacing, shared_substeps,
 };
 pub use crate::solver::block_descent::{BLEND_LAG, BLEND_STEP, MultigridStepping};
 pub use crate::solver::forces::ForceModel;

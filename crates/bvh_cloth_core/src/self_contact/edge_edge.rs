@@ -4,26 +4,20 @@
 //! the other layer, which point against triangle alone lets through. See the
 //! [module docs](super).
 
-use glam::{Vec3, Vec3A};
+use glam::Vec3;
 
-use super::{Contact, ContactBody, ContactSolver, MAX_SPAN};
+use super::{Contact, ContactBody, ContactSolver};
 
 impl ContactSolver {
-    /// Adds the contacts of edge `e` with the edges after it whose grown boxes its box over
-    /// the substep meets to `found`, each pair once; returns whether a bucket held more than
-    /// [`MAX_CANDIDATES`](super::MAX_CANDIDATES) of them, or the box was wider than
-    /// [`MAX_SPAN`] cells. The boxes are those the points' corrections left; the buckets are
-    /// those of before them, so an edge those corrections moved out of the cells it was entered
-    /// in is not met there.
-    pub(super) fn edge_contacts(&self, e: usize, bodies: &[ContactBody<'_>], found: &mut Vec<Contact>) -> bool {
-        let (_, [a, b]) = self.edges[e];
-        let ends = [a, b].map(|k| Vec3A::from(self.x[k as usize]));
-        let starts = [a, b].map(|k| Vec3A::from(self.prev[k as usize]));
-        let lo = ends[0].min(ends[1]).min(starts[0].min(starts[1]));
-        let hi = ends[0].max(ends[1]).max(starts[0].max(starts[1]));
-        let first = self.triangles.len() as u32;
-        let later = first + e as u32 + 1..first + self.edges.len() as u32;
-        self.grid.visit(lo, hi, MAX_SPAN, later, |f| found.extend(self.edge_contact(bodies, e, (f - first) as usize)))
+    /// Adds the contacts of the edges triangle `t` stands for with those triangle `u` stands
+    /// for to `found`.
+    pub(super) fn edge_contacts(&self, (t, u): (u32, u32), bodies: &[ContactBody<'_>], found: &mut Vec<Contact>) {
+        let ours = self.tree.edges[t as usize].into_iter().take_while(|&e| e != u32::MAX);
+        for e in ours {
+            for f in self.tree.edges[u as usize].into_iter().take_while(|&f| f != u32::MAX) {
+                found.extend(self.edge_contact(bodies, e as usize, f as usize));
+            }
+        }
     }
 
     /// The contact of edge `e` with edge `f`, if they share no particle, lay no closer than the
@@ -43,7 +37,7 @@ impl ContactSolver {
         let ids = [a0, a1, b0, b1];
         let [p0, p1, q0, q1] = ids.map(|k| self.x[k as usize]);
         let [r0, r1, s0, s1] = ids.map(|k| self.prev[k as usize]);
-        // Their boxes over the substep within the pair's thickness of each other (the grid's
+        // Their boxes over the substep within the pair's thickness of each other (the search's
         // test grew them by the largest).
         let (e_lo, e_hi) = (p0.min(p1).min(r0.min(r1)), p0.max(p1).max(r0.max(r1)));
         let (f_lo, f_hi) = (q0.min(q1).min(s0.min(s1)), q0.max(q1).max(s0.max(s1)));

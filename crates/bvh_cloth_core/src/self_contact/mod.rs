@@ -14,26 +14,47 @@
 //!
 //! # Finding the pairs
 //!
-//! A hashed grid of the primitives (the triangles, then the edges), rebuilt each substep
-//! (Teschner et al. 2003, "Optimized spatial hashing for collision detection of deformable
-//! objects"): cells twice as wide as the largest thickness plus the mean edge, and
-//! every primitive entered in each cell its box over the substep (where its corners were at the
-//! start and are now), grown by the thickness, overlaps (one to eight cells for most). A point
-//! whose path over the substep came within the thickness of a triangle, or went through it, met
-//! that box, so the triangle is in the bucket of a cell the point's path overlaps: a point looks
-//! in the buckets of those cells (one for most, at most [`MAX_PATH_SPAN`] along an axis), and
-//! takes a triangle only in the first cell that both cover, so that it meets each triangle once.
-//! An edge looks the same way, with its own box over the substep, for the edges after it, so
-//! that it meets each pair once. Each cell is hashed into a table of about twice as many buckets
-//! as primitives, and a counting sort lays the entries out bucket by bucket: one pass to count,
-//! a prefix sum, one pass to place. The same layout is what a GPU builds with atomics; it needs
-//! no pointers and no allocation per cell. Two cells that hash to one bucket only add
-//! candidates, which the box test drops. On the CPU the sort takes the primitives in four runs,
-//! counted and placed in parallel, each run after the earlier ones in every bucket, so the
-//! buckets are the same whatever the threads and hold their primitives in increasing order (a
-//! search finds the triangles or the later edges of a bucket by bisection); each entry's box is
-//! copied beside it, so that a scan of a bucket, most of the cost, reads the boxes in a row; and
-//! each primitive's first cell is kept from the sort for the once-per-pair test.
+//! On the CPU, each cloth's triangles lie in a binary tree built once from its rest shape (the
+//! triangles halved again and again at the median of their centroids along the longest side
+//! of their box, so that each node is a compact piece of the cloth), refitted each substep:
+//! each node's box over the substep (where its corners were at the start and are now), grown
+//! by half the largest thickness, and the box of its triangles' normals at the start and the
+//! end. The tree is walked for the pairs of triangles whose boxes meet, each pair once, and a
+//! pair of triangles stands for the contacts of their particles and edges: each particle and
+//! each edge is taken by one of its triangles, a point tested against the other triangle of
+//! each pair its own is in, and an edge against the edges of that triangle. A path that came
+//! within the thickness of a triangle, or went through it, at any speed, lies in boxes that
+//! meet.
+//!
+//! Most of a cloth is a gently curved sheet, whose triangles lie within the thickness of their
+//! neighbours and never touch them: the walk skips each part of a cloth whose triangles are
+//! joined through shared corners and whose normals at the substep's start and end all lie
+//! within 45° of one direction ([`FLAT_COS`]), and each two such parts that share a corner and
+//! are flat together. A connected surface whose normals lie within less than 90° of one
+//! direction does not meet itself (Volino and Magnenat-Thalmann 1994, "Efficient
+//! self-collision detection on smoothly discretized surface animations using geometrical shape
+//! regularity"). Within 45° it is a height field no steeper than 45° over the plane across that
+//! direction, so two of its particles lie at least 0.71 times as far apart as along the sheet:
+//! only particles less than 1.41 times the thickness apart along it can come within the
+//! thickness, and those are held apart by the cloth's springs, not by contact, until the part
+//! bends further. (Within 60°, more is skipped and the cost falls further, but a fold of the
+//! core's `fast_folds_keep_off_themselves_with_block_descent`, onto the bunny at 15 m/s, ended
+//! with 42 pairs of its triangles intersecting.)
+//! Each node keeps its box in the rest shape and its particles that also belong to triangles
+//! outside it, sorted, for the test of a shared corner. On the report's cloth of 128 x 128
+//! draped on the bunny, the walk hands about 30,000 to 36,000 pairs of its 32,258 triangles a
+//! substep to the tests below, where the hashed grid that follows hands them about 200,000
+//! point–triangle and 580,000 edge–edge candidates (counts of that scene in a scratch build).
+//!
+//! The GPU backend finds its pairs in a hashed grid of the primitives (the triangles, then the
+//! edges), rebuilt each substep (Teschner et al. 2003, "Optimized spatial hashing for
+//! collision detection of deformable objects"): cells twice as wide as the largest thickness
+//! plus the mean edge, every primitive entered in each cell its box over the substep, grown by
+//! the thickness, overlaps, and a point (an edge) looking in the buckets of the cells its path
+//! (its box over the substep) overlaps for the triangles (the later edges), taking each only
+//! in the first cell that both cover. It skips no flat part: within one, it holds apart the
+//! particles less than 1.41 times the thickness apart along the sheet that come within the
+//! thickness, which the CPU leaves to the springs.
 //!
 //! Within a cloth a point and a triangle are skipped when the point is a corner of the
 //! triangle, or lies within the thickness of the triangle's box in the rest shape, and two
@@ -43,11 +64,12 @@
 //!
 //! # Bounds
 //!
-//! A point examines at most [`MAX_CANDIDATES`] triangles of a bucket and an edge as many edges,
-//! a point's path at most [`MAX_PATH_SPAN`] cells and a triangle's or an edge's box at most
-//! [`MAX_SPAN`] cells along an axis. Everything at one point (a cloth collapsed by an absurd
-//! force) costs a bounded amount per particle, not the square of the count; what met a bound is
-//! counted in [`ContactStats::clamped`] and [`ContactStats::clamped_edges`], never silently.
+//! The CPU's walk tests at most [`MAX_TESTS_PER_TRIANGLE`] pairs of nodes per triangle, and
+//! stops there: everything at one point (a cloth collapsed by an absurd force) costs a bounded
+//! amount per triangle, not the square of the count, and the node pairs left are counted in
+//! [`ContactStats::clamped`], never silently. The GPU's grid examines at most
+//! [`MAX_CANDIDATES`] primitives of a bucket, a point's path at most [`MAX_PATH_SPAN`] cells and
+//! a triangle's or an edge's box at most [`MAX_SPAN`] cells along an axis.
 //!
 //! # Response
 //!
@@ -92,8 +114,8 @@
 //! Contact keeps each particle on the side it came from, so two cloths that start crossed (or
 //! that something forced through each other), or a cloth through itself (a pin dragged through
 //! it), would be held as they are. Before the contacts of each substep, the triangles are
-//! tested against each other at the substep's start (the grid's triangles, each pair once, by
-//! an exact triangle–triangle test): those of every two bodies, and those of one body that
+//! tested against each other at the substep's start (the pairs the search found, each once, by
+//! an exact triangle–triangle test; a flat part does not meet itself): those of every two bodies, and those of one body that
 //! share no corner and lie farther apart than its thickness in the rest shape (the pairs its
 //! contacts test). A global intersection analysis after Baraff, Witkin and Kass 2003,
 //! "Untangling Cloth", finds which particles lie through what:
@@ -130,17 +152,20 @@
 //!
 //! # Limits
 //!
-//! A point is caught going through a triangle, and an edge through an edge, at any speed up to
-//! a path of [`MAX_PATH_SPAN`] cells a substep (an edge's box [`MAX_SPAN`] cells). The
-//! crossings are found with the triangle's plane and the edges' lines taken as they move
-//! linearly, not by the exact cubic of continuous collision detection. The edges' search looks
-//! in the buckets the primitives were entered in before the points' corrections, with their
-//! boxes as those corrections left them: an edge the corrections moved out of the cells it was
-//! entered in is not met in them.
+//! On the CPU, a point is caught going through a triangle, and an edge through an edge, at any
+//! speed; on the GPU, up to a path of [`MAX_PATH_SPAN`] cells a substep (an edge's box
+//! [`MAX_SPAN`] cells). The crossings are found with the triangle's plane and the edges' lines
+//! taken as they move linearly, not by the exact cubic of continuous collision detection, and
+//! a part of a cloth is taken as flat from its normals at the substep's start and end, not in
+//! between. The flat test does not look at the part's border: a sheet wound over itself like
+//! a flattened cone, its normals all within 45° of one direction, is not caught. The edges'
+//! contacts are looked for among the pairs found before the points' corrections (on the GPU,
+//! in the buckets of before them): an edge those corrections moved near another that was not
+//! near it is not met.
 
 mod edge_edge;
-mod grid;
 mod point_triangle;
+mod tree;
 mod untangle;
 
 #[cfg(feature = "bevy_reflect")]
@@ -153,19 +178,23 @@ use crate::cloth::grid::SpringKind;
 use crate::cloth::topology::ClothTopology;
 use crate::colliders::collision::ColliderFrame;
 use crate::colliders::layers::CollisionLayers;
-use grid::HashedGrid;
+use tree::SurfaceTree;
 
-/// Most triangles one particle examines in one grid cell's bucket for contact in a substep.
+pub use tree::{FLAT_COS, MAX_TESTS_PER_TRIANGLE};
+
+/// Most triangles one particle examines in one grid cell's bucket for contact in a substep, on
+/// the GPU backend's grid (see the [module docs](self)).
 pub const MAX_CANDIDATES: usize = 256;
 
-/// Most grid cells a triangle covers along an axis; a wider one (stretched far beyond the
-/// others) is entered in the first `MAX_SPAN³` of its cells and counted as clamped.
+/// Most cells of the GPU backend's grid a triangle covers along an axis; a wider one (stretched
+/// far beyond the others) is entered in the first `MAX_SPAN³` of its cells and counted as
+/// clamped.
 pub const MAX_SPAN: i32 = 4;
 
-/// Most grid cells a particle's path over a substep is looked along, along an axis: a path
-/// longer than a cell (twice the thickness and the mean edge: 48 mm, 46 m/s at Looper 16 for
-/// the 64 x 64 cloth of 1 m at 8 mm) is looked along for its first two cells and counted as
-/// clamped.
+/// Most cells of the GPU backend's grid a particle's path over a substep is looked along, along
+/// an axis: a path longer than a cell (twice the thickness and the mean edge: 48 mm, 46 m/s at
+/// Looper 16 for the 64 x 64 cloth of 1 m at 8 mm) is looked along for its first two cells and
+/// counted as clamped.
 pub const MAX_PATH_SPAN: i32 = 2;
 
 /// Most a contact's correction is scaled up when held particles take no part of it: the free
@@ -281,20 +310,16 @@ pub struct ContactStats {
     /// (the point and the triangle's corners, or the two edges' ends). A pinned particle is
     /// never moved by contact.
     pub contacts: usize,
-    /// Points that had more than [`MAX_CANDIDATES`] candidate triangles or a path wider than
-    /// [`MAX_PATH_SPAN`] cells (some left unexamined), and triangles and edges wider than
-    /// [`MAX_SPAN`] cells.
+    /// The pairs of nodes of the triangles' tree left untested when the walk reached its
+    /// bound ([`MAX_TESTS_PER_TRIANGLE`] per triangle): 0 when every pair was looked at.
     pub clamped: usize,
-    /// Edges that had more than [`MAX_CANDIDATES`] candidate edges in a bucket, or a box
-    /// wider than [`MAX_SPAN`] cells.
-    pub clamped_edges: usize,
     /// Particles that lay on the wrong side of another cloth, or of another sheet of their own
     /// cloth, at the substep's start (cloth that already crossed), whose contacts with it took
     /// them back through.
     pub wrong_side: usize,
 }
 
-/// The grid and the scratch of contact resolution, kept between substeps.
+/// The triangles' tree and the scratch of contact resolution, kept between substeps.
 #[derive(Clone, Debug, Default)]
 pub struct ContactSolver {
     prev: Vec<Vec3>,
@@ -309,13 +334,13 @@ pub struct ContactSolver {
     triangles: Vec<(u32, [u32; 3])>,
     /// Every body's edges: its body and its ends' flat indices.
     edges: Vec<(u32, [u32; 2])>,
-    /// Each primitive's box over the substep, grown by the largest thickness, and its box in
-    /// the rest shape: the triangles', then the edges' (primitive `triangles.len() + e` is
-    /// edge `e`).
-    boxes: Vec<[Vec3A; 2]>,
+    /// Each primitive's box in the rest shape: the triangles', then the edges' (primitive
+    /// `triangles.len() + e` is edge `e`).
     rest_boxes: Vec<[Vec3A; 2]>,
-    /// The primitives sorted by the cells their boxes overlap.
-    grid: HashedGrid,
+    /// The bodies' triangles in a tree, refitted each substep.
+    tree: SurfaceTree,
+    /// The pairs of triangles the tree found this substep.
+    pairs: Vec<(u32, u32)>,
     /// For each particle, the label (in `sheet`) of the other body or sheet it lies on the
     /// wrong side of at the substep's start (`untangle::NO_BODY` for none): its contacts with
     /// that body or sheet take it back through.
@@ -360,60 +385,58 @@ impl ContactSolver {
     /// across bodies), as the [module docs](self) say, then checks the particles that moved
     /// against `frames` from where they were. `bodies` are written in place.
     pub fn resolve(&mut self, bodies: &mut [ContactBody<'_>], frames: &[ColliderFrame<'_>]) -> ContactStats {
-        let mean_edge = self.gather(bodies);
+        self.gather(bodies);
         let n = self.x.len();
         let thickest = bodies.iter().map(|b| b.contact.thickness).fold(0.0f32, f32::max);
-        // Twice a grown triangle's typical width: most triangles fall in one to eight cells.
-        let cell = 2.0 * (thickest + mean_edge);
-        if n < 2 || self.triangles.is_empty() || !(cell.is_finite() && thickest > 0.0) {
+        if n < 2 || self.triangles.is_empty() || !(thickest.is_finite() && thickest > 0.0) {
             return ContactStats::default();
         }
-        self.grown_boxes(thickest);
-        let mut stats = ContactStats { clamped: self.grid.build(&self.boxes, cell), ..Default::default() };
-        stats.wrong_side = self.find_wrong_sides(bodies);
+        let topologies: Vec<&ClothTopology> = bodies.iter().map(|b| b.topology).collect();
+        self.tree.prepare(&topologies);
+        self.tree.refit(&self.triangles, &self.prev, &self.x, 0.5 * thickest);
+        let mut pairs = core::mem::take(&mut self.pairs);
+        let meet = |a: usize, b: usize| bodies[a].layers.interacts_with(bodies[b].layers);
+        let mut stats = ContactStats { clamped: self.tree.pairs(meet, &mut pairs), ..Default::default() };
+        stats.wrong_side = self.find_wrong_sides(bodies, &pairs);
         // Points against triangles first, and their corrections made; then edges against
         // edges, from where those left the particles.
-        let found = self.find(bodies, n, |solver, p, bodies, found| solver.point_contacts(p, bodies, found));
-        stats.clamped += self.apply(bodies, frames, &found, &mut stats.contacts);
-        // The edges' boxes as those corrections left them, for the edges' box tests.
-        self.grown_boxes(thickest);
-        self.grid.refresh(&self.boxes);
-        let found =
-            self.find(bodies, self.edges.len(), |solver, e, bodies, found| solver.edge_contacts(e, bodies, found));
-        stats.clamped_edges = self.apply(bodies, frames, &found, &mut stats.contacts);
+        let found = self.find(bodies, &pairs, |solver, pair, bodies, found| solver.point_contacts(pair, bodies, found));
+        self.apply(bodies, frames, &found, &mut stats.contacts);
+        let found = self.find(bodies, &pairs, |solver, pair, bodies, found| solver.edge_contacts(pair, bodies, found));
+        self.apply(bodies, frames, &found, &mut stats.contacts);
+        self.pairs = pairs;
         stats
     }
 
-    /// The contacts `each` finds for every index below `count`, in index order whatever the
-    /// threads, in runs, each with how many of its searches met a bound.
+    /// The contacts `each` finds for every pair of triangles in `pairs`, in their order
+    /// whatever the threads, in runs.
     fn find(
         &self,
         bodies: &[ContactBody<'_>],
-        count: usize,
-        each: impl Fn(&Self, usize, &[ContactBody<'_>], &mut Vec<Contact>) -> bool + Sync,
-    ) -> Vec<(Vec<Contact>, usize)> {
-        let fold = |(mut found, mut clamped): (Vec<Contact>, usize), k: usize| {
-            clamped += usize::from(each(self, k, bodies, &mut found));
-            (found, clamped)
+        pairs: &[(u32, u32)],
+        each: impl Fn(&Self, (u32, u32), &[ContactBody<'_>], &mut Vec<Contact>) + Sync,
+    ) -> Vec<Vec<Contact>> {
+        let fold = |mut found: Vec<Contact>, &pair: &(u32, u32)| {
+            each(self, pair, bodies, &mut found);
+            found
         };
-        if count >= PARALLEL_MIN {
-            (0..count).into_par_iter().fold(|| (Vec::new(), 0), fold).collect()
+        if pairs.len() >= PARALLEL_MIN {
+            pairs.par_iter().fold(Vec::new, fold).collect()
         } else {
-            vec![(0..count).fold((Vec::new(), 0), fold)]
+            vec![pairs.iter().fold(Vec::new(), fold)]
         }
     }
 
     /// Moves every particle in `found`'s contacts by the mean of its corrections, checks it
     /// against the colliders from where it was, and writes it to its body and to the flat
-    /// arrays; adds the particles' contacts to `contacts` and returns how many searches met a
-    /// bound.
+    /// arrays; adds the particles' contacts to `contacts`.
     fn apply(
         &mut self,
         bodies: &mut [ContactBody<'_>],
         frames: &[ColliderFrame<'_>],
-        found: &[(Vec<Contact>, usize)],
+        found: &[Vec<Contact>],
         contacts: &mut usize,
-    ) -> usize {
+    ) {
         let n = self.x.len();
         self.dx.clear();
         self.dx.resize(n, Vec3::ZERO);
@@ -421,9 +444,7 @@ impl ContactSolver {
         self.dv.resize(n, Vec3::ZERO);
         self.count.clear();
         self.count.resize(n, 0);
-        let mut clamped = 0;
-        for (found, bounded) in found {
-            clamped += bounded;
+        for found in found {
             for c in found {
                 for ((&k, &coef), &w) in c.ids.iter().zip(&c.coef).zip(&c.w) {
                     let k = k as usize;
@@ -451,7 +472,6 @@ impl ContactSolver {
             (body.x[local as usize], body.v[local as usize]) = (p, vel);
             (self.x[k], self.v[k]) = (p, vel);
         }
-        clamped
     }
 
     /// The contact of the particles `ids` whose constraint is `Σ coef_k x_k · n >= h`, short
@@ -491,9 +511,8 @@ impl ContactSolver {
         Some(Contact { ids, coef, n, lambda: depth / denom * scale, impulse, w })
     }
 
-    /// Copies every body's particles, triangles and edges into the flat arrays; returns the mean edge
-    /// length of the triangles as the particles stand.
-    fn gather(&mut self, bodies: &[ContactBody<'_>]) -> f32 {
+    /// Copies every body's particles, triangles and edges into the flat arrays.
+    fn gather(&mut self, bodies: &[ContactBody<'_>]) {
         self.prev.clear();
         self.x.clear();
         self.v.clear();
@@ -503,7 +522,6 @@ impl ContactSolver {
         self.triangles.clear();
         self.edges.clear();
         self.rest_boxes.clear();
-        let (mut sum, mut edges) = (0.0f64, 0usize);
         for (b, body) in bodies.iter().enumerate() {
             let n = body.topology.len();
             assert!(
@@ -518,12 +536,6 @@ impl ContactSolver {
             self.held.extend((0..n).map(|i| body.held.get(i).copied().unwrap_or(0.0)));
             self.owner.extend((0..n as u32).map(|i| (b as u32, i)));
             for t in body.topology.triangles() {
-                let [a, b2, c] = t.map(|k| body.x[k as usize]);
-                let perimeter = a.distance(b2) + b2.distance(c) + c.distance(a);
-                if perimeter.is_finite() {
-                    sum += f64::from(perimeter);
-                    edges += 3;
-                }
                 self.triangles.push((b as u32, t.map(|k| first + k)));
                 let [ra, rb, rc] = t.map(|k| body.topology.rest_positions()[k as usize]);
                 self.rest_boxes.push([ra.min(rb).min(rc).into(), ra.max(rb).max(rc).into()]);
@@ -539,31 +551,6 @@ impl ContactSolver {
                 self.rest_boxes.push([rp.min(rq).into(), rp.max(rq).into()]);
             }
             first += body.topology.len() as u32;
-        }
-        if edges == 0 { 0.0 } else { (sum / edges as f64) as f32 }
-    }
-
-    /// Each primitive's box over the substep (where its corners were at its start and are
-    /// now), grown by `grow`: the triangles', then the edges'.
-    fn grown_boxes(&mut self, grow: f32) {
-        let (x, prev) = (&self.x, &self.prev);
-        let box_of = |corners: &[u32]| {
-            let (mut lo, mut hi) = (Vec3::INFINITY, Vec3::NEG_INFINITY);
-            for &k in corners {
-                let (a, b) = (x[k as usize], prev[k as usize]);
-                (lo, hi) = (lo.min(a.min(b)), hi.max(a.max(b)));
-            }
-            [Vec3A::from(lo - grow), Vec3A::from(hi + grow)]
-        };
-        self.boxes.clear();
-        if self.triangles.len() >= PARALLEL_MIN {
-            self.triangles.par_iter().map(|(_, c)| box_of(c)).collect_into_vec(&mut self.boxes);
-            let mut edges = Vec::new();
-            self.edges.par_iter().map(|(_, c)| box_of(c)).collect_into_vec(&mut edges);
-            self.boxes.append(&mut edges);
-        } else {
-            self.boxes.extend(self.triangles.iter().map(|(_, c)| box_of(c)));
-            self.boxes.extend(self.edges.iter().map(|(_, c)| box_of(c)));
         }
     }
 }

@@ -4,22 +4,26 @@
 
 use glam::{Vec3, Vec3A};
 
-use super::{Contact, ContactBody, ContactSolver, MAX_PATH_SPAN};
+use super::{Contact, ContactBody, ContactSolver};
 use crate::mesh::triangles::{closest_point, face_normal};
 
 impl ContactSolver {
-    /// Adds the contacts of point `p` with the triangles in the buckets of the cells its path
-    /// over the substep overlaps to `found`, each triangle once; returns whether a bucket held
-    /// more than [`MAX_CANDIDATES`](super::MAX_CANDIDATES) of them, or the path was wider than [`MAX_PATH_SPAN`]
-    /// cells.
-    pub(super) fn point_contacts(&self, p: usize, bodies: &[ContactBody<'_>], found: &mut Vec<Contact>) -> bool {
-        let (x, prev) = (Vec3A::from(self.x[p]), Vec3A::from(self.prev[p]));
-        let triangles = 0..self.triangles.len() as u32;
-        self.grid
-            .visit(x.min(prev), x.max(prev), MAX_PATH_SPAN, triangles, |t| found.extend(self.contact(bodies, p, t)))
+    /// Adds the contacts of the points each of the triangles `t` and `u` stands for with the
+    /// other triangle to `found`: each point's path over the substep, grown by the thickness,
+    /// must meet the other's box.
+    pub(super) fn point_contacts(&self, (t, u): (u32, u32), bodies: &[ContactBody<'_>], found: &mut Vec<Contact>) {
+        for (from, to) in [(t, u), (u, t)] {
+            let [lo, hi] = self.tree.leaf_box(to);
+            for &p in self.tree.points[from as usize].iter().take_while(|&&p| p != u32::MAX) {
+                let (x, prev) = (Vec3A::from(self.x[p as usize]), Vec3A::from(self.prev[p as usize]));
+                if x.min(prev).cmple(hi).all() && x.max(prev).cmpge(lo).all() {
+                    found.extend(self.contact(bodies, p as usize, to));
+                }
+            }
+        }
     }
 
-    /// The contact of point `p` (flat index) with triangle `t`, whose grown box holds it, if
+    /// The contact of point `p` (flat index) with triangle `t`, whose grown box its path meets, if
     /// the point is closer than the pair's thickness, is not one of its corners, and lay no
     /// closer than that in their rest shape when they are of one body.
     fn contact(&self, bodies: &[ContactBody<'_>], p: usize, t: u32) -> Option<Contact> {

@@ -5,10 +5,9 @@
 
 use std::collections::{BTreeSet, HashMap};
 
-use glam::Vec3A;
 use rayon::prelude::*;
 
-use super::{ContactBody, ContactSolver, MAX_SPAN};
+use super::{ContactBody, ContactSolver};
 use crate::cloth::topology::ClothTopology;
 use crate::mesh::triangles::triangles_intersect;
 
@@ -17,7 +16,7 @@ pub(super) const NO_BODY: u32 = u32::MAX;
 
 /// Resolutions between two tests for crossing cloth while none crosses: a tick at Looper 16,
 /// so that cloth something forces through itself or another is found within a tick, and the
-/// test costs a sixteenth of a pass of the grid where nothing crosses.
+/// test costs a sixteenth of a test of the pairs the search found where nothing crosses.
 pub(super) const UNTANGLE_EVERY: u32 = 16;
 
 /// A triangle in no part or ring (the floods' mark).
@@ -40,7 +39,7 @@ impl ContactSolver {
     /// where only an edge of each passes through the other), nothing is marked. Within one
     /// body, see [`Self::self_crossings`]. After a test that finds nothing crossing, the next
     /// [`UNTANGLE_EVERY`] - 1 resolutions skip it.
-    pub(super) fn find_wrong_sides(&mut self, bodies: &[ContactBody<'_>]) -> usize {
+    pub(super) fn find_wrong_sides(&mut self, bodies: &[ContactBody<'_>], near: &[(u32, u32)]) -> usize {
         self.wrong_side.clear();
         self.wrong_side.resize(self.x.len(), NO_BODY);
         self.tangled = false;
@@ -48,36 +47,28 @@ impl ContactSolver {
             self.untangle_wait -= 1;
             return 0;
         }
-        let count = self.triangles.len() as u32;
         let corners = |t: u32| self.triangles[t as usize].1.map(|k| self.prev[k as usize]);
-        // Every pair of triangles that meet each other, once: of two bodies whose layers meet,
-        // or of one body sharing no corner and lying farther apart than its thickness in the
-        // rest shape (the pairs its contacts test).
-        let pairs: Vec<(u32, u32)> = (0..count)
-            .into_par_iter()
-            .flat_map_iter(|t| {
-                let (tb, tc) = self.triangles[t as usize];
-                let at = corners(t);
-                let lo = Vec3A::from(at[0].min(at[1]).min(at[2]));
-                let hi = Vec3A::from(at[0].max(at[1]).max(at[2]));
-                let mut met = Vec::new();
-                self.grid.visit(lo, hi, MAX_SPAN, t + 1..count, |u| {
-                    let (ub, uc) = self.triangles[u as usize];
-                    let tested = if ub == tb {
-                        let h = bodies[tb as usize].contact.thickness;
-                        let ([t_lo, t_hi], [u_lo, u_hi]) = (self.rest_boxes[t as usize], self.rest_boxes[u as usize]);
-                        let neighbours = (t_lo - h).cmple(u_hi).all() && (t_hi + h).cmpge(u_lo).all();
-                        !(neighbours || tc.iter().any(|k| uc.contains(k)))
-                    } else {
-                        bodies[tb as usize].layers.interacts_with(bodies[ub as usize].layers)
-                    };
-                    if tested && triangles_intersect(at, corners(u)) {
-                        met.push((t, u));
-                    }
-                });
-                met
-            })
-            .collect();
+        // Every pair of triangles that meet each other, once, among those whose boxes over the
+        // substep meet: of two bodies whose layers meet, or of one body sharing no corner and
+        // lying farther apart than its thickness in the rest shape (the pairs its contacts
+        // test).
+        let meets = |&(t, u): &(u32, u32)| {
+            let ((tb, tc), (ub, uc)) = (self.triangles[t as usize], self.triangles[u as usize]);
+            let tested = if ub == tb {
+                let h = bodies[tb as usize].contact.thickness;
+                let ([t_lo, t_hi], [u_lo, u_hi]) = (self.rest_boxes[t as usize], self.rest_boxes[u as usize]);
+                let neighbours = (t_lo - h).cmple(u_hi).all() && (t_hi + h).cmpge(u_lo).all();
+                !(neighbours || tc.iter().any(|k| uc.contains(k)))
+            } else {
+                bodies[tb as usize].layers.interacts_with(bodies[ub as usize].layers)
+            };
+            tested && triangles_intersect(corners(t), corners(u))
+        };
+        let pairs: Vec<(u32, u32)> = if near.len() >= super::PARALLEL_MIN {
+            near.par_iter().copied().filter(meets).collect()
+        } else {
+            near.iter().copied().filter(meets).collect()
+        };
         if pairs.is_empty() {
             self.untangle_wait = UNTANGLE_EVERY - 1;
             return 0;

@@ -1,0 +1,375 @@
+//! The pairs of triangles that may touch: each body's triangles in a binary tree built once
+//! from its rest shape, its boxes and normal bounds refitted each substep, and walked for the
+//! pairs of triangles whose boxes over the substep meet, skipping every part of a body that is
+//! flat enough not to touch itself. See the [module docs](super).
+
+use glam::{Vec3, Vec3A};
+
+use crate::cloth::topology::ClothTopology;
+use crate::mesh::triangles::face_normal;
+
+/// Most node pairs the walk tests, per triangle of the bodies: a walk that reaches it stops
+/// (everything at one point would otherwise cost the square of the triangle count).
+pub const MAX_TESTS_PER_TRIANGLE: usize = 256;
+
+/// The least cosine between every normal of a part of a cloth (at the substep's start and
+/// end) and one direction for the part to be taken as flat, and skipped by self-contact's
+/// search on the CPU: 45°. See the [module docs](super).
+pub const FLAT_COS: f32 = core::f32::consts::FRAC_1_SQRT_2;
+
+/// No child: the node is a leaf.
+const LEAF: u32 = u32::MAX;
+
+/// A node of the tree, in depth-first order: a leaf's triangle, or an inner node whose left
+/// child is the next node and whose right child is `right`.
+#[derive(Clone, Copy, Debug)]
+struct Node {
+    /// The right child, or [`LEAF`].
+    right: u32,
+    /// A leaf's triangle (its index among every body's triangles), or an inner node's count
+    /// of triangles.
+    item: u32,
+    /// The node's body.
+    body: u32,
+    /// Its particles that also belong to triangles outside it (local to its body, in
+    /// increasing order): where it and a node beside it share a corner. Start and length in
+    /// [`SurfaceTree::border`].
+    border: (u32, u32),
+    /// Whether the node's triangles are joined to each other through shared corners: only
+    /// such a part is skipped for being flat.
+    connected: bool,
+    /// The box of its triangles in the rest shape: two nodes whose boxes there lie apart share
+    /// no corner.
+    rest: [Vec3A; 2],
+}
+
+/// The tree of every body's triangles, and what each triangle stands for in the pairs.
+#[derive(Clone, Debug, Default)]
+pub(super) struct SurfaceTree {
+    /// The triangles each body's tree was built for: a body whose triangles differ gets its
+    /// tree built again.
+    built_for: Vec<Vec<[u32; 3]>>,
+    nodes: Vec<Node>,
+    /// The nodes' border particles.
+    border: Vec<u32>,
+    /// Each body's root ([`LEAF`] for a body without triangles).
+    roots: Vec<u32>,
+    /// Each node's box over the substep, grown by half the largest thickness (two boxes meet
+    /// where their triangles come within the thickness), and the box of its triangles'
+    /// normals at the substep's start and end.
+    boxes: Vec<[Vec3A; 2]>,
+    normals: Vec<[Vec3A; 2]>,
+    /// What the boxes were grown by.
+    grow: f32,
+    /// Each triangle's leaf.
+    leaves: Vec<u32>,
+    /// The particles (flat indices) and the edges (indices among every body's edges) each
+    /// triangle stands for in a pair, each particle and edge by exactly one of its triangles;
+    /// `u32::MAX` for none.
+    pub(super) points: Vec<[u32; 3]>,
+    pub(super) edges: Vec<[u32; 3]>,
+}
+
+impl SurfaceTree {
+    /// Builds the tree again for the bodies whose triangles changed (`topologies`, in body
+    /// order; their triangles come first to last in the flat triangle order, and their
+    /// particles and edges likewise).
+    pub(super) fn prepare(&mut self, topologies: &[&ClothTopology]) {
+        let same = self.built_for.len() == topologies.len()
+            && self.built_for.iter().zip(topologies).all(|(t, topology)| t[..] == *topology.triangles());
+        if same {
+            return;
+        }
+        self.built_for = topologies.iter().map(|t| t.triangles().to_vec()).collect();
+        self.nodes.clear();
+        self.border.clear();
+        self.roots.clear();
+        self.points.clear();
+        self.edges.clear();
+        self.leaves.clear();
+        let (mut first_triangle, mut first_particle, mut first_edge) = (0u32, 0u32, 0u32);
+        for (body, topology) in topologies.iter().enumerate() {
+            let triangles = topology.triangles();
+            if triangles.is_empty() {
+                self.roots.push(LEAF);
+            } else {
+                self.roots.push(self.nodes.len() as u32);
+                build(topology, body as u32, first_triangle, &mut self.nodes, &mut self.border);
+            }
+            let start = self.points.len();
+            self.points.resize(start + triangles.len(), [u32::MAX; 3]);
+            self.edges.resize(start + triangles.len(), [u32::MAX; 3]);
+            // Each particle with its first triangle, each edge with the first triangle of its
+            // first end that holds its other end.
+            let (offsets, list) = (topology.triangle_offsets(), topology.triangle_list());
+            for k in 0..topology.len() {
+                if let Some(&t) = list.get(offsets[k] as usize..offsets[k + 1] as usize).and_then(|l| l.first()) {
+                    let slot = &mut self.points[start + t as usize];
+                    slot[slot.iter().position(|&s| s == u32::MAX).expect("three corners")] = first_particle + k as u32;
+                }
+            }
+            for (e, &[p, q]) in topology.edges().iter().enumerate() {
+                let of_p = &list[offsets[p as usize] as usize..offsets[p as usize + 1] as usize];
+                if let Some(&t) = of_p.iter().find(|&&t| triangles[t as usize].contains(&q)) {
+                    let slot = &mut self.edges[start + t as usize];
+                    slot[slot.iter().position(|&s| s == u32::MAX).expect("three edges")] = first_edge + e as u32;
+                }
+            }
+            first_triangle += triangles.len() as u32;
+            self.leaves.resize(first_triangle as usize, 0);
+            first_particle += topology.len() as u32;
+            first_edge += topology.edges().len() as u32;
+        }
+        for (i, node) in self.nodes.iter().enumerate() {
+            if node.right == LEAF {
+                self.leaves[node.item as usize] = i as u32;
+            }
+        }
+    }
+
+    /// Each node's box over the substep (its triangles' corners at the substep's start,
+    /// `prev`, and end, `x`), grown by `grow`, and the box of its triangles' normals then and
+    /// now. A triangle with a corner that is not finite has an empty box (it meets nothing);
+    /// one without area, a box of every normal (never flat).
+    pub(super) fn refit(&mut self, triangles: &[(u32, [u32; 3])], prev: &[Vec3], x: &[Vec3], grow: f32) {
+        self.grow = grow;
+        let count = self.nodes.len();
+        self.boxes.resize(count, [Vec3A::ZERO; 2]);
+        self.normals.resize(count, [Vec3A::ZERO; 2]);
+        let empty = [Vec3A::INFINITY, Vec3A::NEG_INFINITY];
+        for i in (0..count).rev() {
+            let node = self.nodes[i];
+            if node.right == LEAF {
+                let corners = triangles[node.item as usize].1;
+                let (before, now) = (corners.map(|k| prev[k as usize]), corners.map(|k| x[k as usize]));
+                let (lo, hi) = before
+                    .iter()
+                    .chain(&now)
+                    .fold((Vec3::INFINITY, Vec3::NEG_INFINITY), |(lo, hi), &p| (lo.min(p), hi.max(p)));
+                self.boxes[i] = if lo.is_finite() && hi.is_finite() {
+                    [Vec3A::from(lo - grow), Vec3A::from(hi + grow)]
+                } else {
+                    empty
+                };
+                self.normals[i] = match (face_normal(before), face_normal(now)) {
+                    (Some(a), Some(b)) => [Vec3A::from(a.min(b)), Vec3A::from(a.max(b))],
+                    _ => [Vec3A::NEG_ONE, Vec3A::ONE],
+                };
+            } else {
+                let (l, r) = (i + 1, node.right as usize);
+                self.boxes[i] = [self.boxes[l][0].min(self.boxes[r][0]), self.boxes[l][1].max(self.boxes[r][1])];
+                self.normals[i] =
+                    [self.normals[l][0].min(self.normals[r][0]), self.normals[l][1].max(self.normals[r][1])];
+            }
+        }
+    }
+
+    /// The box of triangle `t` over the substep grown by the largest thickness: what a point's
+    /// path meets where it comes within the thickness of the triangle.
+    pub(super) fn leaf_box(&self, t: u32) -> [Vec3A; 2] {
+        let [lo, hi] = self.boxes[self.leaves[t as usize] as usize];
+        [lo - self.grow, hi + self.grow]
+    }
+
+    /// Every pair of triangles (indices among every body's triangles) whose boxes over the
+    /// substep meet, each pair once, in an order that depends on the positions alone: within
+    /// each body, less those in a part of it that is flat ([`Self::flat`]); and between every
+    /// two bodies for which `meet(a, b)` holds. Writes them to `pairs`; returns how many node
+    /// pairs were left untested when the walk reached its bound
+    /// ([`MAX_TESTS_PER_TRIANGLE`] a triangle), 0 when none.
+    pub(super) fn pairs(&self, meet: impl Fn(usize, usize) -> bool, pairs: &mut Vec<(u32, u32)>) -> usize {
+        pairs.clear();
+        let triangles = self.points.len();
+        let mut budget = MAX_TESTS_PER_TRIANGLE * triangles;
+        let mut stack: Vec<(u32, u32)> = Vec::new();
+        // A task (a, a) is a node against itself; (a, b) two nodes.
+        for (body, &root) in self.roots.iter().enumerate().filter(|(_, r)| **r != LEAF) {
+            for (other_body, &other) in self.roots.iter().enumerate().skip(body + 1).rev() {
+                if other != LEAF && meet(body, other_body) {
+                    stack.push((root, other));
+                }
+            }
+            stack.push((root, root));
+            while let Some((a, b)) = stack.pop() {
+                if budget == 0 {
+                    return stack.len() + 1;
+                }
+                budget -= 1;
+                let (na, nb) = (self.nodes[a as usize], self.nodes[b as usize]);
+                if a == b {
+                    if na.right == LEAF || (na.connected && self.flat(a as usize)) {
+                        continue;
+                    }
+                    let (l, r) = (a + 1, na.right);
+                    stack.extend([(l, r), (r, r), (l, l)]);
+                    continue;
+                }
+                let ([a_lo, a_hi], [b_lo, b_hi]) = (self.boxes[a as usize], self.boxes[b as usize]);
+                if !(a_lo.cmple(b_hi).all() && a_hi.cmpge(b_lo).all()) || self.flat_together(na, nb, a, b) {
+                    continue;
+                }
+                match (na.right == LEAF, nb.right == LEAF) {
+                    (true, true) => pairs.push((na.item, nb.item)),
+                    // The larger node is split.
+                    (true, false) => stack.extend([(a, nb.right), (a, b + 1)]),
+                    (false, true) => stack.extend([(na.right, b), (a + 1, b)]),
+                    // Both split when of about one size.
+                    (false, false) if nb.item > 2 * na.item => stack.extend([(a, nb.right), (a, b + 1)]),
+                    (false, false) if na.item > 2 * nb.item => stack.extend([(na.right, b), (a + 1, b)]),
+                    (false, false) => {
+                        let (al, ar, bl, br) = (a + 1, na.right, b + 1, nb.right);
+                        stack.extend([(ar, br), (ar, bl), (al, br), (al, bl)]);
+                    }
+                }
+            }
+        }
+        0
+    }
+
+    /// Whether every normal of node `i`'s triangles, at the substep's start and end, lies
+    /// within 45° of one direction (the middle of their box; see the [module docs](super)).
+    /// The box holds every normal, so the least cosine over the box is at most that over the
+    /// normals.
+    fn flat(&self, i: usize) -> bool {
+        flat(self.normals[i])
+    }
+
+    /// Whether the nodes `na` and `nb` (numbered `a` and `b`) form a connected part of one
+    /// body that is flat ([`Self::flat`]): each connected, sharing a corner.
+    fn flat_together(&self, na: Node, nb: Node, a: u32, b: u32) -> bool {
+        let ([a_lo, a_hi], [b_lo, b_hi]) = (self.normals[a as usize], self.normals[b as usize]);
+        na.body == nb.body
+            && na.connected
+            && nb.connected
+            && flat([a_lo.min(b_lo), a_hi.max(b_hi)])
+            && na.rest[0].cmple(nb.rest[1]).all()
+            && nb.rest[0].cmple(na.rest[1]).all()
+            && shares_corner(&self.border, na.border, nb.border)
+    }
+}
+
+/// Whether the normals in the box from `lo` to `hi` all lie within 45° of its middle's
+/// direction, as far as the box tells ([`SurfaceTree::flat`]).
+fn flat([lo, hi]: [Vec3A; 2]) -> bool {
+    let Some(axis) = (0.5 * (lo + hi)).try_normalize() else { return false };
+    (lo * axis).min(hi * axis).element_sum() >= FLAT_COS
+}
+
+/// Appends the tree of `topology`'s triangles (numbered from `first` among every body's; the
+/// body's index is `body`) to `nodes`, and each node's particles on its border to `border`:
+/// the triangles halved again and again at the median of their centroids in the rest shape
+/// along the longest side of their box, so that a node is a compact piece of the surface.
+fn build(topology: &ClothTopology, body: u32, first: u32, nodes: &mut Vec<Node>, border: &mut Vec<u32>) {
+    let (rest, triangles) = (topology.rest_positions(), topology.triangles());
+    let mut order: Vec<(Vec3, u32)> = triangles
+        .iter()
+        .enumerate()
+        .map(|(t, c)| ((rest[c[0] as usize] + rest[c[1] as usize] + rest[c[2] as usize]) / 3.0, t as u32))
+        .collect();
+    let offsets = topology.triangle_offsets();
+    let mut builder = Builder {
+        triangles,
+        rest,
+        valence: offsets.windows(2).map(|w| w[1] - w[0]).collect(),
+        mark: vec![u32::MAX; topology.len()],
+        count: vec![0; topology.len()],
+        body,
+        first,
+        nodes,
+        border,
+    };
+    builder.split(&mut order);
+}
+
+/// The scratch of a body's tree's build.
+struct Builder<'a> {
+    triangles: &'a [[u32; 3]],
+    rest: &'a [Vec3],
+    /// Each particle's count of triangles.
+    valence: Vec<u32>,
+    /// The node that last marked each particle, and how many of its triangles that node holds.
+    mark: Vec<u32>,
+    count: Vec<u32>,
+    body: u32,
+    first: u32,
+    nodes: &'a mut Vec<Node>,
+    border: &'a mut Vec<u32>,
+}
+
+impl Builder<'_> {
+    /// Appends the subtree of the triangles `order` (their rest centroids and local indices);
+    /// returns whether they are connected through shared corners.
+    fn split(&mut self, order: &mut [(Vec3, u32)]) -> bool {
+        let at = self.nodes.len();
+        let border = self.border(at as u32, order);
+        let (rest, body) = (self.rest_box(order), self.body);
+        if let [(_, t)] = order {
+            self.nodes.push(Node { right: LEAF, item: self.first + *t, body, border, connected: true, rest });
+            return true;
+        }
+        let item = order.len() as u32;
+        self.nodes.push(Node { right: 0, item, body, border, connected: false, rest });
+        let (lo, hi) =
+            order.iter().fold((Vec3::INFINITY, Vec3::NEG_INFINITY), |(lo, hi), &(c, _)| (lo.min(c), hi.max(c)));
+        let axis = (hi - lo).max_position();
+        let half = order.len() / 2;
+        order.select_nth_unstable_by(half, |a, b| a.0[axis].total_cmp(&b.0[axis]).then(a.1.cmp(&b.1)));
+        let (left, right) = order.split_at_mut(half);
+        let joined_left = self.split(left);
+        self.nodes[at].right = self.nodes.len() as u32;
+        let joined_right = self.split(right);
+        let (l, r) = (self.nodes[at + 1].border, self.nodes[self.nodes[at].right as usize].border);
+        let connected = joined_left && joined_right && shares_corner(self.border, l, r);
+        self.nodes[at].connected = connected;
+        connected
+    }
+
+    /// The box of the triangles `order` in the rest shape.
+    fn rest_box(&self, order: &[(Vec3, u32)]) -> [Vec3A; 2] {
+        let corners =
+            order.iter().flat_map(|&(_, t)| self.triangles[t as usize]).map(|k| Vec3A::from(self.rest[k as usize]));
+        let (lo, hi) = corners.fold((Vec3A::INFINITY, Vec3A::NEG_INFINITY), |(lo, hi), p| (lo.min(p), hi.max(p)));
+        [lo, hi]
+    }
+
+    /// Appends the particles of the triangles `order` that also belong to other triangles (in
+    /// increasing order) to the border list, marked as node `at`'s; returns where they lie in
+    /// it.
+    fn border(&mut self, at: u32, order: &[(Vec3, u32)]) -> (u32, u32) {
+        for &(_, t) in order {
+            for k in self.triangles[t as usize] {
+                let k = k as usize;
+                if self.mark[k] != at {
+                    (self.mark[k], self.count[k]) = (at, 0);
+                }
+                self.count[k] += 1;
+            }
+        }
+        let start = self.border.len();
+        for &(_, t) in order {
+            for k in self.triangles[t as usize] {
+                // Taken once: its count is cleared once it is listed.
+                if self.count[k as usize] != 0 && self.count[k as usize] < self.valence[k as usize] {
+                    self.border.push(k);
+                }
+                self.count[k as usize] = 0;
+            }
+        }
+        self.border[start..].sort_unstable();
+        (start as u32, (self.border.len() - start) as u32)
+    }
+}
+
+/// Whether the sorted particle lists `a` and `b` (start and length in `border`) share one.
+fn shares_corner(border: &[u32], a: (u32, u32), b: (u32, u32)) -> bool {
+    let list = |(start, len): (u32, u32)| &border[start as usize..(start + len) as usize];
+    let (mut a, mut b) = (list(a), list(b));
+    while let (Some(&x), Some(&y)) = (a.first(), b.first()) {
+        match x.cmp(&y) {
+            core::cmp::Ordering::Less => a = &a[1..],
+            core::cmp::Ordering::Greater => b = &b[1..],
+            core::cmp::Ordering::Equal => return true,
+        }
+    }
+    false
+}
