@@ -58,6 +58,16 @@ impl ContactSolver {
         if !d2.is_finite() {
             return None;
         }
+        // Farther than the thickness now, and on the side of each other they started on: no
+        // contact (below). The normals' lengths leave the sides' signs as they are.
+        if d2 >= h * h {
+            let (before, now) = ((r1 - r0).cross(s1 - s0), (p1 - p0).cross(q1 - q0));
+            let side_now = (p0 - q0).dot(now);
+            let side_now = if before.dot(now) < 0.0 { -side_now } else { side_now };
+            if (r0 - s0).dot(before) * side_now >= 0.0 {
+                return None;
+            }
+        }
         // The sides of each other's lines the edges were on at the start of the substep and are
         // on now, along the lines' common normal (the one now turned to agree with the one
         // before, so that a turn of the edges is not taken for a crossing). Edges that changed

@@ -54,12 +54,17 @@ impl ContactSolver {
         if !d2.is_finite() {
             return None;
         }
+        let before = corners.map(|c| self.prev[c as usize]);
+        // Farther than the thickness now, and on the side of the plane it started on: no
+        // contact (below). The normals' lengths leave the sides' signs as they are.
+        if d2 >= h * h && side_of(self.prev[p], before) * side_of(xp, at) >= 0.0 {
+            return None;
+        }
         // The side of the triangle's plane the point was on at the start of the substep, and is
         // on now. A point that changed sides went through the triangle (or round its edge,
         // closer than the thickness): it goes back to the side it came from, the thickness off
         // the plane.
         let face = face_normal(at);
-        let before = corners.map(|c| self.prev[c as usize]);
         let side_before = face_normal(before).map_or(0.0, |n| (self.prev[p] - before[0]).dot(n));
         // A point on the wrong side of the triangle's body or sheet, or a triangle of the wrong
         // side of the point's, as `untangle` found them: the side to go back to is the other.
@@ -125,6 +130,11 @@ fn crossed(
     }
     let b = barycentric(q, then);
     Some(b[0] * now[0] + b[1] * now[1] + b[2] * now[2])
+}
+
+/// `p`'s side of the plane of the triangle `[a, b, c]`, scaled by twice its area.
+fn side_of(p: Vec3, [a, b, c]: [Vec3; 3]) -> f32 {
+    (b - a).cross(c - a).dot(p - a)
 }
 
 /// The barycentric weights of `q` (a point of the triangle) on the triangle; equal weights for

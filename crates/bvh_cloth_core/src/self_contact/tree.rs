@@ -4,6 +4,7 @@
 //! flat enough not to touch itself. See the [module docs](super).
 
 use glam::{Vec3, Vec3A};
+use rayon::prelude::*;
 
 use crate::cloth::topology::ClothTopology;
 use crate::mesh::triangles::face_normal;
@@ -16,6 +17,10 @@ pub const MAX_TESTS_PER_TRIANGLE: usize = 256;
 /// end) and one direction for the part to be taken as flat, and skipped by self-contact's
 /// search on the CPU: 45°. See the [module docs](super).
 pub const FLAT_COS: f32 = core::f32::consts::FRAC_1_SQRT_2;
+
+/// The walk's first steps make node pairs of at most this share of the triangles for the
+/// threads to share.
+const TASKS: usize = 256;
 
 /// No child: the node is a leaf.
 const LEAF: u32 = u32::MAX;
@@ -142,10 +147,8 @@ impl SurfaceTree {
             if node.right == LEAF {
                 let corners = triangles[node.item as usize].1;
                 let (before, now) = (corners.map(|k| prev[k as usize]), corners.map(|k| x[k as usize]));
-                let (lo, hi) = before
-                    .iter()
-                    .chain(&now)
-                    .fold((Vec3::INFINITY, Vec3::NEG_INFINITY), |(lo, hi), &p| (lo.min(p), hi.max(p)));
+                let lo = before[0].min(before[1]).min(before[2]).min(now[0].min(now[1]).min(now[2]));
+                let hi = before[0].max(before[1]).max(before[2]).max(now[0].max(now[1]).max(now[2]));
                 self.boxes[i] = if lo.is_finite() && hi.is_finite() {
                     [Vec3A::from(lo - grow), Vec3A::from(hi + grow)]
                 } else {
@@ -172,70 +175,125 @@ impl SurfaceTree {
     }
 
     /// Every pair of triangles (indices among every body's triangles) whose boxes over the
-    /// substep meet, each pair once, in an order that depends on the positions alone: within
-    /// each body, less those in a part of it that is flat ([`Self::flat`]); and between every
-    /// two bodies for which `meet(a, b)` holds. Writes them to `pairs`; returns how many node
-    /// pairs were left untested when the walk reached its bound
-    /// ([`MAX_TESTS_PER_TRIANGLE`] a triangle), 0 when none.
+    /// substep meet, each pair once, in an order that depends on the positions alone, whatever
+    /// the threads: within each body, less those in a part of it that is flat
+    /// ([`Self::flat`]); and between every two bodies for which `meet(a, b)` holds. Writes them
+    /// to `pairs`; returns how many node pairs were left untested when the walk reached its
+    /// bound ([`MAX_TESTS_PER_TRIANGLE`] a triangle), 0 when none.
+    ///
+    /// The walk's first steps make node pairs of at most a [`TASKS`]th of the triangles, which
+    /// are walked on the rayon pool, each with a share of the bound by its count of triangles,
+    /// and their pairs joined in order: the order of one walk of the whole.
     pub(super) fn pairs(&self, meet: impl Fn(usize, usize) -> bool, pairs: &mut Vec<(u32, u32)>) -> usize {
         pairs.clear();
-        let triangles = self.points.len();
-        let mut budget = MAX_TESTS_PER_TRIANGLE * triangles;
-        let mut stack: Vec<(u32, u32)> = Vec::new();
         // A task (a, a) is a node against itself; (a, b) two nodes.
+        let mut tasks: Vec<(u32, u32)> = Vec::new();
         for (body, &root) in self.roots.iter().enumerate().filter(|(_, r)| **r != LEAF) {
-            for (other_body, &other) in self.roots.iter().enumerate().skip(body + 1).rev() {
+            tasks.push((root, root));
+            for (other_body, &other) in self.roots.iter().enumerate().skip(body + 1) {
                 if other != LEAF && meet(body, other_body) {
-                    stack.push((root, other));
-                }
-            }
-            stack.push((root, root));
-            while let Some((a, b)) = stack.pop() {
-                if budget == 0 {
-                    return stack.len() + 1;
-                }
-                budget -= 1;
-                let (na, nb) = (self.nodes[a as usize], self.nodes[b as usize]);
-                if a == b {
-                    if na.right == LEAF || (na.connected && self.flat(a as usize)) {
-                        continue;
-                    }
-                    let (l, r) = (a + 1, na.right);
-                    stack.extend([(l, r), (r, r), (l, l)]);
-                    continue;
-                }
-                let ([a_lo, a_hi], [b_lo, b_hi]) = (self.boxes[a as usize], self.boxes[b as usize]);
-                if !(a_lo.cmple(b_hi).all() && a_hi.cmpge(b_lo).all()) || self.flat_together(na, nb, a, b) {
-                    continue;
-                }
-                match (na.right == LEAF, nb.right == LEAF) {
-                    (true, true) => pairs.push((na.item, nb.item)),
-                    // The larger node is split.
-                    (true, false) => stack.extend([(a, nb.right), (a, b + 1)]),
-                    (false, true) => stack.extend([(na.right, b), (a + 1, b)]),
-                    // Both split when of about one size.
-                    (false, false) if nb.item > 2 * na.item => stack.extend([(a, nb.right), (a, b + 1)]),
-                    (false, false) if na.item > 2 * nb.item => stack.extend([(na.right, b), (a + 1, b)]),
-                    (false, false) => {
-                        let (al, ar, bl, br) = (a + 1, na.right, b + 1, nb.right);
-                        stack.extend([(ar, br), (ar, bl), (al, br), (al, bl)]);
-                    }
+                    tasks.push((root, other));
                 }
             }
         }
-        0
+        let triangles = self.points.len();
+        let size = |(a, b): (u32, u32)| self.size(a) + if a == b { 0 } else { self.size(b) };
+        if triangles >= super::PARALLEL_MIN {
+            // Depth first, as the walk goes, down to node pairs of at most a `TASKS`th of the
+            // triangles: walked one after the other, they give the pairs in the order of one
+            // walk of the whole.
+            let limit = (triangles / TASKS).max(2);
+            let mut stack: Vec<(u32, u32)> = tasks.drain(..).rev().collect();
+            while let Some(task) = stack.pop() {
+                if size(task) <= limit || self.step(task, &mut |child| stack.push(child)).is_some() {
+                    tasks.push(task);
+                }
+            }
+        }
+        let total: usize = tasks.iter().map(|&t| size(t)).sum();
+        let bound = MAX_TESTS_PER_TRIANGLE * triangles;
+        let budget = |task| (bound as u128 * size(task) as u128 / total.max(1) as u128) as usize;
+        let walked: Vec<(Vec<(u32, u32)>, usize)> = if tasks.len() > 1 {
+            tasks.par_iter().map(|&task| self.walk(task, budget(task))).collect()
+        } else {
+            tasks.iter().map(|&task| self.walk(task, budget(task))).collect()
+        };
+        let mut left = 0;
+        for (found, untested) in walked {
+            pairs.extend(found);
+            left += untested;
+        }
+        left
+    }
+
+    /// The pairs of triangles under the node pair `task`, depth first, at most `budget` node
+    /// pairs tested; and how many were left untested when it ran out.
+    fn walk(&self, task: (u32, u32), mut budget: usize) -> (Vec<(u32, u32)>, usize) {
+        let (mut pairs, mut stack) = (Vec::new(), vec![task]);
+        while let Some(task) = stack.pop() {
+            if budget == 0 {
+                return (pairs, stack.len() + 1);
+            }
+            budget -= 1;
+            if let Some(pair) = self.step(task, &mut |child| stack.push(child)) {
+                pairs.push(pair);
+            }
+        }
+        (pairs, 0)
+    }
+
+    /// One step of the walk at the node pair `(a, b)` (a node against itself when `a == b`):
+    /// the two triangles, when both are leaves whose boxes meet, or the node pairs to walk
+    /// instead handed to `split`.
+    #[inline]
+    fn step(&self, (a, b): (u32, u32), split: &mut impl FnMut((u32, u32))) -> Option<(u32, u32)> {
+        let (na, nb) = (self.nodes[a as usize], self.nodes[b as usize]);
+        if a == b {
+            if na.right != LEAF && !(na.connected && self.flat(a as usize)) {
+                let (l, r) = (a + 1, na.right);
+                [(l, r), (r, r), (l, l)].into_iter().for_each(split);
+            }
+            return None;
+        }
+        let ([a_lo, a_hi], [b_lo, b_hi]) = (self.boxes[a as usize], self.boxes[b as usize]);
+        if !(a_lo.cmple(b_hi).all() && a_hi.cmpge(b_lo).all()) || self.flat_together(na, nb, a, b) {
+            return None;
+        }
+        let (a_leaf, b_leaf) = (na.right == LEAF, nb.right == LEAF);
+        // An inner node's item is its count of triangles.
+        if a_leaf && b_leaf {
+            return Some((na.item, nb.item));
+        }
+        // The larger node is split; both when they are of about one size.
+        if a_leaf || (!b_leaf && nb.item > 2 * na.item) {
+            [(a, nb.right), (a, b + 1)].into_iter().for_each(split);
+        } else if b_leaf || na.item > 2 * nb.item {
+            [(na.right, b), (a + 1, b)].into_iter().for_each(split);
+        } else {
+            let (al, ar, bl, br) = (a + 1, na.right, b + 1, nb.right);
+            [(ar, br), (ar, bl), (al, br), (al, bl)].into_iter().for_each(split);
+        }
+        None
+    }
+
+    /// Node `i`'s count of triangles.
+    fn size(&self, i: u32) -> usize {
+        let node = self.nodes[i as usize];
+        if node.right == LEAF { 1 } else { node.item as usize }
     }
 
     /// Whether every normal of node `i`'s triangles, at the substep's start and end, lies
     /// within 45° of one direction (the middle of their box; see the [module docs](super)).
     /// The box holds every normal, so the least cosine over the box is at most that over the
     /// normals.
+    #[inline]
     fn flat(&self, i: usize) -> bool {
         flat(self.normals[i])
     }
 
     /// Whether the nodes `na` and `nb` (numbered `a` and `b`) form a connected part of one
     /// body that is flat ([`Self::flat`]): each connected, sharing a corner.
+    #[inline(always)]
     fn flat_together(&self, na: Node, nb: Node, a: u32, b: u32) -> bool {
         let ([a_lo, a_hi], [b_lo, b_hi]) = (self.normals[a as usize], self.normals[b as usize]);
         na.body == nb.body
@@ -250,6 +308,7 @@ impl SurfaceTree {
 
 /// Whether the normals in the box from `lo` to `hi` all lie within 45° of its middle's
 /// direction, as far as the box tells ([`SurfaceTree::flat`]).
+#[inline]
 fn flat([lo, hi]: [Vec3A; 2]) -> bool {
     let Some(axis) = (0.5 * (lo + hi)).try_normalize() else { return false };
     (lo * axis).min(hi * axis).element_sum() >= FLAT_COS
