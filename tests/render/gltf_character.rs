@@ -138,7 +138,12 @@ fn walk(app: &mut App, gpu: bool) -> Walked {
 }
 
 /// Each backend's walk passes the checks; the GPU's ends near the CPU's (the walk is not
-/// chaotic at this scale: the garments hang and sway).
+/// chaotic at this scale: the garments hang and sway). Their self-contact differs by design:
+/// the CPU's search skips the parts of a garment flat within 45°, where the GPU's holds apart
+/// particles up to 1.41 times the thickness apart along the sheet that come within the
+/// thickness (the core's self-contact docs, "Finding the pairs"). On lavapipe the free
+/// particles ended 5.1 mm apart on average (1.6 mm when both searches tested the same pairs);
+/// the bound is 1 cm.
 #[test]
 fn the_gltf_character_walks_in_its_garments_on_both_backends() {
     if !adapter_present() {
@@ -169,5 +174,5 @@ fn the_gltf_character_walks_in_its_garments_on_both_backends() {
         results.push(walked);
     }
     let gap = results[0].mean.distance(results[1].mean);
-    assert!(gap < 0.005, "the GPU's free particles end {gap} m from the CPU's on average");
+    assert!(gap < 0.01, "the GPU's free particles end {gap} m from the CPU's on average");
 }

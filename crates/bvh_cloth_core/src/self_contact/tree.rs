@@ -51,9 +51,10 @@ struct Node {
 /// The tree of every body's triangles, and what each triangle stands for in the pairs.
 #[derive(Clone, Debug, Default)]
 pub(super) struct SurfaceTree {
-    /// The triangles each body's tree was built for: a body whose triangles differ gets its
-    /// tree built again.
-    built_for: Vec<Vec<[u32; 3]>>,
+    /// Each body's count of particles and triangles the tree was built for: a body whose
+    /// particles or triangles differ gets its tree built again (the particles' and edges' flat
+    /// indices follow from the counts).
+    built_for: Vec<(usize, Vec<[u32; 3]>)>,
     nodes: Vec<Node>,
     /// The nodes' border particles.
     border: Vec<u32>,
@@ -76,16 +77,20 @@ pub(super) struct SurfaceTree {
 }
 
 impl SurfaceTree {
-    /// Builds the tree again for the bodies whose triangles changed (`topologies`, in body
-    /// order; their triangles come first to last in the flat triangle order, and their
+    /// Builds the tree again when the bodies' particles or triangles changed (`topologies`, in
+    /// body order; their triangles come first to last in the flat triangle order, and their
     /// particles and edges likewise).
     pub(super) fn prepare(&mut self, topologies: &[&ClothTopology]) {
         let same = self.built_for.len() == topologies.len()
-            && self.built_for.iter().zip(topologies).all(|(t, topology)| t[..] == *topology.triangles());
+            && self
+                .built_for
+                .iter()
+                .zip(topologies)
+                .all(|((n, t), topology)| *n == topology.len() && t[..] == *topology.triangles());
         if same {
             return;
         }
-        self.built_for = topologies.iter().map(|t| t.triangles().to_vec()).collect();
+        self.built_for = topologies.iter().map(|t| (t.len(), t.triangles().to_vec())).collect();
         self.nodes.clear();
         self.border.clear();
         self.roots.clear();

@@ -392,6 +392,17 @@ struct Substep {
 /// `upper` (every particle free) that went flat from height `from` to height `to` during the
 /// substep, moving at `speed` downwards.
 fn flat_substep(
+    lower: (&ClothTopology, &[f32], &[f32]),
+    upper: &ClothTopology,
+    heights: (f32, f32),
+    speed: f32,
+) -> Substep {
+    flat_substep_with(&mut ContactSolver::default(), lower, upper, heights, speed)
+}
+
+/// [`flat_substep`] with `solver`.
+fn flat_substep_with(
+    solver: &mut ContactSolver,
     (lower, free, held): (&ClothTopology, &[f32], &[f32]),
     upper: &ClothTopology,
     (from, to): (f32, f32),
@@ -403,7 +414,7 @@ fn flat_substep(
     let mut lower_v = vec![Vec3::ZERO; lower.len()];
     let mut upper_v = vec![Vec3::new(0.0, -speed, 0.0); upper.len()];
     let upper_free = vec![1.0; upper.len()];
-    let stats = ContactSolver::default().resolve(
+    let stats = solver.resolve(
         &mut [
             ContactBody {
                 layers: Default::default(),
@@ -449,6 +460,27 @@ fn a_point_that_went_through_goes_back_to_its_side() {
         }
         assert_eq!(after.lower, flat(&floor, 0.0), "the pinned sheet moved");
     }
+}
+
+/// A solver kept from one pair of cloths for another builds its tree of their triangles again:
+/// a sheet through a pinned floor after a smaller sheet through it comes out as from a new
+/// solver, bit for bit.
+#[test]
+fn a_solver_kept_for_other_cloths_builds_its_tree_again() {
+    let floor = common::grid_topology(1.0, 4, 4);
+    let pinned = vec![0.0; floor.len()];
+    let (small, large) = (common::grid_topology(0.1, 2, 2), common::grid_topology(0.3, 5, 5));
+    let through = |solver: &mut ContactSolver, sheet: &ClothTopology| {
+        flat_substep_with(solver, (&floor, &pinned, &[]), sheet, (0.003, -0.003), 1.0)
+    };
+    let fresh = through(&mut ContactSolver::default(), &large);
+    assert!(fresh.stats.contacts > 0, "no contact");
+    let mut kept = ContactSolver::default();
+    assert!(through(&mut kept, &small).stats.contacts > 0, "no contact");
+    let again = through(&mut kept, &large);
+    assert_eq!(again.stats, fresh.stats);
+    assert_eq!(again.upper, fresh.upper);
+    assert_eq!(again.upper_v, fresh.upper_v);
 }
 
 /// Two strips 2 cm wide laid crosswise, one pinned at y = 0 and the other moving from 3 mm above
