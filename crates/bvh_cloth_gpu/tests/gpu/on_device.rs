@@ -1656,7 +1656,10 @@ fn contact_tick_on_the_cpu(
 /// the lower from about tick 10). The contact cloths take one substep count on both.
 ///
 /// Tolerances, per tick: at most half of each cloth's particles more than 1e-5 m from the CPU's,
-/// and none more than 2 mm (on lavapipe at worst 34.5% and 1.4 mm). Without contact the scene
+/// and none more than 4 mm (on lavapipe at worst 34.5% and 1.4 mm with the CPU's pairs from a
+/// hashed grid as the GPU's; with the CPU's pairs from its tree, summed in the pairs' order
+/// and the cloths' flat parts skipped, at worst 34.5% and 2.8 mm: the block-descent cloth at tick
+/// 21, 2.2 mm for the RK4 one). Without contact the scene
 /// agrees to 4e-6 m per tick. Contact's response is not continuous: a point that comes within
 /// the thickness of a triangle, or an edge within the thickness of an edge, loses its approach
 /// speed at once, and a particle a collider touches weighs as pinned, so particles a few ulps
@@ -1693,7 +1696,7 @@ fn self_contact_agrees_with_the_cpu() {
             let off = sim.positions().iter().zip(&on_gpu).filter(|(a, b)| a.distance(**b) > 1e-5).count();
             worst[k] = worst[k].max(gap);
             most_off[k] = most_off[k].max(off);
-            assert!(gap < 2e-3, "{name}, tick {t}: GPU and CPU differ by {gap} m");
+            assert!(gap < 4e-3, "{name}, tick {t}: GPU and CPU differ by {gap} m");
             assert!(off * 2 <= on_gpu.len(), "{name}, tick {t}: {off} particles differ by more than 1e-5 m");
         }
     }
