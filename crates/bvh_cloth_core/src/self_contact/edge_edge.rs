@@ -4,26 +4,39 @@
 //! the other layer, which point against triangle alone lets through. See the
 //! [module docs](super).
 
-use glam::Vec3;
+use glam::{Vec3, Vec3A};
 
 use super::{Contact, ContactBody, ContactSolver};
 
 impl ContactSolver {
     /// Adds the contacts of the edges triangle `t` stands for with those triangle `u` stands
-    /// for to `found`.
+    /// for to `found`: their boxes over the substep must lie within the largest thickness.
     pub(super) fn edge_contacts(&self, (t, u): (u32, u32), bodies: &[ContactBody<'_>], found: &mut Vec<Contact>) {
-        let ours = self.tree.edges[t as usize].into_iter().take_while(|&e| e != u32::MAX);
-        for e in ours {
-            for f in self.tree.edges[u as usize].into_iter().take_while(|&f| f != u32::MAX) {
-                found.extend(self.edge_contact(bodies, e as usize, f as usize));
+        let tree = &self.tree;
+        let (i, j) = (tree.place(t), tree.place(u));
+        let reach = 2.0 * tree.grow();
+        for (&e, e_box) in tree.edges[i].iter().zip(&tree.edge_boxes[i]) {
+            let (lo, hi) = (e_box[0] - reach, e_box[1] + reach);
+            for (&f, f_box) in tree.edges[j].iter().zip(&tree.edge_boxes[j]) {
+                if lo.cmple(f_box[1]).all() && hi.cmpge(f_box[0]).all() {
+                    found.extend(self.edge_contact(bodies, e as usize, f as usize, e_box, f_box));
+                }
             }
         }
     }
 
-    /// The contact of edge `e` with edge `f`, if they share no particle, lay no closer than the
-    /// pair's thickness in their rest shape when they are of one body, and are closer than it
-    /// now or went through each other during the substep.
-    fn edge_contact(&self, bodies: &[ContactBody<'_>], e: usize, f: usize) -> Option<Contact> {
+    /// The contact of edge `e` with edge `f` (their boxes over the substep `e_box` and
+    /// `f_box`), if they share no particle, lay no closer than the pair's thickness in their
+    /// rest shape when they are of one body, and are closer than it now or went through each
+    /// other during the substep.
+    fn edge_contact(
+        &self,
+        bodies: &[ContactBody<'_>],
+        e: usize,
+        f: usize,
+        &[e_lo, e_hi]: &[Vec3A; 2],
+        &[f_lo, f_hi]: &[Vec3A; 2],
+    ) -> Option<Contact> {
         let first = self.triangles.len();
         let ((eb, [a0, a1]), (fb, [b0, b1])) = (self.edges[e], self.edges[f]);
         if a0 == b0 || a0 == b1 || a1 == b0 || a1 == b1 {
@@ -34,13 +47,8 @@ impl ContactSolver {
             return None;
         }
         let h = 0.5 * (e_body.contact.thickness + f_body.contact.thickness);
-        let ids = [a0, a1, b0, b1];
-        let [p0, p1, q0, q1] = ids.map(|k| self.x[k as usize]);
-        let [r0, r1, s0, s1] = ids.map(|k| self.prev[k as usize]);
         // Their boxes over the substep within the pair's thickness of each other (the search's
         // test grew them by the largest).
-        let (e_lo, e_hi) = (p0.min(p1).min(r0.min(r1)), p0.max(p1).max(r0.max(r1)));
-        let (f_lo, f_hi) = (q0.min(q1).min(s0.min(s1)), q0.max(q1).max(s0.max(s1)));
         if !((e_lo - h).cmple(f_hi).all() && (e_hi + h).cmpge(f_lo).all()) {
             return None;
         }
@@ -51,22 +59,24 @@ impl ContactSolver {
                 return None;
             }
         }
+        let ids = [a0, a1, b0, b1];
+        let [p0, p1, q0, q1] = ids.map(|k| self.x[k as usize]);
+        let [r0, r1, s0, s1] = ids.map(|k| self.prev[k as usize]);
+        // Farther than the thickness now, and on the side of each other they started on: no
+        // contact (below). The normals' lengths leave the sides' signs as they are; farther
+        // than the thickness apart along the lines' common normal, they are farther apart.
+        let (before, now) = ((r1 - r0).cross(s1 - s0), (p1 - p0).cross(q1 - q0));
+        let side_now = (p0 - q0).dot(now);
+        let kept = (r0 - s0).dot(before) * if before.dot(now) < 0.0 { -side_now } else { side_now } >= 0.0;
+        if kept && side_now * side_now >= h * h * now.length_squared() {
+            return None;
+        }
         let (s, t) = closest_on_segments(p0, p1, q0, q1);
         let away = p0.lerp(p1, s) - q0.lerp(q1, t);
         let d2 = away.length_squared();
         // A non-finite particle makes no contact.
-        if !d2.is_finite() {
+        if !d2.is_finite() || (kept && d2 >= h * h) {
             return None;
-        }
-        // Farther than the thickness now, and on the side of each other they started on: no
-        // contact (below). The normals' lengths leave the sides' signs as they are.
-        if d2 >= h * h {
-            let (before, now) = ((r1 - r0).cross(s1 - s0), (p1 - p0).cross(q1 - q0));
-            let side_now = (p0 - q0).dot(now);
-            let side_now = if before.dot(now) < 0.0 { -side_now } else { side_now };
-            if (r0 - s0).dot(before) * side_now >= 0.0 {
-                return None;
-            }
         }
         // The sides of each other's lines the edges were on at the start of the substep and are
         // on now, along the lines' common normal (the one now turned to agree with the one

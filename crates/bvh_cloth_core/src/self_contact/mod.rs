@@ -16,36 +16,42 @@
 //!
 //! On the CPU, each cloth's triangles lie in a binary tree built once from its rest shape (the
 //! triangles halved again and again at the median of their centroids along the longest side
-//! of their box, so that each node is a compact piece of the cloth), refitted each substep:
-//! each node's box over the substep (where its corners were at the start and are now), grown
-//! by half the largest thickness, and the box of its triangles' normals at the start and the
-//! end. The tree is walked for the pairs of triangles whose boxes meet, each pair once, and a
-//! pair of triangles stands for the contacts of their particles and edges: each particle and
-//! each edge is taken by one of its triangles, a point tested against the other triangle of
-//! each pair its own is in, and an edge against the edges of that triangle (a particle of no
-//! triangle takes part in no contact). A path that came
-//! within the thickness of a triangle, or went through it, at any speed, lies in boxes that
-//! meet.
+//! of their box, so that each node is a compact piece of the cloth, down to leaves of at most
+//! two), refitted each substep: each triangle's and each node's box over the substep (where
+//! its corners were at the start and are now), grown by half the largest thickness, and the
+//! box of a node's triangles' normals at the start and the end. The tree is walked for the
+//! pairs of triangles whose boxes meet, each pair once, and a pair of triangles stands for the
+//! contacts of their particles and edges: each particle and each edge is taken by one of its
+//! triangles, a point tested against the other triangle of each pair its own is in, and an
+//! edge against the edges of that triangle (a particle of no triangle takes part in no
+//! contact). A path that came within the thickness of a triangle, or went through it, at any
+//! speed, lies in boxes that meet. Two triangles that share no corner are dropped too when the
+//! line through their centroids separates them by the thickness over the whole substep (their
+//! corners' spans along it now, each widened by the farthest its corners moved): the boxes of
+//! a crumpled cloth's triangles lie askew to the axes, and meet for most of the triangles one
+//! row apart on the cloth, which that line separates.
 //!
 //! Most of a cloth is a gently curved sheet, whose triangles lie within the thickness of their
 //! neighbours and never touch them: the walk skips each part of a cloth whose triangles are
 //! joined through shared corners and whose normals at the substep's start and end all lie
-//! within 45° of one direction ([`FLAT_COS`]), and each two such parts that share a corner and
-//! are flat together. A connected surface whose normals lie within less than 90° of one
-//! direction does not meet itself (Volino and Magnenat-Thalmann 1994, "Efficient
-//! self-collision detection on smoothly discretized surface animations using geometrical shape
-//! regularity"). Within 45° it is a height field no steeper than 45° over the plane across that
-//! direction, so two of its particles lie at least 0.71 times as far apart as along the sheet:
-//! only particles less than 1.41 times the thickness apart along it can come within the
-//! thickness, and those are held apart by the cloth's springs, not by contact, until the part
-//! bends further. (Within 60°, more is skipped and the cost falls further, but a fold of the
-//! core's `fast_folds_keep_off_themselves_with_block_descent`, onto the bunny at 15 m/s, ended
-//! with 42 pairs of its triangles intersecting.)
+//! within 45° of one direction ([`FLAT_COS`]), and each two such parts (or triangles) that
+//! share a corner and are flat together. A connected surface whose normals lie within less
+//! than 90° of one direction does not meet itself (Volino and Magnenat-Thalmann 1994,
+//! "Efficient self-collision detection on smoothly discretized surface animations using
+//! geometrical shape regularity"). Within 45° it is a height field no steeper than 45° over
+//! the plane across that direction, so two of its particles lie at least 0.71 times as far
+//! apart as along the sheet: only particles less than 1.41 times the thickness apart along it
+//! can come within the thickness, and those are held apart by the cloth's springs, not by
+//! contact, until the part bends further. (Within 60°, more is skipped and the cost falls
+//! further, but a fold of the core's `fast_folds_keep_off_themselves_with_block_descent`, onto
+//! the bunny at 15 m/s, ended with 42 pairs of its triangles intersecting.)
 //! Each node keeps its box in the rest shape and its particles that also belong to triangles
 //! outside it, sorted, for the test of a shared corner. On the report's cloth of 128 x 128
-//! draped on the bunny, the walk hands about 68,000 to 98,000 pairs of its 32,258 triangles a
-//! substep to the tests below, where the hashed grid that follows hands them about 200,000
-//! point–triangle and 580,000 edge–edge candidates (counts of that scene in a scratch build).
+//! draped on the bunny, the walk tests about 230,000 pairs of nodes a substep and hands about
+//! 34,000 pairs of its 32,258 triangles to the tests below (80,000 without the line between
+//! centroids: three in five of those lay one row apart on the cloth, and none of them made a
+//! contact), where the hashed grid that follows hands them about 200,000 point–triangle and
+//! 580,000 edge–edge candidates (counts of that scene in a scratch build).
 //!
 //! The GPU backend finds its pairs in a hashed grid of the primitives (the triangles, then the
 //! edges), rebuilt each substep (Teschner et al. 2003, "Optimized spatial hashing for
@@ -396,7 +402,7 @@ impl ContactSolver {
         }
         let topologies: Vec<&ClothTopology> = bodies.iter().map(|b| b.topology).collect();
         self.tree.prepare(&topologies);
-        self.tree.refit(&self.triangles, &self.prev, &self.x, 0.5 * thickest);
+        self.tree.refit(&self.prev, &self.x, 0.5 * thickest);
         let mut pairs = core::mem::take(&mut self.pairs);
         let meet = |a: usize, b: usize| bodies[a].layers.interacts_with(bodies[b].layers);
         let mut stats = ContactStats { clamped: self.tree.pairs(meet, &mut pairs), ..Default::default() };
@@ -405,6 +411,7 @@ impl ContactSolver {
         // edges, from where those left the particles.
         let found = self.find(bodies, &pairs, |solver, pair, bodies, found| solver.point_contacts(pair, bodies, found));
         self.apply(bodies, frames, &found, &mut stats.contacts);
+        self.tree.sweep_edges(&self.edges, &self.prev, &self.x);
         let found = self.find(bodies, &pairs, |solver, pair, bodies, found| solver.edge_contacts(pair, bodies, found));
         self.apply(bodies, frames, &found, &mut stats.contacts);
         self.pairs = pairs;

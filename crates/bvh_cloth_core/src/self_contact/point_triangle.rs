@@ -5,16 +5,18 @@
 use glam::{Vec3, Vec3A};
 
 use super::{Contact, ContactBody, ContactSolver};
-use crate::mesh::triangles::{closest_point, face_normal};
+use crate::mesh::triangles::closest_point;
 
 impl ContactSolver {
     /// Adds the contacts of the points each of the triangles `t` and `u` stands for with the
     /// other triangle to `found`: each point's path over the substep, grown by the thickness,
     /// must meet the other's box.
     pub(super) fn point_contacts(&self, (t, u): (u32, u32), bodies: &[ContactBody<'_>], found: &mut Vec<Contact>) {
-        for (from, to) in [(t, u), (u, t)] {
-            let [lo, hi] = self.tree.leaf_box(to);
-            for &p in self.tree.points[from as usize].iter().take_while(|&&p| p != u32::MAX) {
+        let tree = &self.tree;
+        let (i, j) = (tree.place(t), tree.place(u));
+        for (from, to) in [(i, j), (j, i)] {
+            let [lo, hi] = tree.reach_box(to);
+            for &p in tree.points[from].iter().take_while(|&&p| p != u32::MAX) {
                 let (x, prev) = (Vec3A::from(self.x[p as usize]), Vec3A::from(self.prev[p as usize]));
                 if x.min(prev).cmple(hi).all() && x.max(prev).cmpge(lo).all() {
                     found.extend(self.contact(bodies, p as usize, to));
@@ -23,10 +25,12 @@ impl ContactSolver {
         }
     }
 
-    /// The contact of point `p` (flat index) with triangle `t`, whose grown box its path meets, if
-    /// the point is closer than the pair's thickness, is not one of its corners, and lay no
-    /// closer than that in their rest shape when they are of one body.
-    fn contact(&self, bodies: &[ContactBody<'_>], p: usize, t: u32) -> Option<Contact> {
+    /// The contact of point `p` (flat index) with the triangle at `place` in the tree's order,
+    /// whose grown box its path meets, if the point is closer than the pair's thickness, is not
+    /// one of its corners, and lay no closer than that in their rest shape when they are of one
+    /// body.
+    fn contact(&self, bodies: &[ContactBody<'_>], p: usize, place: usize) -> Option<Contact> {
+        let t = self.tree.triangle_at(place);
         let (tb, corners) = self.triangles[t as usize];
         if corners.contains(&(p as u32)) {
             return None;
@@ -47,30 +51,32 @@ impl ContactSolver {
             }
         }
         let at = corners.map(|c| self.x[c as usize]);
+        let before = corners.map(|c| self.prev[c as usize]);
+        // The side of the triangle's plane the point was on at the start of the substep, and is
+        // on now (0 for a triangle without area then). A point that changed sides went through
+        // the triangle (or round its edge, closer than the thickness): it goes back to the side
+        // it came from, the thickness off the plane.
+        let [normal_before, normal_now] = self.tree.faces[place];
+        let side_before = (self.prev[p] - before[0]).dot(normal_before);
+        let side_now = (xp - at[0]).dot(normal_now);
+        // Farther than the thickness now, and on the side of the plane it started on: no
+        // contact (below). Farther than that from the plane, it is from the triangle too.
+        let kept = side_before * side_now >= 0.0;
+        if kept && side_now * side_now >= h * h {
+            return None;
+        }
         let q = closest_point(xp, at);
         let away = xp - q;
         let d2 = away.length_squared();
         // A non-finite particle makes no contact.
-        if !d2.is_finite() {
+        if !d2.is_finite() || (kept && d2 >= h * h) {
             return None;
         }
-        let before = corners.map(|c| self.prev[c as usize]);
-        // Farther than the thickness now, and on the side of the plane it started on: no
-        // contact (below). The normals' lengths leave the sides' signs as they are.
-        if d2 >= h * h && side_of(self.prev[p], before) * side_of(xp, at) >= 0.0 {
-            return None;
-        }
-        // The side of the triangle's plane the point was on at the start of the substep, and is
-        // on now. A point that changed sides went through the triangle (or round its edge,
-        // closer than the thickness): it goes back to the side it came from, the thickness off
-        // the plane.
-        let face = face_normal(at);
-        let side_before = face_normal(before).map_or(0.0, |n| (self.prev[p] - before[0]).dot(n));
+        let face = (normal_now != Vec3::ZERO).then_some(normal_now);
         // A point on the wrong side of the triangle's body or sheet, or a triangle of the wrong
         // side of the point's, as `untangle` found them: the side to go back to is the other.
         let inverted = self.inverted(&[p as u32], &corners);
         let side_before = if inverted { -side_before } else { side_before };
-        let side_now = face.map_or(0.0, |n| (xp - at[0]).dot(n));
         let through = side_before * side_now < 0.0;
         let (n, gap, q) = if d2 < h * h {
             let d = d2.sqrt();
@@ -130,11 +136,6 @@ fn crossed(
     }
     let b = barycentric(q, then);
     Some(b[0] * now[0] + b[1] * now[1] + b[2] * now[2])
-}
-
-/// `p`'s side of the plane of the triangle `[a, b, c]`, scaled by twice its area.
-fn side_of(p: Vec3, [a, b, c]: [Vec3; 3]) -> f32 {
-    (b - a).cross(c - a).dot(p - a)
 }
 
 /// The barycentric weights of `q` (a point of the triangle) on the triangle; equal weights for

@@ -1,7 +1,8 @@
 //! The pairs of triangles that may touch: each body's triangles in a binary tree built once
 //! from its rest shape, its boxes and normal bounds refitted each substep, and walked for the
-//! pairs of triangles whose boxes over the substep meet, skipping every part of a body that is
-//! flat enough not to touch itself. See the [module docs](super).
+//! pairs of triangles whose boxes over the substep meet and that no line between them
+//! separates, skipping every part of a body that is flat enough not to touch itself. See the
+//! [module docs](super).
 
 use glam::{Vec3, Vec3A};
 use rayon::prelude::*;
@@ -22,18 +23,30 @@ pub const FLAT_COS: f32 = core::f32::consts::FRAC_1_SQRT_2;
 /// threads to share.
 const TASKS: usize = 256;
 
+/// Most triangles in a leaf of the tree: a pair of leaves tests the boxes of their triangles
+/// against each other rather than walk a level further. (With four, fewer node pairs are
+/// walked, but the pairs within a leaf are not skipped for halves of it that lie flat
+/// together: more pairs of the sheet's own neighbours, and the fold onto the bunny at 7 m/s of
+/// the core's `fast_folds_keep_off_themselves` ended with 7 pairs of its triangles
+/// intersecting.)
+const LEAF_SIZE: usize = 2;
+
+/// A box that meets nothing.
+const EMPTY: [Vec3A; 2] = [Vec3A::INFINITY, Vec3A::NEG_INFINITY];
+
 /// No child: the node is a leaf.
 const LEAF: u32 = u32::MAX;
 
-/// A node of the tree, in depth-first order: a leaf's triangle, or an inner node whose left
-/// child is the next node and whose right child is `right`.
+/// A node of the tree, in depth-first order: a leaf, or an inner node whose left child is the
+/// next node and whose right child is `right`. Its triangles lie together in
+/// [`SurfaceTree::order`].
 #[derive(Clone, Copy, Debug)]
 struct Node {
     /// The right child, or [`LEAF`].
     right: u32,
-    /// A leaf's triangle (its index among every body's triangles), or an inner node's count
-    /// of triangles.
-    item: u32,
+    /// Where its triangles start in [`SurfaceTree::order`], and how many it holds.
+    start: u32,
+    count: u32,
     /// The node's body.
     body: u32,
     /// Its particles that also belong to triangles outside it (local to its body, in
@@ -43,9 +56,6 @@ struct Node {
     /// Whether the node's triangles are joined to each other through shared corners: only
     /// such a part is skipped for being flat.
     connected: bool,
-    /// The box of its triangles in the rest shape: two nodes whose boxes there lie apart share
-    /// no corner.
-    rest: [Vec3A; 2],
 }
 
 /// The tree of every body's triangles, and what each triangle stands for in the pairs.
@@ -58,6 +68,9 @@ pub(super) struct SurfaceTree {
     nodes: Vec<Node>,
     /// The nodes' border particles.
     border: Vec<u32>,
+    /// Each node's box of its triangles in the rest shape: two nodes whose boxes there lie
+    /// apart share no corner.
+    rests: Vec<[Vec3A; 2]>,
     /// Each body's root ([`LEAF`] for a body without triangles).
     roots: Vec<u32>,
     /// Each node's box over the substep, grown by half the largest thickness (two boxes meet
@@ -67,13 +80,29 @@ pub(super) struct SurfaceTree {
     normals: Vec<[Vec3A; 2]>,
     /// What the boxes were grown by.
     grow: f32,
-    /// Each triangle's leaf.
-    leaves: Vec<u32>,
-    /// The particles (flat indices) and the edges (indices among every body's edges) each
-    /// triangle stands for in a pair, each particle and edge by exactly one of its triangles;
-    /// `u32::MAX` for none.
+    /// Every body's triangles (their indices among every body's), leaf after leaf in the
+    /// nodes' order, and where each triangle lies in it.
+    order: Vec<u32>,
+    slot: Vec<u32>,
+    /// The corners of the triangle at each place of `order` (flat indices) and its box over
+    /// the substep, grown like the nodes'.
+    corners: Vec<[u32; 3]>,
+    triangle_boxes: Vec<[Vec3A; 2]>,
+    /// The corners now of the triangle at each place of `order`, and the farthest any of them
+    /// moved over the substep.
+    now: Vec<([Vec3; 3], f32)>,
+    /// The unit normal of the triangle at each place of `order` at the substep's start and
+    /// end (0 for a triangle without area then): the point–triangle tests take them rather
+    /// than work them out per pair.
+    pub(super) faces: Vec<[Vec3; 2]>,
+    /// The particles (flat indices) and the edges (indices among every body's edges) the
+    /// triangle at each place of `order` stands for in a pair, each particle and edge by
+    /// exactly one of its triangles; `u32::MAX` for none.
     pub(super) points: Vec<[u32; 3]>,
     pub(super) edges: Vec<[u32; 3]>,
+    /// The boxes of those edges over the substep, not grown (empty for none): the pairs' tests
+    /// look at them first, side by side.
+    pub(super) edge_boxes: Vec<[[Vec3A; 2]; 3]>,
 }
 
 impl SurfaceTree {
@@ -93,18 +122,22 @@ impl SurfaceTree {
         self.built_for = topologies.iter().map(|t| (t.len(), t.triangles().to_vec())).collect();
         self.nodes.clear();
         self.border.clear();
+        self.rests.clear();
         self.roots.clear();
         self.points.clear();
         self.edges.clear();
-        self.leaves.clear();
+        self.order.clear();
         let (mut first_triangle, mut first_particle, mut first_edge) = (0u32, 0u32, 0u32);
+        let mut corners = Vec::new();
         for (body, topology) in topologies.iter().enumerate() {
             let triangles = topology.triangles();
+            corners.extend(triangles.iter().map(|t| t.map(|k| first_particle + k)));
             if triangles.is_empty() {
                 self.roots.push(LEAF);
             } else {
                 self.roots.push(self.nodes.len() as u32);
-                build(topology, body as u32, first_triangle, &mut self.nodes, &mut self.border);
+                let lists = (&mut self.nodes, &mut self.rests, &mut self.border, &mut self.order);
+                build(topology, body as u32, first_triangle, lists);
             }
             let start = self.points.len();
             self.points.resize(start + triangles.len(), [u32::MAX; 3]);
@@ -126,43 +159,60 @@ impl SurfaceTree {
                 }
             }
             first_triangle += triangles.len() as u32;
-            self.leaves.resize(first_triangle as usize, 0);
             first_particle += topology.len() as u32;
             first_edge += topology.edges().len() as u32;
         }
-        for (i, node) in self.nodes.iter().enumerate() {
-            if node.right == LEAF {
-                self.leaves[node.item as usize] = i as u32;
-            }
+        self.slot.clear();
+        self.slot.resize(self.order.len(), 0);
+        for (at, &t) in self.order.iter().enumerate() {
+            self.slot[t as usize] = at as u32;
         }
+        // Found by triangle above; kept by place, so that a pair's tests read them side by side.
+        self.corners = self.order.iter().map(|&t| corners[t as usize]).collect();
+        self.points = self.order.iter().map(|&t| self.points[t as usize]).collect();
+        self.edges = self.order.iter().map(|&t| self.edges[t as usize]).collect();
     }
 
-    /// Each node's box over the substep (its triangles' corners at the substep's start,
-    /// `prev`, and end, `x`), grown by `grow`, and the box of its triangles' normals then and
-    /// now. A triangle with a corner that is not finite has an empty box (it meets nothing);
-    /// one without area, a box of every normal (never flat).
-    pub(super) fn refit(&mut self, triangles: &[(u32, [u32; 3])], prev: &[Vec3], x: &[Vec3], grow: f32) {
+    /// Each triangle's and each node's box over the substep (its triangles' corners at the
+    /// substep's start, `prev`, and end, `x`), grown by `grow`, and the box of a node's
+    /// triangles' normals then and now. A triangle with a corner that is not finite has an
+    /// empty box (it meets nothing); one without area, a box of every normal (never flat).
+    pub(super) fn refit(&mut self, prev: &[Vec3], x: &[Vec3], grow: f32) {
         self.grow = grow;
         let count = self.nodes.len();
         self.boxes.resize(count, [Vec3A::ZERO; 2]);
         self.normals.resize(count, [Vec3A::ZERO; 2]);
-        let empty = [Vec3A::INFINITY, Vec3A::NEG_INFINITY];
+        self.triangle_boxes.resize(self.order.len(), [Vec3A::ZERO; 2]);
+        self.now.resize(self.order.len(), ([Vec3::ZERO; 3], 0.0));
+        self.faces.resize(self.order.len(), [Vec3::ZERO; 2]);
+        let empty = EMPTY;
         for i in (0..count).rev() {
             let node = self.nodes[i];
             if node.right == LEAF {
-                let corners = triangles[node.item as usize].1;
-                let (before, now) = (corners.map(|k| prev[k as usize]), corners.map(|k| x[k as usize]));
-                let lo = before[0].min(before[1]).min(before[2]).min(now[0].min(now[1]).min(now[2]));
-                let hi = before[0].max(before[1]).max(before[2]).max(now[0].max(now[1]).max(now[2]));
-                self.boxes[i] = if lo.is_finite() && hi.is_finite() {
-                    [Vec3A::from(lo - grow), Vec3A::from(hi + grow)]
-                } else {
-                    empty
-                };
-                self.normals[i] = match (face_normal(before), face_normal(now)) {
-                    (Some(a), Some(b)) => [Vec3A::from(a.min(b)), Vec3A::from(a.max(b))],
-                    _ => [Vec3A::NEG_ONE, Vec3A::ONE],
-                };
+                let (mut bounds, mut normals) = (empty, empty);
+                for at in node.start as usize..(node.start + node.count) as usize {
+                    let corners = self.corners[at];
+                    let (before, now) = (corners.map(|k| prev[k as usize]), corners.map(|k| x[k as usize]));
+                    let lo = before[0].min(before[1]).min(before[2]).min(now[0].min(now[1]).min(now[2]));
+                    let hi = before[0].max(before[1]).max(before[2]).max(now[0].max(now[1]).max(now[2]));
+                    let own = if lo.is_finite() && hi.is_finite() {
+                        [Vec3A::from(lo - grow), Vec3A::from(hi + grow)]
+                    } else {
+                        empty
+                    };
+                    self.triangle_boxes[at] = own;
+                    let moved = (0..3).fold(0.0f32, |m, k| m.max(before[k].distance_squared(now[k]))).sqrt();
+                    self.now[at] = (now, moved);
+                    bounds = [bounds[0].min(own[0]), bounds[1].max(own[1])];
+                    let faces = (face_normal(before), face_normal(now));
+                    self.faces[at] = [faces.0.unwrap_or(Vec3::ZERO), faces.1.unwrap_or(Vec3::ZERO)];
+                    let own = match faces {
+                        (Some(a), Some(b)) => [Vec3A::from(a.min(b)), Vec3A::from(a.max(b))],
+                        _ => [Vec3A::NEG_ONE, Vec3A::ONE],
+                    };
+                    normals = [normals[0].min(own[0]), normals[1].max(own[1])];
+                }
+                (self.boxes[i], self.normals[i]) = (bounds, normals);
             } else {
                 let (l, r) = (i + 1, node.right as usize);
                 self.boxes[i] = [self.boxes[l][0].min(self.boxes[r][0]), self.boxes[l][1].max(self.boxes[r][1])];
@@ -172,17 +222,53 @@ impl SurfaceTree {
         }
     }
 
-    /// The box of triangle `t` over the substep grown by the largest thickness: what a point's
-    /// path meets where it comes within the thickness of the triangle.
-    pub(super) fn leaf_box(&self, t: u32) -> [Vec3A; 2] {
-        let [lo, hi] = self.boxes[self.leaves[t as usize] as usize];
+    /// The boxes of the edges each triangle stands for over the substep ([`Self::edge_boxes`]),
+    /// from `edges` (every body's, their ends' flat indices) at the substep's start, `prev`,
+    /// and now, `x`.
+    pub(super) fn sweep_edges(&mut self, edges: &[(u32, [u32; 2])], prev: &[Vec3], x: &[Vec3]) {
+        self.edge_boxes.clear();
+        self.edge_boxes.extend(self.edges.iter().map(|ours| {
+            ours.map(|e| match edges.get(e as usize) {
+                Some(&(_, [p, q])) => {
+                    let [p_lo, p_hi] = path_box(p, prev, x);
+                    let [q_lo, q_hi] = path_box(q, prev, x);
+                    [p_lo.min(q_lo), p_hi.max(q_hi)]
+                }
+                None => EMPTY,
+            })
+        }));
+    }
+
+    /// Where triangle `t` lies in the tree's order: the place its tests' data are kept at.
+    #[inline]
+    pub(super) fn place(&self, t: u32) -> usize {
+        self.slot[t as usize] as usize
+    }
+
+    /// The triangle at place `at` of the tree's order.
+    #[inline]
+    pub(super) fn triangle_at(&self, at: usize) -> u32 {
+        self.order[at]
+    }
+
+    /// How far the boxes were grown: half the largest thickness.
+    #[inline]
+    pub(super) fn grow(&self) -> f32 {
+        self.grow
+    }
+
+    /// The box over the substep of the triangle at place `at`, grown by the largest thickness:
+    /// what a point's path meets where it comes within the thickness of the triangle.
+    #[inline]
+    pub(super) fn reach_box(&self, at: usize) -> [Vec3A; 2] {
+        let [lo, hi] = self.triangle_boxes[at];
         [lo - self.grow, hi + self.grow]
     }
 
-    /// Every pair of triangles (indices among every body's triangles) whose boxes over the
-    /// substep meet, each pair once, in an order that depends on the positions alone, whatever
-    /// the threads: within each body, less those in a part of it that is flat
-    /// ([`Self::flat`]); and between every two bodies for which `meet(a, b)` holds. Writes them
+    /// Every pair of triangles (indices among every body's triangles) that may touch over the
+    /// substep ([`Self::meet`]), each pair once, in an order that depends on the positions
+    /// alone, whatever the threads: within each body, less those in a part of it that is flat
+    /// within 45° ([`FLAT_COS`]); and between every two bodies for which `meet(a, b)` holds. Writes them
     /// to `pairs`; returns how many node pairs were left untested when the walk reached its
     /// bound ([`MAX_TESTS_PER_TRIANGLE`] a triangle), 0 when none.
     ///
@@ -207,11 +293,15 @@ impl SurfaceTree {
             // Depth first, as the walk goes, down to node pairs of at most a `TASKS`th of the
             // triangles: walked one after the other, they give the pairs in the order of one
             // walk of the whole.
-            let limit = (triangles / TASKS).max(2);
+            // A pair of leaves is no larger than the limit: only inner nodes are stepped here,
+            // and they find no pairs of triangles.
+            let limit = (triangles / TASKS).max(2 * LEAF_SIZE);
             let mut stack: Vec<(u32, u32)> = tasks.drain(..).rev().collect();
             while let Some(task) = stack.pop() {
-                if size(task) <= limit || self.step(task, &mut |child| stack.push(child)).is_some() {
+                if size(task) <= limit {
                     tasks.push(task);
+                } else {
+                    self.step(task, &mut |child| stack.push(child), pairs);
                 }
             }
         }
@@ -240,92 +330,149 @@ impl SurfaceTree {
                 return (pairs, stack.len() + 1);
             }
             budget -= 1;
-            if let Some(pair) = self.step(task, &mut |child| stack.push(child)) {
-                pairs.push(pair);
-            }
+            self.step(task, &mut |child| stack.push(child), &mut pairs);
         }
         (pairs, 0)
     }
 
     /// One step of the walk at the node pair `(a, b)` (a node against itself when `a == b`):
-    /// the two triangles, when both are leaves whose boxes meet, or the node pairs to walk
-    /// instead handed to `split`.
+    /// the pairs of their triangles that may touch added to `pairs` when both are leaves
+    /// ([`Self::meet`]), or the node pairs to walk instead handed to `split`.
     #[inline]
-    fn step(&self, (a, b): (u32, u32), split: &mut impl FnMut((u32, u32))) -> Option<(u32, u32)> {
+    fn step(&self, (a, b): (u32, u32), split: &mut impl FnMut((u32, u32)), pairs: &mut Vec<(u32, u32)>) {
         let (na, nb) = (self.nodes[a as usize], self.nodes[b as usize]);
         if a == b {
-            if na.right != LEAF && !(na.connected && self.flat(a as usize)) {
+            if na.connected && cone_cos(self.normals[a as usize]) >= FLAT_COS {
+                return;
+            }
+            if na.right == LEAF {
+                let range = na.start as usize..(na.start + na.count) as usize;
+                for i in range.clone() {
+                    for j in i + 1..range.end {
+                        self.meet(i, j, pairs);
+                    }
+                }
+            } else {
                 let (l, r) = (a + 1, na.right);
                 [(l, r), (r, r), (l, l)].into_iter().for_each(split);
             }
-            return None;
+            return;
         }
         let ([a_lo, a_hi], [b_lo, b_hi]) = (self.boxes[a as usize], self.boxes[b as usize]);
         if !(a_lo.cmple(b_hi).all() && a_hi.cmpge(b_lo).all()) || self.flat_together(na, nb, a, b) {
-            return None;
+            return;
         }
         let (a_leaf, b_leaf) = (na.right == LEAF, nb.right == LEAF);
-        // An inner node's item is its count of triangles.
         if a_leaf && b_leaf {
-            return Some((na.item, nb.item));
+            for i in na.start as usize..(na.start + na.count) as usize {
+                let [lo, hi] = self.triangle_boxes[i];
+                if lo.cmple(b_hi).all() && hi.cmpge(b_lo).all() {
+                    for j in nb.start as usize..(nb.start + nb.count) as usize {
+                        self.meet(i, j, pairs);
+                    }
+                }
+            }
+            return;
         }
         // The larger node is split; both when they are of about one size.
-        if a_leaf || (!b_leaf && nb.item > 2 * na.item) {
+        if a_leaf || (!b_leaf && nb.count > 2 * na.count) {
             [(a, nb.right), (a, b + 1)].into_iter().for_each(split);
-        } else if b_leaf || na.item > 2 * nb.item {
+        } else if b_leaf || na.count > 2 * nb.count {
             [(na.right, b), (a + 1, b)].into_iter().for_each(split);
         } else {
             let (al, ar, bl, br) = (a + 1, na.right, b + 1, nb.right);
             [(ar, br), (ar, bl), (al, br), (al, bl)].into_iter().for_each(split);
         }
-        None
+    }
+
+    /// Adds the triangles at places `i` and `j` of [`Self::order`] to `pairs` if they may
+    /// touch: their boxes meet, and they neither share a corner and lie flat together nor are
+    /// [`Self::separated`].
+    #[inline(always)]
+    fn meet(&self, i: usize, j: usize, pairs: &mut Vec<(u32, u32)>) {
+        let ([a_lo, a_hi], [b_lo, b_hi]) = (self.triangle_boxes[i], self.triangle_boxes[j]);
+        if !(a_lo.cmple(b_hi).all() && a_hi.cmpge(b_lo).all()) {
+            return;
+        }
+        // A shared corner (flat indices: of one body) leaves them no gap along any line.
+        if self.corners[i].iter().any(|k| self.corners[j].contains(k)) {
+            let ([a0, a1], [b0, b1]) = (self.faces[i].map(Vec3A::from), self.faces[j].map(Vec3A::from));
+            if cone_cos([a0.min(a1).min(b0.min(b1)), a0.max(a1).max(b0.max(b1))]) >= FLAT_COS {
+                return;
+            }
+        } else if self.separated(i, j) {
+            return;
+        }
+        pairs.push((self.order[i], self.order[j]));
+    }
+
+    /// Whether the triangles at places `i` and `j` lie farther apart than the largest
+    /// thickness along the line between their centroids now, over the whole substep.
+    #[inline]
+    fn separated(&self, i: usize, j: usize) -> bool {
+        let ((a, a_moved), (b, b_moved)) = (self.now[i], self.now[j]);
+        let axis = (b[0] + b[1] + b[2]) - (a[0] + a[1] + a[2]);
+        let a_hi = a[0].dot(axis).max(a[1].dot(axis)).max(a[2].dot(axis));
+        let b_lo = b[0].dot(axis).min(b[1].dot(axis)).min(b[2].dot(axis));
+        // NaN is not apart.
+        let length = axis.length();
+        length > 0.0 && b_lo - a_hi >= (2.0 * self.grow + a_moved + b_moved) * length
     }
 
     /// Node `i`'s count of triangles.
     fn size(&self, i: u32) -> usize {
-        let node = self.nodes[i as usize];
-        if node.right == LEAF { 1 } else { node.item as usize }
-    }
-
-    /// Whether every normal of node `i`'s triangles, at the substep's start and end, lies
-    /// within 45° of one direction (the middle of their box; see the [module docs](super)).
-    /// The box holds every normal, so the least cosine over the box is at most that over the
-    /// normals.
-    #[inline]
-    fn flat(&self, i: usize) -> bool {
-        flat(self.normals[i])
+        self.nodes[i as usize].count as usize
     }
 
     /// Whether the nodes `na` and `nb` (numbered `a` and `b`) form a connected part of one
-    /// body that is flat ([`Self::flat`]): each connected, sharing a corner.
+    /// body whose normals lie within 45° of one direction: each connected, their boxes in the
+    /// rest shape touching and sharing a corner.
     #[inline(always)]
     fn flat_together(&self, na: Node, nb: Node, a: u32, b: u32) -> bool {
         let ([a_lo, a_hi], [b_lo, b_hi]) = (self.normals[a as usize], self.normals[b as usize]);
         na.body == nb.body
             && na.connected
             && nb.connected
-            && flat([a_lo.min(b_lo), a_hi.max(b_hi)])
-            && na.rest[0].cmple(nb.rest[1]).all()
-            && nb.rest[0].cmple(na.rest[1]).all()
+            && self.rests[a as usize][0].cmple(self.rests[b as usize][1]).all()
+            && self.rests[b as usize][0].cmple(self.rests[a as usize][1]).all()
+            && cone_cos([a_lo.min(b_lo), a_hi.max(b_hi)]) >= FLAT_COS
             && shares_corner(&self.border, na.border, nb.border)
     }
 }
 
-/// Whether the normals in the box from `lo` to `hi` all lie within 45° of its middle's
-/// direction, as far as the box tells ([`SurfaceTree::flat`]).
+/// The box of particle `p`'s path from `prev` to `x` (empty for `u32::MAX` or a particle
+/// that is not finite).
 #[inline]
-fn flat([lo, hi]: [Vec3A; 2]) -> bool {
-    let Some(axis) = (0.5 * (lo + hi)).try_normalize() else { return false };
-    (lo * axis).min(hi * axis).element_sum() >= FLAT_COS
+fn path_box(p: u32, prev: &[Vec3], x: &[Vec3]) -> [Vec3A; 2] {
+    match (prev.get(p as usize), x.get(p as usize)) {
+        (Some(&a), Some(&b)) if a.is_finite() && b.is_finite() => [a.min(b).into(), a.max(b).into()],
+        _ => EMPTY,
+    }
 }
 
+/// The least cosine between the normals in the box from `lo` to `hi` and its middle's
+/// direction, as far as the box tells; 0 for a box that holds opposite normals.
+#[inline]
+fn cone_cos([lo, hi]: [Vec3A; 2]) -> f32 {
+    let mid = lo + hi;
+    let least = (lo * mid).min(hi * mid).element_sum();
+    let length = mid.length();
+    if least > 0.0 && length > 0.0 { least / length } else { 0.0 }
+}
+
+/// The tree's lists a body's build appends to: the nodes, their boxes in the rest shape, their
+/// border particles and the triangles leaf after leaf.
+type Lists<'a> = (&'a mut Vec<Node>, &'a mut Vec<[Vec3A; 2]>, &'a mut Vec<u32>, &'a mut Vec<u32>);
+
 /// Appends the tree of `topology`'s triangles (numbered from `first` among every body's; the
-/// body's index is `body`) to `nodes`, and each node's particles on its border to `border`:
-/// the triangles halved again and again at the median of their centroids in the rest shape
-/// along the longest side of their box, so that a node is a compact piece of the surface.
-fn build(topology: &ClothTopology, body: u32, first: u32, nodes: &mut Vec<Node>, border: &mut Vec<u32>) {
+/// body's index is `body`) to `lists`: its nodes, each node's particles on its border, and its
+/// triangles leaf after leaf. The triangles are halved again
+/// and again at the median of their centroids in the rest shape along the longest side of
+/// their box, so that a node is a compact piece of the surface, down to leaves of at most
+/// [`LEAF_SIZE`].
+fn build(topology: &ClothTopology, body: u32, first: u32, (nodes, rests, border, order): Lists<'_>) {
     let (rest, triangles) = (topology.rest_positions(), topology.triangles());
-    let mut order: Vec<(Vec3, u32)> = triangles
+    let mut centroids: Vec<(Vec3, u32)> = triangles
         .iter()
         .enumerate()
         .map(|(t, c)| ((rest[c[0] as usize] + rest[c[1] as usize] + rest[c[2] as usize]) / 3.0, t as u32))
@@ -340,9 +487,11 @@ fn build(topology: &ClothTopology, body: u32, first: u32, nodes: &mut Vec<Node>,
         body,
         first,
         nodes,
+        rests,
         border,
+        order,
     };
-    builder.split(&mut order);
+    builder.split(&mut centroids);
 }
 
 /// The scratch of a body's tree's build.
@@ -357,7 +506,9 @@ struct Builder<'a> {
     body: u32,
     first: u32,
     nodes: &'a mut Vec<Node>,
+    rests: &'a mut Vec<[Vec3A; 2]>,
     border: &'a mut Vec<u32>,
+    order: &'a mut Vec<u32>,
 }
 
 impl Builder<'_> {
@@ -366,13 +517,16 @@ impl Builder<'_> {
     fn split(&mut self, order: &mut [(Vec3, u32)]) -> bool {
         let at = self.nodes.len();
         let border = self.border(at as u32, order);
-        let (rest, body) = (self.rest_box(order), self.body);
-        if let [(_, t)] = order {
-            self.nodes.push(Node { right: LEAF, item: self.first + *t, body, border, connected: true, rest });
-            return true;
+        let body = self.body;
+        self.rests.push(self.rest_box(order));
+        let (start, count) = (self.order.len() as u32, order.len() as u32);
+        if order.len() <= LEAF_SIZE {
+            self.order.extend(order.iter().map(|&(_, t)| self.first + t));
+            let connected = self.joined(order);
+            self.nodes.push(Node { right: LEAF, start, count, body, border, connected });
+            return connected;
         }
-        let item = order.len() as u32;
-        self.nodes.push(Node { right: 0, item, body, border, connected: false, rest });
+        self.nodes.push(Node { right: 0, start, count, body, border, connected: false });
         let (lo, hi) =
             order.iter().fold((Vec3::INFINITY, Vec3::NEG_INFINITY), |(lo, hi), &(c, _)| (lo.min(c), hi.max(c)));
         let axis = (hi - lo).max_position();
@@ -386,6 +540,23 @@ impl Builder<'_> {
         let connected = joined_left && joined_right && shares_corner(self.border, l, r);
         self.nodes[at].connected = connected;
         connected
+    }
+
+    /// Whether the few triangles `order` are joined to each other through shared corners.
+    fn joined(&self, order: &[(Vec3, u32)]) -> bool {
+        let corners: Vec<[u32; 3]> = order.iter().map(|&(_, t)| self.triangles[t as usize]).collect();
+        let touch = |a: [u32; 3], b: [u32; 3]| a.iter().any(|k| b.contains(k));
+        // Grown from the first triangle: each pass takes in every triangle touching one taken.
+        let mut taken = vec![false; corners.len()];
+        taken[0] = true;
+        for _ in 1..corners.len() {
+            for i in 0..corners.len() {
+                if !taken[i] && (0..corners.len()).any(|j| taken[j] && touch(corners[i], corners[j])) {
+                    taken[i] = true;
+                }
+            }
+        }
+        taken.into_iter().all(|t| t)
     }
 
     /// The box of the triangles `order` in the rest shape.
