@@ -54,7 +54,7 @@ impl ContactSolver {
         }
         if eb == fb {
             // Near each other in the rest shape: the cloth's own neighbourhood, not two layers.
-            let ([e_lo, e_hi], [f_lo, f_hi]) = (self.rest_boxes[first + e], self.rest_boxes[first + f]);
+            let ([e_lo, e_hi], [f_lo, f_hi]) = (self.tree.rest_boxes[first + e], self.tree.rest_boxes[first + f]);
             if (e_lo - h).cmple(f_hi).all() && (e_hi + h).cmpge(f_lo).all() {
                 return None;
             }

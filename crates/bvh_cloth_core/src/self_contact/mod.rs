@@ -179,7 +179,7 @@ mod untangle;
 
 #[cfg(feature = "bevy_reflect")]
 use bevy_reflect::std_traits::ReflectDefault;
-use glam::{Vec3, Vec3A};
+use glam::Vec3;
 use rayon::prelude::*;
 
 use crate::cloth::error::ClothError;
@@ -343,9 +343,6 @@ pub struct ContactSolver {
     triangles: Vec<(u32, [u32; 3])>,
     /// Every body's edges: its body and its ends' flat indices.
     edges: Vec<(u32, [u32; 2])>,
-    /// Each primitive's box in the rest shape: the triangles', then the edges' (primitive
-    /// `triangles.len() + e` is edge `e`).
-    rest_boxes: Vec<[Vec3A; 2]>,
     /// The bodies' triangles in a tree, refitted each substep.
     tree: SurfaceTree,
     /// The pairs of triangles the tree found this substep.
@@ -531,7 +528,6 @@ impl ContactSolver {
         self.owner.clear();
         self.triangles.clear();
         self.edges.clear();
-        self.rest_boxes.clear();
         for (b, body) in bodies.iter().enumerate() {
             let n = body.topology.len();
             assert!(
@@ -547,18 +543,13 @@ impl ContactSolver {
             self.owner.extend((0..n as u32).map(|i| (b as u32, i)));
             for t in body.topology.triangles() {
                 self.triangles.push((b as u32, t.map(|k| first + k)));
-                let [ra, rb, rc] = t.map(|k| body.topology.rest_positions()[k as usize]);
-                self.rest_boxes.push([ra.min(rb).min(rc).into(), ra.max(rb).max(rc).into()]);
             }
         }
         // The edges after every triangle, body by body.
         let mut first = 0;
         for (b, body) in bodies.iter().enumerate() {
-            let rest = body.topology.rest_positions();
             for &[p, q] in body.topology.edges() {
                 self.edges.push((b as u32, [first + p, first + q]));
-                let (rp, rq) = (rest[p as usize], rest[q as usize]);
-                self.rest_boxes.push([rp.min(rq).into(), rp.max(rq).into()]);
             }
             first += body.topology.len() as u32;
         }

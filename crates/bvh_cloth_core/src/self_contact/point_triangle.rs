@@ -44,7 +44,7 @@ impl ContactSolver {
         let h = 0.5 * (point_body.contact.thickness + tri_body.contact.thickness);
         if pb == tb {
             // Near it in the rest shape: the cloth's own neighbourhood, not another layer.
-            let [lo, hi] = self.rest_boxes[t as usize];
+            let [lo, hi] = self.tree.rest_boxes[t as usize];
             let rest = Vec3A::from(point_body.topology.rest_positions()[pl as usize]);
             if rest.cmpge(lo - h).all() && rest.cmple(hi + h).all() {
                 return None;

@@ -61,10 +61,13 @@ struct Node {
 /// The tree of every body's triangles, and what each triangle stands for in the pairs.
 #[derive(Clone, Debug, Default)]
 pub(super) struct SurfaceTree {
-    /// Each body's count of particles and triangles the tree was built for: a body whose
-    /// particles or triangles differ gets its tree built again (the particles' and edges' flat
-    /// indices follow from the counts).
-    built_for: Vec<(usize, Vec<[u32; 3]>)>,
+    /// Each body's rest shape and triangles the tree was built for: a body whose particles or
+    /// triangles differ gets its tree built again (the particles' and edges' flat indices
+    /// follow from the counts, the boxes in the rest shape from the positions).
+    built_for: Vec<(Vec<Vec3>, Vec<[u32; 3]>)>,
+    /// Each primitive's box in the rest shape: every body's triangles, then every body's edges
+    /// (primitive `triangles + e` is edge `e`), in their flat order.
+    pub(super) rest_boxes: Vec<[Vec3A; 2]>,
     nodes: Vec<Node>,
     /// The nodes' border particles.
     border: Vec<u32>,
@@ -106,20 +109,34 @@ pub(super) struct SurfaceTree {
 }
 
 impl SurfaceTree {
-    /// Builds the tree again when the bodies' particles or triangles changed (`topologies`, in
+    /// Builds the tree again when the bodies' rest shapes or triangles changed (`topologies`, in
     /// body order; their triangles come first to last in the flat triangle order, and their
     /// particles and edges likewise).
     pub(super) fn prepare(&mut self, topologies: &[&ClothTopology]) {
-        let same = self.built_for.len() == topologies.len()
-            && self
-                .built_for
-                .iter()
-                .zip(topologies)
-                .all(|((n, t), topology)| *n == topology.len() && t[..] == *topology.triangles());
+        let same =
+            self.built_for.len() == topologies.len()
+                && self.built_for.iter().zip(topologies).all(|((rest, t), topology)| {
+                    rest[..] == *topology.rest_positions() && t[..] == *topology.triangles()
+                });
         if same {
             return;
         }
-        self.built_for = topologies.iter().map(|t| (t.len(), t.triangles().to_vec())).collect();
+        self.built_for = topologies.iter().map(|t| (t.rest_positions().to_vec(), t.triangles().to_vec())).collect();
+        self.rest_boxes.clear();
+        for topology in topologies {
+            let rest = topology.rest_positions();
+            self.rest_boxes.extend(topology.triangles().iter().map(|t| {
+                let [a, b, c] = t.map(|k| rest[k as usize]);
+                [a.min(b).min(c).into(), a.max(b).max(c).into()]
+            }));
+        }
+        for topology in topologies {
+            let rest = topology.rest_positions();
+            self.rest_boxes.extend(topology.edges().iter().map(|&[p, q]| {
+                let (a, b) = (rest[p as usize], rest[q as usize]);
+                [a.min(b).into(), a.max(b).into()]
+            }));
+        }
         self.nodes.clear();
         self.border.clear();
         self.rests.clear();

@@ -56,7 +56,7 @@ impl ContactSolver {
             let ((tb, tc), (ub, uc)) = (self.triangles[t as usize], self.triangles[u as usize]);
             let tested = if ub == tb {
                 let h = bodies[tb as usize].contact.thickness;
-                let ([t_lo, t_hi], [u_lo, u_hi]) = (self.rest_boxes[t as usize], self.rest_boxes[u as usize]);
+                let ([t_lo, t_hi], [u_lo, u_hi]) = (self.tree.rest_boxes[t as usize], self.tree.rest_boxes[u as usize]);
                 let neighbours = (t_lo - h).cmple(u_hi).all() && (t_hi + h).cmpge(u_lo).all();
                 !(neighbours || tc.iter().any(|k| uc.contains(k)))
             } else {

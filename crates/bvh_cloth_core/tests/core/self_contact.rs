@@ -483,6 +483,58 @@ fn a_solver_kept_for_other_cloths_builds_its_tree_again() {
     assert_eq!(again.upper_v, fresh.upper_v);
 }
 
+/// A solver kept for a cloth whose rest shape changed, its particles and triangles the same,
+/// takes the new rest shape's neighbours: one body of two sheets, a pinned one at y = 0 and a
+/// small one going through it during the substep, whose rest shape first holds the small sheet
+/// 0.5 m above the large one (two layers: it goes back) and then in its plane (neighbours on
+/// the cloth: no contact), comes out as from a new solver.
+#[test]
+fn a_solver_kept_for_a_new_rest_shape_takes_its_neighbours() {
+    let sheets = |height: f32| {
+        let positions = [
+            [-0.1, 0.0, -0.1],
+            [0.1, 0.0, -0.1],
+            [0.1, 0.0, 0.1],
+            [-0.1, 0.0, 0.1],
+            [-0.01, height, -0.01],
+            [0.01, height, -0.01],
+            [0.01, height, 0.01],
+            [-0.01, height, 0.01],
+        ];
+        let indices = [0, 1, 2, 0, 2, 3, 4, 5, 6, 4, 6, 7];
+        ClothTopology::from_mesh(MeshRef { positions: &positions, indices: Some(&indices) }).unwrap()
+    };
+    let (apart, together) = (sheets(0.5), sheets(0.0));
+    let free = [0.0, 0.0, 0.0, 0.0, 1.0, 1.0, 1.0, 1.0];
+    let through = |solver: &mut ContactSolver, topology: &ClothTopology| {
+        let at = |y: f32| -> Vec<Vec3> {
+            let rest = topology.rest_positions();
+            (0..8).map(|k| if k < 4 { rest[k] } else { Vec3::new(rest[k].x, y, rest[k].z) }).collect()
+        };
+        let (prev, mut x) = (at(0.003), at(-0.003));
+        let mut v = vec![Vec3::new(0.0, -1.0, 0.0); 8];
+        let contact = SelfContact { thickness: THICKNESS, friction: 0.0 };
+        let body = ContactBody {
+            layers: Default::default(),
+            topology,
+            contact,
+            free: &free,
+            held: &[],
+            prev: &prev,
+            x: &mut x,
+            v: &mut v,
+        };
+        let stats = solver.resolve(&mut [body], &[]);
+        (stats, x, v)
+    };
+    let mut kept = ContactSolver::default();
+    let (stats, x, _) = through(&mut kept, &apart);
+    assert!(stats.contacts > 0 && x[4].y > 0.0, "two layers apart in the rest shape: the sheet goes back");
+    let fresh = through(&mut ContactSolver::default(), &together);
+    assert_eq!(fresh.0.contacts, 0, "neighbours in the rest shape: no contact");
+    assert_eq!(through(&mut kept, &together), fresh);
+}
+
 /// Two strips 2 cm wide laid crosswise, one pinned at y = 0 and the other moving from 3 mm above
 /// to 3 mm below it during the substep: their long edges pass through each other in the 2 cm
 /// square where they overlap, and no particle of either comes within 0.48 m of a triangle of the
