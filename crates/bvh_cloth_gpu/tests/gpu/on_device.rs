@@ -1656,10 +1656,13 @@ fn contact_tick_on_the_cpu(
 /// the lower from about tick 10). The contact cloths take one substep count on both.
 ///
 /// Tolerances, per tick: at most half of each cloth's particles more than 1e-5 m from the CPU's,
-/// and none more than 4 mm (on lavapipe at worst 34.5% and 1.4 mm with the CPU's pairs from a
-/// hashed grid as the GPU's; with the CPU's pairs from its tree, summed in the pairs' order
-/// and the cloths' flat parts skipped, at worst 34.5% and 2.8 mm: the block-descent cloth at tick
-/// 21, 2.2 mm for the RK4 one). Without contact the scene
+/// and none more than 7 mm. On lavapipe: at worst 34.5% and 1.4 mm with the CPU's pairs from a
+/// hashed grid as the GPU's; with the CPU's pairs from its tree, summed in the pairs' order and
+/// the cloths' flat parts skipped, at worst 34.5% and 2.8 mm (the block-descent cloth at tick
+/// 21) with leaves of one triangle, 4.0 mm (tick 19) with those leaves and the tests' early
+/// exits, and 6.5 mm (tick 19, 60 particles off; 5.3 mm for the RK4 cloth) with leaves of two:
+/// the same pairs in another order, their contacts summed in it. The largest gap follows the
+/// order of the sums, through the response's discontinuity (below). Without contact the scene
 /// agrees to 4e-6 m per tick. Contact's response is not continuous: a point that comes within
 /// the thickness of a triangle, or an edge within the thickness of an edge, loses its approach
 /// speed at once, and a particle a collider touches weighs as pinned, so particles a few ulps
@@ -1670,9 +1673,10 @@ fn contact_tick_on_the_cpu(
 /// from where they end unmoved. A wrong response moves more, and further: on the GPU without
 /// friction, without the corners' share, without the side a point came from, or with a touched
 /// particle weighing as a free one, up to 100%, 100%, 13% and 100% of a cloth's particles
-/// differ, by up to 6.4, 7.1, 8.1 and 6.6 mm. (Those two sets of figures come from variants of
-/// this test run on lavapipe and not kept: the CPU's state nudged before each tick, and each
-/// part of the GPU's response taken out in turn.)
+/// differ, by up to 6.4, 7.1, 8.1 and 6.6 mm: the three that move every particle fail the share,
+/// the fourth (13%) the 7 mm. (Those two sets of figures come from variants of this test run on
+/// lavapipe and not kept: the CPU's state nudged before each tick, and each part of the GPU's
+/// response taken out in turn.)
 #[test]
 fn self_contact_agrees_with_the_cpu() {
     let Some(rig) = rig() else { return };
@@ -1696,7 +1700,7 @@ fn self_contact_agrees_with_the_cpu() {
             let off = sim.positions().iter().zip(&on_gpu).filter(|(a, b)| a.distance(**b) > 1e-5).count();
             worst[k] = worst[k].max(gap);
             most_off[k] = most_off[k].max(off);
-            assert!(gap < 4e-3, "{name}, tick {t}: GPU and CPU differ by {gap} m");
+            assert!(gap < 7e-3, "{name}, tick {t}: GPU and CPU differ by {gap} m");
             assert!(off * 2 <= on_gpu.len(), "{name}, tick {t}: {off} particles differ by more than 1e-5 m");
         }
     }
