@@ -108,8 +108,10 @@
 //! The points' contacts are found in parallel, pair by pair, and summed in the pairs' order (on
 //! the CPU the walk's first steps make node pairs for the threads to share, each walked depth
 //! first, their pairs joined in order); a particle in several contacts moves by the mean of its
-//! corrections (Jacobi with averaging), so the result depends neither on the thread count nor
-//! on the order. Then the edges'
+//! corrections (Jacobi with averaging), so the result does not depend on the thread count. It
+//! does depend on the pairs' order, through the rounding of the sums: the same pairs walked in
+//! another order end up to millimetres apart where a particle lies at a contact's threshold
+//! (the GPU's test against the CPU, `self_contact_agrees_with_the_cpu`). Then the edges'
 //! contacts are found the same way from where those corrections left the particles, and
 //! applied the same way: a point put back through a triangle takes its edges back with it, and
 //! the edges' contacts then catch only what the points missed. Averaged together, the two
