@@ -209,7 +209,7 @@ pub fn intersecting_pairs(tris: &[[u32; 3]], x: &[Vec3], other: Option<(&[[u32; 
             let a = corners(&tris[i], x);
             let first = if other.is_some() { 0 } else { i + 1 };
             (first..theirs.len())
-                .filter(move |&j| other.is_some() || !tris[i].iter().any(|k| theirs[j].contains(k)))
+                .filter(move |&j| other.is_some() || !share_a_corner(tris[i], theirs[j]))
                 .filter(move |&j| {
                     let b = corners(&theirs[j], y);
                     overlap(bounds(a), bounds(b)) && triangles_intersect(a, b)
@@ -217,6 +217,12 @@ pub fn intersecting_pairs(tris: &[[u32; 3]], x: &[Vec3], other: Option<(&[[u32; 
                 .map(move |j| (i, j))
         })
         .collect()
+}
+
+/// Whether the triangles with corners `a` and `b` (indices into one list of positions) share a
+/// corner.
+pub fn share_a_corner(a: [u32; 3], b: [u32; 3]) -> bool {
+    a.iter().any(|k| b.contains(k))
 }
 
 /// The triangle's unit normal by its winding (`(b - a) x (c - a)`), or `None` when it has no

@@ -8,7 +8,7 @@ use glam::{Vec3, Vec3A};
 use rayon::prelude::*;
 
 use crate::cloth::topology::ClothTopology;
-use crate::mesh::triangles::face_normal;
+use crate::mesh::triangles::{face_normal, share_a_corner};
 
 /// Most node pairs the walk tests, per triangle of the bodies: a walk that reaches it stops
 /// (everything at one point would otherwise cost the square of the triangle count).
@@ -202,11 +202,10 @@ impl SurfaceTree {
         self.triangle_boxes.resize(self.order.len(), [Vec3A::ZERO; 2]);
         self.now.resize(self.order.len(), ([Vec3::ZERO; 3], 0.0));
         self.faces.resize(self.order.len(), [Vec3::ZERO; 2]);
-        let empty = EMPTY;
         for i in (0..count).rev() {
             let node = self.nodes[i];
             if node.right == LEAF {
-                let (mut bounds, mut normals) = (empty, empty);
+                let (mut bounds, mut normals) = (EMPTY, EMPTY);
                 for at in node.start as usize..(node.start + node.count) as usize {
                     let corners = self.corners[at];
                     let (before, now) = (corners.map(|k| prev[k as usize]), corners.map(|k| x[k as usize]));
@@ -215,7 +214,7 @@ impl SurfaceTree {
                     let own = if lo.is_finite() && hi.is_finite() {
                         [Vec3A::from(lo - grow), Vec3A::from(hi + grow)]
                     } else {
-                        empty
+                        EMPTY
                     };
                     self.triangle_boxes[at] = own;
                     let moved = (0..3).fold(0.0f32, |m, k| m.max(before[k].distance_squared(now[k]))).sqrt();
@@ -285,8 +284,8 @@ impl SurfaceTree {
     /// Every pair of triangles (indices among every body's triangles) that may touch over the
     /// substep ([`Self::meet`]), each pair once, in an order that depends on the positions
     /// alone, whatever the threads: within each body, less those in a part of it that is flat
-    /// within 45° ([`FLAT_COS`]); and between every two bodies for which `meet(a, b)` holds. Writes them
-    /// to `pairs`; returns how many node pairs were left untested when the walk reached its
+    /// within 45° ([`FLAT_COS`]); and between every two bodies for which `meet(a, b)` holds.
+    /// Writes them to `pairs`; returns how many node pairs were left untested when the walk reached its
     /// bound ([`MAX_TESTS_PER_TRIANGLE`] a triangle), 0 when none.
     ///
     /// The walk's first steps make node pairs of at most a [`TASKS`]th of the triangles, which
@@ -412,7 +411,7 @@ impl SurfaceTree {
             return;
         }
         // A shared corner (flat indices: of one body) leaves them no gap along any line.
-        if self.corners[i].iter().any(|k| self.corners[j].contains(k)) {
+        if share_a_corner(self.corners[i], self.corners[j]) {
             let ([a0, a1], [b0, b1]) = (self.faces[i].map(Vec3A::from), self.faces[j].map(Vec3A::from));
             if cone_cos([a0.min(a1).min(b0.min(b1)), a0.max(a1).max(b0.max(b1))]) >= FLAT_COS {
                 return;
@@ -482,8 +481,8 @@ fn cone_cos([lo, hi]: [Vec3A; 2]) -> f32 {
 type Lists<'a> = (&'a mut Vec<Node>, &'a mut Vec<[Vec3A; 2]>, &'a mut Vec<u32>, &'a mut Vec<u32>);
 
 /// Appends the tree of `topology`'s triangles (numbered from `first` among every body's; the
-/// body's index is `body`) to `lists`: its nodes, each node's particles on its border, and its
-/// triangles leaf after leaf. The triangles are halved again
+/// body's index is `body`) to `lists`: its nodes, their boxes in the rest shape, each node's
+/// particles on its border, and its triangles leaf after leaf. The triangles are halved again
 /// and again at the median of their centroids in the rest shape along the longest side of
 /// their box, so that a node is a compact piece of the surface, down to leaves of at most
 /// [`LEAF_SIZE`].
@@ -562,13 +561,12 @@ impl Builder<'_> {
     /// Whether the few triangles `order` are joined to each other through shared corners.
     fn joined(&self, order: &[(Vec3, u32)]) -> bool {
         let corners: Vec<[u32; 3]> = order.iter().map(|&(_, t)| self.triangles[t as usize]).collect();
-        let touch = |a: [u32; 3], b: [u32; 3]| a.iter().any(|k| b.contains(k));
         // Grown from the first triangle: each pass takes in every triangle touching one taken.
         let mut taken = vec![false; corners.len()];
         taken[0] = true;
         for _ in 1..corners.len() {
             for i in 0..corners.len() {
-                if !taken[i] && (0..corners.len()).any(|j| taken[j] && touch(corners[i], corners[j])) {
+                if !taken[i] && (0..corners.len()).any(|j| taken[j] && share_a_corner(corners[i], corners[j])) {
                     taken[i] = true;
                 }
             }

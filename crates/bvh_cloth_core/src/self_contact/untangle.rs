@@ -9,7 +9,7 @@ use rayon::prelude::*;
 
 use super::{ContactBody, ContactSolver};
 use crate::cloth::topology::ClothTopology;
-use crate::mesh::triangles::triangles_intersect;
+use crate::mesh::triangles::{share_a_corner, triangles_intersect};
 
 /// No body: a particle on the right side of every other.
 pub(super) const NO_BODY: u32 = u32::MAX;
@@ -58,7 +58,7 @@ impl ContactSolver {
                 let h = bodies[tb as usize].contact.thickness;
                 let ([t_lo, t_hi], [u_lo, u_hi]) = (self.tree.rest_boxes[t as usize], self.tree.rest_boxes[u as usize]);
                 let neighbours = (t_lo - h).cmple(u_hi).all() && (t_hi + h).cmpge(u_lo).all();
-                !(neighbours || tc.iter().any(|k| uc.contains(k)))
+                !(neighbours || share_a_corner(tc, uc))
             } else {
                 bodies[tb as usize].layers.interacts_with(bodies[ub as usize].layers)
             };

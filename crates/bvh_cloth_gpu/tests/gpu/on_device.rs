@@ -1661,8 +1661,9 @@ fn contact_tick_on_the_cpu(
 /// the cloths' flat parts skipped, at worst 34.5% and 2.8 mm (the block-descent cloth at tick
 /// 21) with leaves of one triangle, 4.0 mm (tick 19) with those leaves and the tests' early
 /// exits, and 6.5 mm (tick 19, 60 particles off; 5.3 mm for the RK4 cloth) with leaves of two,
-/// whose walk takes the pairs of the same rules in another order and sums their contacts in it. The largest gap follows the
-/// order of the sums, through the response's discontinuity (below). Without contact the scene
+/// whose walk takes the pairs of the same rules in another order and sums their contacts in
+/// it. The largest gap follows the order of the sums, through the response's discontinuity
+/// (below). Without contact the scene
 /// agrees to 4e-6 m per tick. Contact's response is not continuous: a point that comes within
 /// the thickness of a triangle, or an edge within the thickness of an edge, loses its approach
 /// speed at once, and a particle a collider touches weighs as pinned, so particles a few ulps
