@@ -106,6 +106,9 @@ pub(super) struct SurfaceTree {
     /// The boxes of those edges over the substep, not grown (empty for none): the pairs' tests
     /// look at them first, side by side.
     pub(super) edge_boxes: Vec<[[Vec3A; 2]; 3]>,
+    /// Each particle's box over the substep (flat indices; empty for one that is not finite):
+    /// the scratch the edges' boxes are joined from.
+    paths: Vec<[Vec3A; 2]>,
 }
 
 impl SurfaceTree {
@@ -193,37 +196,39 @@ impl SurfaceTree {
     /// Each triangle's and each node's box over the substep (its triangles' corners at the
     /// substep's start, `prev`, and end, `x`), grown by `grow`, and the box of a node's
     /// triangles' normals then and now. A triangle with a corner that is not finite has an
-    /// empty box (it meets nothing); one without area, a box of every normal (never flat).
+    /// empty box (it meets nothing); one without area, a box of every normal (never flat). The
+    /// triangles are taken in parallel, then the nodes from the leaves up.
     pub(super) fn refit(&mut self, prev: &[Vec3], x: &[Vec3], grow: f32) {
         self.grow = grow;
+        let places = self.order.len();
+        self.triangle_boxes.resize(places, [Vec3A::ZERO; 2]);
+        self.now.resize(places, ([Vec3::ZERO; 3], 0.0));
+        self.faces.resize(places, [Vec3::ZERO; 2]);
+        let (boxes, now, faces) = (&mut self.triangle_boxes, &mut self.now, &mut self.faces);
+        if places >= super::PARALLEL_MIN {
+            let each = boxes.par_iter_mut().zip(now.par_iter_mut()).zip(faces.par_iter_mut());
+            self.corners.par_iter().zip(each).for_each(|(corners, ((own, now), faces))| {
+                (*own, *now, *faces) = fit_triangle(*corners, prev, x, grow);
+            });
+        } else {
+            let each = boxes.iter_mut().zip(now.iter_mut()).zip(faces.iter_mut());
+            self.corners.iter().zip(each).for_each(|(corners, ((own, now), faces))| {
+                (*own, *now, *faces) = fit_triangle(*corners, prev, x, grow);
+            });
+        }
         let count = self.nodes.len();
         self.boxes.resize(count, [Vec3A::ZERO; 2]);
         self.normals.resize(count, [Vec3A::ZERO; 2]);
-        self.triangle_boxes.resize(self.order.len(), [Vec3A::ZERO; 2]);
-        self.now.resize(self.order.len(), ([Vec3::ZERO; 3], 0.0));
-        self.faces.resize(self.order.len(), [Vec3::ZERO; 2]);
         for i in (0..count).rev() {
             let node = self.nodes[i];
             if node.right == LEAF {
                 let (mut bounds, mut normals) = (EMPTY, EMPTY);
                 for at in node.start as usize..(node.start + node.count) as usize {
-                    let corners = self.corners[at];
-                    let (before, now) = (corners.map(|k| prev[k as usize]), corners.map(|k| x[k as usize]));
-                    let lo = before[0].min(before[1]).min(before[2]).min(now[0].min(now[1]).min(now[2]));
-                    let hi = before[0].max(before[1]).max(before[2]).max(now[0].max(now[1]).max(now[2]));
-                    let own = if lo.is_finite() && hi.is_finite() {
-                        [Vec3A::from(lo - grow), Vec3A::from(hi + grow)]
-                    } else {
-                        EMPTY
-                    };
-                    self.triangle_boxes[at] = own;
-                    let moved = (0..3).fold(0.0f32, |m, k| m.max(before[k].distance_squared(now[k]))).sqrt();
-                    self.now[at] = (now, moved);
+                    let own = self.triangle_boxes[at];
                     bounds = [bounds[0].min(own[0]), bounds[1].max(own[1])];
-                    let faces = (face_normal(before), face_normal(now));
-                    self.faces[at] = [faces.0.unwrap_or(Vec3::ZERO), faces.1.unwrap_or(Vec3::ZERO)];
-                    let own = match faces {
-                        (Some(a), Some(b)) => [Vec3A::from(a.min(b)), Vec3A::from(a.max(b))],
+                    // A zero normal: a triangle without area then.
+                    let own = match self.faces[at].map(Vec3A::from) {
+                        [a, b] if a != Vec3A::ZERO && b != Vec3A::ZERO => [a.min(b), a.max(b)],
                         _ => [Vec3A::NEG_ONE, Vec3A::ONE],
                     };
                     normals = [normals[0].min(own[0]), normals[1].max(own[1])];
@@ -240,19 +245,35 @@ impl SurfaceTree {
 
     /// The boxes of the edges each triangle stands for over the substep ([`Self::edge_boxes`]),
     /// from `edges` (every body's, their ends' flat indices) at the substep's start, `prev`,
-    /// and now, `x`.
+    /// and now, `x`: each particle's path boxed once, each edge's box joined from its ends', in
+    /// parallel.
     pub(super) fn sweep_edges(&mut self, edges: &[(u32, [u32; 2])], prev: &[Vec3], x: &[Vec3]) {
+        let path = |(&a, &b): (&Vec3, &Vec3)| {
+            if a.is_finite() && b.is_finite() { [a.min(b).into(), a.max(b).into()] } else { EMPTY }
+        };
+        self.paths.clear();
         self.edge_boxes.clear();
-        self.edge_boxes.extend(self.edges.iter().map(|ours| {
+        let parallel = self.edges.len() >= super::PARALLEL_MIN;
+        if parallel {
+            self.paths.par_extend(prev.par_iter().zip(x).map(path));
+        } else {
+            self.paths.extend(prev.iter().zip(x).map(path));
+        }
+        let paths = &self.paths;
+        let boxes = |ours: &[u32; 3]| {
             ours.map(|e| match edges.get(e as usize) {
                 Some(&(_, [p, q])) => {
-                    let [p_lo, p_hi] = path_box(p, prev, x);
-                    let [q_lo, q_hi] = path_box(q, prev, x);
+                    let ([p_lo, p_hi], [q_lo, q_hi]) = (paths[p as usize], paths[q as usize]);
                     [p_lo.min(q_lo), p_hi.max(q_hi)]
                 }
                 None => EMPTY,
             })
-        }));
+        };
+        if parallel {
+            self.edge_boxes.par_extend(self.edges.par_iter().map(boxes));
+        } else {
+            self.edge_boxes.extend(self.edges.iter().map(boxes));
+        }
     }
 
     /// Where triangle `t` lies in the tree's order: the place its tests' data are kept at.
@@ -456,14 +477,17 @@ impl SurfaceTree {
     }
 }
 
-/// The box of particle `p`'s path from `prev` to `x` (empty for `u32::MAX` or a particle
-/// that is not finite).
+/// The box over the substep of the triangle of `corners` (flat indices) from `prev` to `x`,
+/// grown by `grow` (empty when a corner is not finite); its corners now and the farthest one
+/// moved; its unit normals then and now (0 for none: without area).
 #[inline]
-fn path_box(p: u32, prev: &[Vec3], x: &[Vec3]) -> [Vec3A; 2] {
-    match (prev.get(p as usize), x.get(p as usize)) {
-        (Some(&a), Some(&b)) if a.is_finite() && b.is_finite() => [a.min(b).into(), a.max(b).into()],
-        _ => EMPTY,
-    }
+fn fit_triangle(corners: [u32; 3], prev: &[Vec3], x: &[Vec3], grow: f32) -> ([Vec3A; 2], ([Vec3; 3], f32), [Vec3; 2]) {
+    let (before, now) = (corners.map(|k| prev[k as usize]), corners.map(|k| x[k as usize]));
+    let lo = before[0].min(before[1]).min(before[2]).min(now[0].min(now[1]).min(now[2]));
+    let hi = before[0].max(before[1]).max(before[2]).max(now[0].max(now[1]).max(now[2]));
+    let own = if lo.is_finite() && hi.is_finite() { [Vec3A::from(lo - grow), Vec3A::from(hi + grow)] } else { EMPTY };
+    let moved = (0..3).fold(0.0f32, |m, k| m.max(before[k].distance_squared(now[k]))).sqrt();
+    (own, (now, moved), [face_normal(before).unwrap_or(Vec3::ZERO), face_normal(now).unwrap_or(Vec3::ZERO)])
 }
 
 /// The least cosine between the normals in the box from `lo` to `hi` and its middle's
