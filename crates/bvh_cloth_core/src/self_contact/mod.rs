@@ -18,14 +18,19 @@
 //! triangles halved again and again at the median of their centroids along the longest side
 //! of their box, so that each node is a compact piece of the cloth, down to leaves of at most
 //! two), refitted each substep: each triangle's and each node's box over the substep (where
-//! its corners were at the start and are now), grown by half the largest thickness, and the
-//! box of a node's triangles' normals at the start and the end. The tree is walked for the
+//! its corners were at the start and are now), grown by half the largest thickness, its
+//! extent along the six diagonals of the axes (`x ± y`, `x ± z`, `y ± z`), grown likewise, and
+//! the box of a node's triangles' normals at the start and the end. The tree is walked for the
 //! pairs of triangles whose boxes meet, each pair once, and a pair of triangles stands for the
 //! contacts of their particles and edges: each particle and each edge is taken by one of its
 //! triangles, a point tested against the other triangle of each pair its own is in, and an
 //! edge against the edges of that triangle (a particle of no triangle takes part in no
 //! contact). A path that came within the thickness of a triangle, or went through it, at any
-//! speed, lies in boxes that meet. Two triangles that share no corner are dropped too when the
+//! speed, lies in boxes that meet. Two nodes are passed over when their extents along a
+//! diagonal lie apart as well: with its box, a node is bounded by 18 planes (a k-DOP,
+//! Klosowski et al. 1998, "Efficient collision detection using bounding volume hierarchies of
+//! k-DOPs"), which follow the parts of a crumpled cloth that lie askew to the axes more
+//! closely than the box alone. Two triangles that share no corner are dropped too when the
 //! line through their centroids separates them by the thickness over the whole substep (their
 //! corners' spans along it now, each widened by the farthest its corners moved): the boxes of
 //! a crumpled cloth's triangles lie askew to the axes, and meet for most of the triangles one
@@ -47,11 +52,12 @@
 //! the bunny at 15 m/s, ended with 42 pairs of its triangles intersecting.)
 //! Each node keeps its box in the rest shape and its particles that also belong to triangles
 //! outside it, sorted, for the test of a shared corner. On the report's cloth of 128 x 128
-//! draped on the bunny, the walk tests about 230,000 pairs of nodes a substep and hands about
-//! 34,000 pairs of its 32,258 triangles to the tests below (80,000 without the line between
-//! centroids: three in five of those lay one row apart on the cloth, and none of them made a
-//! contact), where the hashed grid that follows hands them about 200,000 point–triangle and
-//! 580,000 edge–edge candidates (counts of that scene in a scratch build).
+//! draped on the bunny, the walk tests about 164,000 pairs of nodes a substep and hands about
+//! 30,000 pairs of its 32,258 triangles to the tests below (with the boxes alone, 230,000 and
+//! 34,000; without the line between centroids as well, 80,000 pairs: three in five of those
+//! lay one row apart on the cloth, and none of them made a contact), where the hashed grid
+//! that follows hands them about 200,000 point–triangle and 580,000 edge–edge candidates
+//! (counts of that scene in a scratch build).
 //!
 //! The GPU backend finds its pairs in a hashed grid of the primitives (the triangles, then the
 //! edges), rebuilt each substep (Teschner et al. 2003, "Optimized spatial hashing for
