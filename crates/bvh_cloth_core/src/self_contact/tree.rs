@@ -2,8 +2,7 @@
 //! from its rest shape, its boxes, extents along the diagonals and normal bounds refitted each
 //! substep, and walked for the pairs of triangles whose bounds over the substep meet and that
 //! no line between them separates, skipping every part of a body that is flat enough not to
-//! touch itself. See the
-//! [module docs](super).
+//! touch itself. See the [module docs](super).
 
 use glam::{Vec3, Vec3A};
 use rayon::prelude::*;
@@ -230,19 +229,10 @@ impl SurfaceTree {
         self.triangle_spans.resize(places, NO_SPAN);
         self.now.resize(places, ([Vec3::ZERO; 3], 0.0));
         self.faces.resize(places, [Vec3::ZERO; 2]);
-        let (spans, grow_span) = (&self.particle_spans, Vec3A::splat(grow * core::f32::consts::SQRT_2));
+        let spans = &self.particle_spans;
         let fit = |corners: [u32; 3]| {
             let [a, b, c] = corners.map(|k| spans[k as usize]);
-            let span = [
-                a[0].min(b[0]).min(c[0]),
-                a[1].max(b[1]).max(c[1]),
-                a[2].min(b[2]).min(c[2]),
-                a[3].max(b[3]).max(c[3]),
-            ];
-            (
-                fit_triangle(corners, prev, x, grow),
-                [span[0] - grow_span, span[1] + grow_span, span[2] - grow_span, span[3] + grow_span],
-            )
+            (fit_triangle(corners, prev, x, grow), widen_span(join_spans(join_spans(a, b), c), grow))
         };
         let (boxes, now, faces, triangle_spans) =
             (&mut self.triangle_boxes, &mut self.now, &mut self.faces, &mut self.triangle_spans);
@@ -554,6 +544,14 @@ fn path_span(a: Vec3, b: Vec3) -> Span {
     [sa.min(sb), sa.max(sb), da.min(db), da.max(db)]
 }
 
+/// `span` grown by `grow` times the diagonals' length (`√2`): two spans grown by half a
+/// distance meet wherever two points they hold lie within that distance of each other.
+#[inline]
+fn widen_span([lo_sum, hi_sum, lo_difference, hi_difference]: Span, grow: f32) -> Span {
+    let grow = Vec3A::splat(grow * core::f32::consts::SQRT_2);
+    [lo_sum - grow, hi_sum + grow, lo_difference - grow, hi_difference + grow]
+}
+
 /// The span of what the spans `a` and `b` hold.
 #[inline(always)]
 fn join_spans(a: Span, b: Span) -> Span {
@@ -722,4 +720,32 @@ fn shares_corner(border: &[u32], a: (u32, u32), b: (u32, u32)) -> bool {
         }
     }
     false
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// The spans of two points, grown as the refit grows them for a thickness, meet wherever
+    /// the points lie within the thickness of each other (500 directions), and lie apart for
+    /// points a little farther than that along a diagonal.
+    #[test]
+    fn spans_of_points_within_the_thickness_meet() {
+        let h = 0.008;
+        let grown = |p: Vec3| widen_span(path_span(p, p), 0.5 * h);
+        let a = Vec3::new(0.31, -0.27, 0.73);
+        let count = 500;
+        for k in 0..count {
+            // Directions spread over the sphere (a Fibonacci lattice).
+            let z = 1.0 - 2.0 * (k as f32 + 0.5) / count as f32;
+            let angle = k as f32 * core::f32::consts::PI * (3.0 - 5.0f32.sqrt());
+            let r = (1.0 - z * z).sqrt();
+            let b = a + Vec3::new(r * angle.cos(), r * angle.sin(), z) * (0.999 * h);
+            assert!(spans_meet(&grown(a), &grown(b)), "{b} within {h} m of {a}");
+        }
+        for diagonal in [Vec3::new(1.0, 1.0, 0.0), Vec3::new(1.0, 0.0, -1.0), Vec3::new(0.0, -1.0, 1.0)] {
+            let b = a + diagonal.normalize() * (1.01 * h);
+            assert!(!spans_meet(&grown(a), &grown(b)), "{b} farther than {h} m from {a} along {diagonal}");
+        }
+    }
 }
