@@ -15,26 +15,27 @@
 //! # Finding the pairs
 //!
 //! On the CPU, each cloth's triangles lie in a binary tree built once from its rest shape (the
-//! triangles halved again and again at the median of their centroids along the longest side
-//! of their box, so that each node is a compact piece of the cloth, down to leaves of at most
-//! two), refitted each substep: each triangle's and each node's box over the substep (where
-//! its corners were at the start and are now), grown by half the largest thickness, its
-//! extent along the six diagonals of the axes (`x ± y`, `x ± z`, `y ± z`), grown likewise, and
-//! the box of a node's triangles' normals at the start and the end. The tree is walked for the
-//! pairs of triangles whose boxes meet, each pair once, and a pair of triangles stands for the
-//! contacts of their particles and edges: each particle and each edge is taken by one of its
-//! triangles, a point tested against the other triangle of each pair its own is in, and an
-//! edge against the edges of that triangle (a particle of no triangle takes part in no
-//! contact). A path that came within the thickness of a triangle, or went through it, at any
-//! speed, lies in boxes that meet. Two nodes are passed over when their extents along a
-//! diagonal lie apart as well: with its box, a node is bounded by 18 planes (a k-DOP,
-//! Klosowski et al. 1998, "Efficient collision detection using bounding volume hierarchies of
-//! k-DOPs"), which follow the parts of a crumpled cloth that lie askew to the axes more
-//! closely than the box alone. Two triangles that share no corner are dropped too when the
-//! line through their centroids separates them by the thickness over the whole substep (their
-//! corners' spans along it now, each widened by the farthest its corners moved): the boxes of
-//! a crumpled cloth's triangles lie askew to the axes, and meet for most of the triangles one
-//! row apart on the cloth, which that line separates.
+//! triangles halved again and again at the median of their centroids along the longest side of
+//! their box, so that each node is a compact piece of the cloth, down to leaves of at most
+//! two), refitted each substep: each triangle's and each node's box over the substep (where its
+//! corners were at the start and are now), grown by half the largest thickness, its extent
+//! along the six diagonals of the axes (`x ± y`, `x ± z`, `y ± z`), grown likewise (by the
+//! diagonals' length, `√2`, times as much), and the box of a node's triangles' normals at the
+//! start and the end. The tree is walked for the pairs of triangles whose boxes meet, each pair
+//! once, and a pair of triangles stands for the contacts of their particles and edges: each
+//! particle and each edge is taken by one of its triangles, a point tested against the other
+//! triangle of each pair its own is in, and an edge against the edges of that triangle (a
+//! particle of no triangle takes part in no contact). A path that came within the thickness of
+//! a triangle, or went through it, at any speed, lies in boxes and extents that meet. Two nodes
+//! whose boxes meet are passed over too when their extents along a diagonal lie apart: with its
+//! box, a node is bounded by 18 planes (a k-DOP, Klosowski et al. 1998, "Efficient collision
+//! detection using bounding volume hierarchies of k-DOPs"), which follow the parts of a
+//! crumpled cloth that lie askew to the axes more closely than the box alone. Two triangles
+//! that share no corner are dropped too when the line through their centroids separates them by
+//! the thickness over the whole substep (their corners' spans along it now, each widened by the
+//! farthest its corners moved): the boxes of a crumpled cloth's triangles lie askew to the
+//! axes, and meet for most of the triangles one row apart on the cloth, which that line
+//! separates.
 //!
 //! Most of a cloth is a gently curved sheet, whose triangles lie within the thickness of their
 //! neighbours and never touch them: the walk skips each part of a cloth whose triangles are
