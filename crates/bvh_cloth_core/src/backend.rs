@@ -24,7 +24,7 @@ pub use crate::mesh::triangles::{
 };
 pub use crate::self_contact::{
     ContactBody, ContactSolver, MAX_CANDIDATES, MAX_HELD_SCALE, MAX_PATH_SPAN, MAX_SPAN, MAX_TESTS_PER_TRIANGLE,
-    particle_spacing, shared_substeps,
+    UNTANGLE_EVERY, particle_spacing, shared_substeps,
 };
 pub use crate::solver::block_descent::{BLEND_LAG, BLEND_STEP, MultigridStepping};
 pub use crate::solver::forces::ForceModel;

@@ -49,6 +49,7 @@ fn values() -> Vec<(&'static str, Value)> {
         ("MAX_SPAN", I32(core::MAX_SPAN)),
         ("MAX_PATH_SPAN", I32(core::MAX_PATH_SPAN)),
         ("MAX_HELD_SCALE", F32(core::MAX_HELD_SCALE)),
+        ("UNTANGLE_EVERY", U32(core::UNTANGLE_EVERY)),
         ("CONTACT_TRIANGLE_WORDS", U32(layout::CONTACT_TRIANGLE_WORDS as u32)),
         ("NO_CORNER", U32(layout::NO_CORNER)),
         ("NO_NODE", U32(core::NO_NODE)),

@@ -297,13 +297,14 @@ pub struct GpuContactFrame {
     /// Edges of the cloths with self-contact, after the triangles in the primitive buffer: one
     /// thread each in the grid's build and in the edges' search.
     pub edge_count: u32,
-    /// Padding to 16 bytes, in three words as the WGSL struct has them (a uniform holds no
-    /// array of `u32`).
-    pub pad0: u32,
+    /// Cloth slots of the batch the untangling words are laid out for: one more than the
+    /// highest slot of a contact cloth.
+    pub cloth_slots: u32,
+    /// Padding to 16 bytes, in two words as the WGSL struct has them (a uniform holds no array
+    /// of `u32`).
+    pub pad_a: u32,
     /// Padding.
-    pub pad1: u32,
-    /// Padding.
-    pub pad2: u32,
+    pub pad_b: u32,
 }
 
 /// Vec4 words per primitive (a triangle or an edge) in the self-contact primitive buffer: its
@@ -326,6 +327,30 @@ pub fn gpu_contact_triangles(topology: &ClothTopology, particle_start: u32, slot
 /// as [`gpu_contact_triangles`] lays out triangles, with [`NO_CORNER`] as the third corner.
 pub fn gpu_contact_edges(topology: &ClothTopology, particle_start: u32, slot: u32) -> Vec<[u32; 4]> {
     contact_primitives(topology, topology.edges().iter().map(|e| e.as_slice()), particle_start, slot)
+}
+
+/// Each triangle of a cloth's (numbered from `first` among the contact cloths' triangles): its
+/// neighbour across each of its edges (corners 0-1, 1-2, 2-0), or [`NO_CLOTH`] for none; where
+/// more than two triangles share an edge, the next after it among them in order, the last
+/// taking the first, so that joining each triangle to its neighbours joins them all.
+pub fn gpu_triangle_neighbours(topology: &ClothTopology, first: u32) -> Vec<[u32; 3]> {
+    let triangles = topology.triangles();
+    (0..triangles.len())
+        .map(|t| {
+            let c = triangles[t];
+            core::array::from_fn(|k| {
+                let (p, q) = (c[k] as usize, c[(k + 1) % 3] as usize);
+                let beside = topology.triangles_of(q);
+                let mut sharing: Vec<u32> =
+                    topology.triangles_of(p).iter().copied().filter(|u| beside.contains(u)).collect();
+                sharing.sort_unstable();
+                match sharing.iter().position(|&u| u as usize == t) {
+                    Some(at) if sharing.len() > 1 => first + sharing[(at + 1) % sharing.len()],
+                    _ => NO_CLOTH,
+                }
+            })
+        })
+        .collect()
 }
 
 /// The primitive words of the triangles or edges `corners` (the cloth's particle indices) of a

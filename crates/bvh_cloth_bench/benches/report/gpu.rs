@@ -74,7 +74,8 @@ pub(crate) fn kernel_column(kernel: Kernel) -> usize {
         | Kernel::ContactScatter
         | Kernel::ContactFind
         | Kernel::ContactApply
-        | Kernel::ContactFindEdges => 6,
+        | Kernel::ContactFindEdges
+        | Kernel::Untangle => 6,
         Kernel::AirSample | Kernel::AirForces | Kernel::AirKick => 7,
         Kernel::Multigrid => 8,
     }

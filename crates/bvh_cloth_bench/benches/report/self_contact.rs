@@ -185,7 +185,7 @@ pub(crate) fn self_contact_on_gpu(bunny: &ObjMesh, gpu: Option<&Gpu>) {
         return;
     };
     println!(
-        "From the state above, one more second on the GPU, then GPU ms per tick by timestamp queries, each dispatch in a compute pass of its own, median of 9 ticks: the nine self-contact kernels against everything else.\n"
+        "From the state above, one more second on the GPU, then GPU ms per tick by timestamp queries, each dispatch in a compute pass of its own, median of 9 ticks: the self-contact and untangling kernels against everything else.\n"
     );
     println!("| adapter | self-contact ms | rest of the tick ms | self-contact / rest |");
     println!("|---|---|---|---|");
@@ -198,6 +198,7 @@ pub(crate) fn self_contact_on_gpu(bunny: &ObjMesh, gpu: Option<&Gpu>) {
         Kernel::ContactFind,
         Kernel::ContactApply,
         Kernel::ContactFindEdges,
+        Kernel::Untangle,
     ];
     print_kernel_share(gpu, &surface, &with, Kernel::ContactFind, &kernels);
 }

@@ -166,7 +166,16 @@
 //! other's edge; a curve of intersection that runs out to the cloth's border on both sides of
 //! it), nothing is taken back. While nothing crosses, the test is made once every sixteen
 //! resolutions (a tick at Looper 16), so that cloth something forces through itself or another
-//! is found within a tick. The GPU backend does not untangle yet.
+//! is found within a tick. The GPU backend makes the same analysis in its own kernels
+//! (`untangle.wgsl`: the crossing pairs from its hashed grid, the parts and rings by a parallel
+//! union-find over the triangles' neighbours), with the same results on the two scenes above
+//! (184, 0 and 0 pairs, and 103, 0 and 0, on lavapipe; the GPU tests
+//! `two_cloths_started_crossed_come_apart_on_the_gpu` and
+//! `a_cloth_poked_through_itself_comes_apart_on_the_gpu`). Where the CPU keeps sets, it keeps
+//! one of each: a cloth crossed by several others is taken as crossing one of them, a part
+//! beside several rings and a particle enclosed by several are taken by one, and a ring linked
+//! to several goes back through one; a cloth that crosses itself and another at once has its
+//! parts cut by both.
 //!
 //! # Limits
 //!
@@ -199,6 +208,7 @@ use crate::colliders::layers::CollisionLayers;
 use tree::SurfaceTree;
 
 pub use tree::{FLAT_COS, MAX_TESTS_PER_TRIANGLE};
+pub use untangle::UNTANGLE_EVERY;
 
 /// Most triangles one particle examines in one grid cell's bucket for contact in a substep, on
 /// the GPU backend's grid (see the [module docs](self)).

@@ -17,7 +17,7 @@ pub(super) const NO_BODY: u32 = u32::MAX;
 /// Resolutions between two tests for crossing cloth while none crosses: a tick at Looper 16,
 /// so that cloth something forces through itself or another is found within a tick, and the
 /// test costs a sixteenth of a test of the pairs the search found where nothing crosses.
-pub(super) const UNTANGLE_EVERY: u32 = 16;
+pub const UNTANGLE_EVERY: u32 = 16;
 
 /// A triangle in no part or ring (the floods' mark).
 const UNSET: u32 = u32::MAX;

@@ -4,7 +4,7 @@
 use wgpu::{BindGroupLayoutEntry, BindingType, BufferBindingType, ShaderStages};
 
 /// Every entry point of the kernels, in the order [`ClothKernels::descriptors`](crate::ClothKernels::descriptors) lists them.
-/// Self-contact's nine run in a substep in their order here ([`Self::CONTACT`]), as do
+/// Self-contact's twenty-one run in a substep as [`Self::CONTACT`] lists them, as do
 /// aerodynamics' three ([`Self::AIR`]) and a skinned collider's refit ([`Self::REFIT`]).
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, PartialOrd, Ord)]
 pub enum EntryPoint {
@@ -55,6 +55,31 @@ pub enum EntryPoint {
     /// `contact_find_edges`: each edge's contacts with the edges after it, their corrections
     /// summed.
     ContactFindEdges,
+    /// `untangle_find`: each triangle tested against the other cloths' triangles in its buckets, at the substep's start.
+    UntangleFind,
+    /// `untangle_join`: each uncut triangle joined to its uncut neighbours' part.
+    UntangleJoin,
+    /// `untangle_size`: each part's size.
+    UntangleSize,
+    /// `untangle_largest`: each cloth's largest part's size.
+    UntangleLargest,
+    /// `untangle_first`: the first of each cloth's largest parts.
+    UntangleFirst,
+    /// `untangle_corners`: the corners of each cloth's largest part.
+    UntangleCorners,
+    /// `untangle_outside`: each cloth's particles through the other, counted; each part's ring.
+    UntangleOutside,
+    /// `untangle_enclose`: the particles each ring encloses.
+    UntangleEnclose,
+    /// `untangle_rings`: each ring's enclosed particles counted.
+    UntangleRings,
+    /// `untangle_link`: of two linked rings, the one taken back.
+    UntangleLink,
+    /// `untangle_mark`: the particles of the cloth taken back, marked.
+    UntangleMark,
+    /// `untangle_sheets`: the corners of a ring another goes back through labelled with its
+    /// sheet.
+    UntangleSheets,
     /// `air_sample`: the wind at every particle of the cloths with aerodynamics, once a tick.
     AirSample,
     /// `air_forces`: each triangle's drag and lift, every substep.
@@ -94,7 +119,7 @@ pub enum EntryPoint {
 
 impl EntryPoint {
     /// Every entry point, in order.
-    pub const ALL: [Self; 40] = [
+    pub const ALL: [Self; 52] = [
         Self::NodeUpdate,
         Self::NodeUpdateFinal,
         Self::VbdPredict,
@@ -118,6 +143,18 @@ impl EntryPoint {
         Self::ContactFind,
         Self::ContactApply,
         Self::ContactFindEdges,
+        Self::UntangleFind,
+        Self::UntangleJoin,
+        Self::UntangleSize,
+        Self::UntangleLargest,
+        Self::UntangleFirst,
+        Self::UntangleCorners,
+        Self::UntangleOutside,
+        Self::UntangleEnclose,
+        Self::UntangleRings,
+        Self::UntangleLink,
+        Self::UntangleMark,
+        Self::UntangleSheets,
         Self::AirSample,
         Self::AirForces,
         Self::AirKick,
@@ -140,10 +177,11 @@ impl EntryPoint {
     /// A skinned collider's refit, in the order it runs.
     pub const REFIT: [Self; 4] = [Self::SkinVertices, Self::FitLeaves, Self::RefitNodes, Self::RefitReach];
 
-    /// Self-contact's kernels, in the order they first run in a substep (`contact_begin`
-    /// before the integrator, the others after it; `contact_apply` runs again after
-    /// `contact_find_edges`).
-    pub const CONTACT: [Self; 9] = [
+    /// Self-contact's kernels (`untangle_*` from `untangle.wgsl`, the others from
+    /// `self_contact.wgsl`): `contact_begin` before the integrator, the others after it, from
+    /// the grid's build to `contact_scatter`, then untangling's, then the contacts'
+    /// (`contact_apply` runs again after `contact_find_edges`).
+    pub const CONTACT: [Self; 21] = [
         Self::ContactBegin,
         Self::ContactCount,
         Self::ContactScanBlocks,
@@ -153,6 +191,18 @@ impl EntryPoint {
         Self::ContactFind,
         Self::ContactApply,
         Self::ContactFindEdges,
+        Self::UntangleFind,
+        Self::UntangleJoin,
+        Self::UntangleSize,
+        Self::UntangleLargest,
+        Self::UntangleFirst,
+        Self::UntangleCorners,
+        Self::UntangleOutside,
+        Self::UntangleEnclose,
+        Self::UntangleRings,
+        Self::UntangleLink,
+        Self::UntangleMark,
+        Self::UntangleSheets,
     ];
 
     /// Aerodynamics' kernels: `air_sample` once per tick, then `air_forces` at the start of
@@ -186,6 +236,18 @@ impl EntryPoint {
             Self::ContactFind => "contact_find",
             Self::ContactApply => "contact_apply",
             Self::ContactFindEdges => "contact_find_edges",
+            Self::UntangleFind => "untangle_find",
+            Self::UntangleJoin => "untangle_join",
+            Self::UntangleSize => "untangle_size",
+            Self::UntangleLargest => "untangle_largest",
+            Self::UntangleFirst => "untangle_first",
+            Self::UntangleCorners => "untangle_corners",
+            Self::UntangleOutside => "untangle_outside",
+            Self::UntangleEnclose => "untangle_enclose",
+            Self::UntangleRings => "untangle_rings",
+            Self::UntangleLink => "untangle_link",
+            Self::UntangleMark => "untangle_mark",
+            Self::UntangleSheets => "untangle_sheets",
             Self::AirSample => "air_sample",
             Self::AirForces => "air_forces",
             Self::AirKick => "air_kick",
@@ -262,6 +324,20 @@ pub(super) fn descriptors() -> [KernelDescriptor; EntryPoint::ALL.len()] {
     let contact = |point: EntryPoint, mut layout: Vec<BindGroupLayoutEntry>| {
         layout.insert(0, entry(35, BufferBindingType::Uniform, false));
         KernelDescriptor { entry: point, file: "self_contact.wgsl", layout }
+    };
+    // Untangling's kernels bind the contact frame, the particles' cloths, the cloths, and the
+    // contact buffers they read and write.
+    let untangle = |point: EntryPoint| KernelDescriptor {
+        entry: point,
+        file: "untangle.wgsl",
+        layout: vec![
+            entry(35, BufferBindingType::Uniform, false),
+            storage(6, true),
+            storage(8, false),
+            storage(36, false),
+            storage(37, false),
+            storage(38, false),
+        ],
     };
     // Every multigrid kernel binds the same buffers: block descent's state, and the hierarchy.
     let multigrid = |point: EntryPoint| KernelDescriptor {
@@ -449,6 +525,18 @@ pub(super) fn descriptors() -> [KernelDescriptor; EntryPoint::ALL.len()] {
                 storage(40, false),
             ],
         ),
+        untangle(EntryPoint::UntangleFind),
+        untangle(EntryPoint::UntangleJoin),
+        untangle(EntryPoint::UntangleSize),
+        untangle(EntryPoint::UntangleLargest),
+        untangle(EntryPoint::UntangleFirst),
+        untangle(EntryPoint::UntangleCorners),
+        untangle(EntryPoint::UntangleOutside),
+        untangle(EntryPoint::UntangleEnclose),
+        untangle(EntryPoint::UntangleRings),
+        untangle(EntryPoint::UntangleLink),
+        untangle(EntryPoint::UntangleMark),
+        untangle(EntryPoint::UntangleSheets),
         KernelDescriptor {
             entry: EntryPoint::AirSample,
             file: "air.wgsl",

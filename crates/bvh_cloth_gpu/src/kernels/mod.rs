@@ -41,6 +41,8 @@ pub enum Kernel {
     ContactApply,
     /// `contact_find_edges`: each edge's contacts with the edges after it.
     ContactFindEdges,
+    /// `untangle_*`: which particles lie through another cloth at the substep's start.
+    Untangle,
     /// `air_sample`: the wind at every particle of the cloths with aerodynamics, once a tick.
     AirSample,
     /// `air_forces`: each triangle's drag and lift.
@@ -60,7 +62,7 @@ pub enum Kernel {
 /// directives (`#define_import_path`, `#import`) for engines that compose shaders that way;
 /// with them goes the module of the constants shared with the core,
 /// [`shared_constants`](crate::shared_constants), written from the Rust side.
-pub const SHADER_FILES: [(&str, &str); 13] = [
+pub const SHADER_FILES: [(&str, &str); 14] = [
     ("types.wgsl", include_str!("../shaders/types.wgsl")),
     ("springs.wgsl", include_str!("../shaders/springs.wgsl")),
     ("primitives.wgsl", include_str!("../shaders/primitives.wgsl")),
@@ -72,6 +74,7 @@ pub const SHADER_FILES: [(&str, &str); 13] = [
     ("normal_shader.wgsl", include_str!("../shaders/normal_shader.wgsl")),
     ("skin_refit.wgsl", include_str!("../shaders/skin_refit.wgsl")),
     ("self_contact.wgsl", include_str!("../shaders/self_contact.wgsl")),
+    ("untangle.wgsl", include_str!("../shaders/untangle.wgsl")),
     ("air.wgsl", include_str!("../shaders/air.wgsl")),
     ("multigrid.wgsl", include_str!("../shaders/multigrid.wgsl")),
 ];

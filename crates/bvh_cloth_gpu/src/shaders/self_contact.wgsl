@@ -13,6 +13,9 @@
 //   counts, in blocks of 256 buckets (one workgroup of 64 threads each), then the blocks' sums
 //   (one workgroup), then the blocks' offsets added back: each bucket's first entry;
 // - contact_scatter, one thread per primitive: the primitive entered in each of its buckets;
+// - untangling's kernels (untangle.wgsl): which particles lie through another cloth at the
+//   substep's start, so that their contacts with it (touch and edge_touch) take them back
+//   through;
 // - contact_find, one thread per particle: the buckets of the cells its path over the substep
 //   overlaps (at most MAX_PATH_SPAN along an axis), at most MAX_CANDIDATES triangles of each,
 //   each triangle once, and for each contact (within the thickness at the end, or gone through
@@ -40,6 +43,8 @@
 // is bounded and every write is checked against its buffer: the grid has room for
 // `entry_capacity` entries, and entries past it are dropped and counted as clamped.
 
+#define_import_path bvh_cloth::self_contact
+
 #import bvh_cloth::types::{GpuParticle, thread_index, all_finite}
 #import bvh_cloth::springs::{particle_info, cloths}
 #import bvh_cloth::collision::{collide, closest_on_triangle, layers_meet}
@@ -56,9 +61,9 @@ struct ContactFrame {
     dispatch_width: u32,
     particle_slots: u32,
     edge_count: u32,
-    pad0: u32,
-    pad1: u32,
-    pad2: u32,
+    cloth_slots: u32,
+    pad_a: u32,
+    pad_b: u32,
 }
 
 @group(0) @binding(35) var<uniform> contact: ContactFrame;
@@ -69,7 +74,8 @@ struct ContactFrame {
 // third of an edge) and cloth; rest box; current grown box (f32 bits).
 @group(0) @binding(37) var<storage, read_write> contact_triangles: array<vec4<u32>>;
 // The grid: 4 statistics words, then the bucket counts, the bucket cursors, the bucket starts
-// (one more than the buckets), the blocks' sums, and the entries.
+// (one more than the buckets), the blocks' sums, the entries, and untangling's words
+// (tangle_at).
 @group(0) @binding(38) var<storage, read_write> contact_grid: array<atomic<u32>>;
 // Per particle slot, eight words: position correction (3), velocity correction (3), contacts.
 @group(0) @binding(39) var<storage, read_write> contact_sums: array<atomic<i32>>;
@@ -83,6 +89,7 @@ const VELOCITY_LIMIT: f32 = 64.0;       // m/s
 const STAT_CONTACTS: u32 = 0u;
 const STAT_CLAMPED: u32 = 1u;
 const STAT_CLAMPED_EDGES: u32 = 2u;
+const STAT_CROSSINGS: u32 = 3u;
 // The most entries of one bucket an edge's search reads.
 const SCANNED_ENTRIES: u32 = 4u * MAX_CANDIDATES;
 const GRID_HEADER: u32 = 4u;
@@ -107,6 +114,101 @@ fn block_sum_at(k: u32) -> u32 {
 
 fn entry_at(e: u32) -> u32 {
     return GRID_HEADER + 3u * contact.buckets + 1u + contact.blocks + e;
+}
+
+// Untangling's words (untangle.wgsl), after the grid's entries: the pairs of triangles found
+// crossing in this substep and the substeps left before the next search for them;
+// TANGLE_CLOTH_WORDS per cloth slot (TANGLE_CLOTH_*); each triangle's neighbours across its
+// three edges (NO_CLOTH for none: written once, with the buffers); TANGLE_TRIANGLE_WORDS per
+// triangle (TANGLE_TRIANGLE_*); and TANGLE_PARTICLE_WORDS per particle slot
+// (TANGLE_PARTICLE_*). A label (what a particle lies through, or the sheet it belongs to) is a
+// cloth's slot, or, for a sheet of a cloth that another sheet of it passes through, the cloth
+// slots' count plus the sheet's ring's root triangle.
+const TANGLE_CROSSINGS: u32 = 0u;
+const TANGLE_WAIT: u32 = 1u;
+const TANGLE_HEADER: u32 = 2u;
+const TANGLE_CLOTH_WORDS: u32 = 5u;
+const TANGLE_TRIANGLE_WORDS: u32 = 8u;
+const TANGLE_PARTICLE_WORDS: u32 = 5u;
+// A cloth's largest part: its size in triangles and its first triangle; its particles on the
+// wrong side of another cloth; the other cloth whose triangles cut its own, plus one (0 for
+// none); and 1 if its triangles cut each other.
+const TANGLE_CLOTH_SIZE: u32 = 0u;
+const TANGLE_CLOTH_ROOT: u32 = 1u;
+const TANGLE_CLOTH_WRONG: u32 = 2u;
+const TANGLE_CLOTH_PARTNER: u32 = 3u;
+const TANGLE_CLOTH_SELF: u32 = 4u;
+// A triangle: its parent in the union-find of parts and rings; the other cloth that cuts it,
+// plus one (0 for none); at a part's root, the part's size; the least triangle of its own
+// cloth it intersects (NO_CLOTH for none: it is in no ring); at a part's root, the least root of
+// a ring beside the part (NO_CLOTH for none); at a ring's root, its particles on the wrong
+// side, the ring whose sheet they are taken back through (NO_CLOTH for none), and 1 if its
+// sheet is the one another ring goes back through.
+const TANGLE_TRIANGLE_PARENT: u32 = 0u;
+const TANGLE_TRIANGLE_CUT: u32 = 1u;
+const TANGLE_TRIANGLE_SIZE: u32 = 2u;
+const TANGLE_TRIANGLE_SELF: u32 = 3u;
+const TANGLE_TRIANGLE_BESIDE: u32 = 4u;
+const TANGLE_TRIANGLE_RING_WRONG: u32 = 5u;
+const TANGLE_TRIANGLE_RING_MOVED: u32 = 6u;
+const TANGLE_TRIANGLE_RING_SHEET: u32 = 7u;
+// A particle: 1 if it is a corner of its cloth's largest part; 1 once it is counted among its
+// cloth's particles on the wrong side of another; the label it lies through (NO_CLOTH for
+// none); the label of its sheet (its cloth's slot unless a sheet of its own); the least ring
+// that encloses it (NO_CLOTH for none).
+const TANGLE_PARTICLE_ON_LARGEST: u32 = 0u;
+const TANGLE_PARTICLE_COUNTED: u32 = 1u;
+const TANGLE_PARTICLE_WRONG: u32 = 2u;
+const TANGLE_PARTICLE_SHEET: u32 = 3u;
+const TANGLE_PARTICLE_RING: u32 = 4u;
+
+fn tangle_at(k: u32) -> u32 {
+    return entry_at(contact.entry_capacity) + k;
+}
+
+fn cloth_word(c: u32, k: u32) -> u32 {
+    return tangle_at(TANGLE_HEADER + TANGLE_CLOTH_WORDS * c + k);
+}
+
+fn neighbour_word(t: u32, k: u32) -> u32 {
+    return tangle_at(TANGLE_HEADER + TANGLE_CLOTH_WORDS * contact.cloth_slots + 3u * t + k);
+}
+
+fn triangle_word(t: u32, k: u32) -> u32 {
+    let base = TANGLE_HEADER + TANGLE_CLOTH_WORDS * contact.cloth_slots + 3u * contact.triangle_count;
+    return tangle_at(base + TANGLE_TRIANGLE_WORDS * t + k);
+}
+
+fn particle_word(p: u32, k: u32) -> u32 {
+    let base = TANGLE_HEADER + TANGLE_CLOTH_WORDS * contact.cloth_slots
+        + (3u + TANGLE_TRIANGLE_WORDS) * contact.triangle_count;
+    return tangle_at(base + TANGLE_PARTICLE_WORDS * p + k);
+}
+
+// The label particle slot p lies through, as this substep's analysis found it (untangle.wgsl):
+// its contacts with the particles of that label's sheet take it back through. NO_CLOTH for
+// none.
+fn wrong_side(p: u32) -> u32 {
+    return atomicLoad(&contact_grid[particle_word(p, TANGLE_PARTICLE_WRONG)]);
+}
+
+// The label of particle slot p's sheet.
+fn sheet(p: u32) -> u32 {
+    return atomicLoad(&contact_grid[particle_word(p, TANGLE_PARTICLE_SHEET)]);
+}
+
+// Whether particle slot a lies through the sheet of one of the particles b (NO_CLOTH for none).
+fn lies_through(a: u32, b: vec4<u32>) -> bool {
+    let w = wrong_side(a);
+    if (w == NO_CLOTH) {
+        return false;
+    }
+    for (var k = 0u; k < 4u; k++) {
+        if (b[k] != NO_CLOTH && sheet(b[k]) == w) {
+            return true;
+        }
+    }
+    return false;
 }
 
 // The cloth of particle slot i if it has self-contact, else NO_CLOTH.
@@ -142,11 +244,31 @@ fn contact_begin(@builtin(global_invocation_id) id: vec3<u32>) {
     if (i < contact.buckets) {
         atomicStore(&contact_grid[count_at(i)], 0u);
     }
+    // Untangling's words of the substep (untangle.wgsl).
+    if (i == 0u) {
+        atomicStore(&contact_grid[tangle_at(TANGLE_CROSSINGS)], 0u);
+    }
+    if (i < contact.cloth_slots) {
+        for (var k = 0u; k < TANGLE_CLOTH_WORDS; k++) {
+            atomicStore(&contact_grid[cloth_word(i, k)], select(0u, NO_CLOTH, k == TANGLE_CLOTH_ROOT));
+        }
+    }
+    if (i < contact.triangle_count) {
+        for (var k = 0u; k < TANGLE_TRIANGLE_WORDS; k++) {
+            let none = k == TANGLE_TRIANGLE_SELF || k == TANGLE_TRIANGLE_BESIDE || k == TANGLE_TRIANGLE_RING_MOVED;
+            atomicStore(&contact_grid[triangle_word(i, k)], select(select(0u, NO_CLOTH, none), i, k == TANGLE_TRIANGLE_PARENT));
+        }
+    }
     if (contact_cloth(i) != NO_CLOTH) {
         contact_points[2u * i] = contact_state[i].position;
         for (var k = 0u; k < SUM_WORDS; k++) {
             atomicStore(&contact_sums[SUM_WORDS * i + k], 0);
         }
+        atomicStore(&contact_grid[particle_word(i, TANGLE_PARTICLE_ON_LARGEST)], 0u);
+        atomicStore(&contact_grid[particle_word(i, TANGLE_PARTICLE_COUNTED)], 0u);
+        atomicStore(&contact_grid[particle_word(i, TANGLE_PARTICLE_WRONG)], NO_CLOTH);
+        atomicStore(&contact_grid[particle_word(i, TANGLE_PARTICLE_SHEET)], contact_cloth(i));
+        atomicStore(&contact_grid[particle_word(i, TANGLE_PARTICLE_RING)], NO_CLOTH);
     }
 }
 
@@ -506,14 +628,26 @@ fn touch(p: u32, pc: u32, me: GpuParticle, t: u32, path_lo: vec3<f32>, path_hi: 
     let pa = contact_points[2u * corners.x].xyz;
     let pb = contact_points[2u * corners.y].xyz;
     let pcorner = contact_points[2u * corners.z].xyz;
-    let side_before = dot(contact_points[2u * p].xyz - pa, face_normal(pa, pb, pcorner));
+    var side_before = dot(contact_points[2u * p].xyz - pa, face_normal(pa, pb, pcorner));
+    // A point on the wrong side of the sheet of a corner of the triangle, or a corner on the
+    // wrong side of the point's, as untangle.wgsl found them: the side to go back to is the
+    // other.
+    let inverted = lies_through(p, vec4(corners.xyz, NO_CLOTH)) || lies_through(corners.x, vec4(p, NO_CLOTH, NO_CLOTH, NO_CLOTH))
+        || lies_through(corners.y, vec4(p, NO_CLOTH, NO_CLOTH, NO_CLOTH)) || lies_through(corners.z, vec4(p, NO_CLOTH, NO_CLOTH, NO_CLOTH));
+    if (inverted) {
+        side_before = -side_before;
+    }
     let side_now = dot(xp - a, face);
     let through = side_before * side_now < 0.0;
     var n: vec3<f32>;
     var gap: f32;
     if (!(d2 < h * h)) {
         // Farther than the thickness now: a contact only if the point's path went through the
-        // triangle during the substep.
+        // triangle during the substep; a point taken back through meets it when it comes
+        // within the thickness.
+        if (inverted) {
+            return;
+        }
         let hit = crossed(contact_points[2u * p].xyz, xp, pa, pb, pcorner, a, b, c, side_before, side_now, h);
         if (!has_face || hit.w == 0.0) {
             return;
@@ -765,13 +899,26 @@ fn edge_touch(ep: u32, fp: u32) {
         normal_now = -normal_now;
     }
     let has_normal = any(normal_now != vec3(0.0));
-    let side_before = dot(r0 - u0, normal_before);
+    var side_before = dot(r0 - u0, normal_before);
+    // An edge with an end on the wrong side of the sheet of an end of the other, as
+    // untangle.wgsl found them: the side to go back to is the other one.
+    let theirs = vec4(fa.x, fa.y, NO_CLOTH, NO_CLOTH);
+    let ours = vec4(ea.x, ea.y, NO_CLOTH, NO_CLOTH);
+    let inverted = lies_through(ea.x, theirs) || lies_through(ea.y, theirs) || lies_through(fa.x, ours)
+        || lies_through(fa.y, ours);
+    if (inverted) {
+        side_before = -side_before;
+    }
     let side_now = dot(p0 - q0, normal_now);
     let through = side_before * side_now < 0.0;
     var n: vec3<f32>;
     var gap: f32;
     if (!(d2 < h * h)) {
-        // Farther than the thickness now: a contact only if they went through each other.
+        // Farther than the thickness now: a contact only if they went through each other;
+        // edges taken back through meet when they come within the thickness.
+        if (inverted) {
+            return;
+        }
         let hit = edges_crossed(r0, r1, u0, u1, p0, p1, q0, q1, side_before, side_now, h);
         if (!has_normal || hit.z == 0.0) {
             return;

@@ -5,16 +5,20 @@
 //! [`bvh_cloth_core::ClothSim::tick_together`] does on the CPU: they share one hashed grid of
 //! triangles and edges, rebuilt each substep with a counting sort (counts by atomics, a prefix
 //! sum, a scatter), and take the largest substep count among them. Per substep
-//! `contact_begin` runs before the integrator and the others after it: the grid's build, the
+//! `contact_begin` runs before the integrator and the others after it: the grid's build,
+//! untangling's analysis (`untangle.wgsl`: which particles lie through another cloth), the
 //! points' contacts found and applied, then the edges' found and applied.
 //!
 //! The buffers are written when the set of contact cloths, or where they lie, changes: the
 //! particles' rest positions, each primitive's corners and rest box (every cloth's triangles,
 //! then every cloth's edges), and a grid sized for them (a table of about twice as many buckets
-//! as primitives, room for eight entries per primitive).
+//! as primitives, room for eight entries per primitive), followed by untangling's words (each
+//! triangle's neighbours across its edges among them, written here).
 //! Everything else is per frame: the thickness the boxes grow by and the cell width.
 
-use crate::layout::{CONTACT_TRIANGLE_WORDS, GpuContactFrame, gpu_contact_edges, gpu_contact_triangles};
+use crate::layout::{
+    CONTACT_TRIANGLE_WORDS, GpuContactFrame, gpu_contact_edges, gpu_contact_triangles, gpu_triangle_neighbours,
+};
 use bvh_cloth_core::ClothTopology;
 use wgpu::{BindGroup, Buffer, BufferUsages, ComputePass, Device, Queue};
 
@@ -37,6 +41,14 @@ const GRID_HEADER: u32 = 4;
 
 /// Words per particle of the sums.
 const SUM_WORDS: u64 = 8;
+
+/// Untangling's words after the grid's entries (`untangle.wgsl`): two, then five per cloth slot,
+/// eleven per triangle (its three neighbours, then the analysis's eight), and five per particle
+/// slot (`TANGLE_*_WORDS` in `self_contact.wgsl`).
+const TANGLE_HEADER: u64 = 2;
+const TANGLE_CLOTH_WORDS: u64 = 5;
+const TANGLE_TRIANGLE_WORDS: u64 = 11;
+const TANGLE_PARTICLE_WORDS: u64 = 5;
 
 /// One cloth with self-contact: its slot, its first particle and the address of its shape.
 pub(crate) type ContactCloth = (u32, u32, usize);
@@ -65,6 +77,8 @@ pub(crate) struct ContactPlan {
     buckets: u32,
     blocks: u32,
     entry_capacity: u32,
+    /// One more than the highest slot of a contact cloth.
+    cloth_slots: u32,
     /// Mean rest edge of the contact cloths' triangles, in metres.
     mean_edge: f32,
     uniform: Buffer,
@@ -93,8 +107,13 @@ impl ContactPlan {
         let buckets = (2 * primitives).next_power_of_two().clamp(SCAN_BLOCK, MAX_BUCKETS);
         let blocks = buckets / SCAN_BLOCK;
         let entry_capacity = primitives.saturating_mul(ENTRIES_PER_PRIMITIVE).max(1);
-        let grid_words =
+        let cloth_slots = cloths.iter().map(|&((slot, _, _), _)| slot + 1).max().unwrap_or(0);
+        let entries_end =
             u64::from(GRID_HEADER) + 3 * u64::from(buckets) + 1 + u64::from(blocks) + u64::from(entry_capacity);
+        let neighbours_at = entries_end + TANGLE_HEADER + TANGLE_CLOTH_WORDS * u64::from(cloth_slots);
+        let grid_words = neighbours_at
+            + TANGLE_TRIANGLE_WORDS * u64::from(triangles)
+            + TANGLE_PARTICLE_WORDS * u64::from(particle_capacity);
         let sizes = [
             u64::from(particle_capacity) * 32,
             u64::from(primitives) * CONTACT_TRIANGLE_WORDS as u64 * 16,
@@ -135,8 +154,13 @@ impl ContactPlan {
             words.extend(gpu_contact_edges(topology, start, slot));
         }
         queue.write_buffer(&triangle_words, 0, bytemuck::cast_slice(&words));
+        let mut neighbours = Vec::with_capacity(triangles as usize);
+        for &(_, topology) in cloths {
+            neighbours.extend(gpu_triangle_neighbours(topology, neighbours.len() as u32));
+        }
+        queue.write_buffer(&grid, neighbours_at * 4, bytemuck::cast_slice(&neighbours));
         let mean_edge = if sides == 0 { 0.0 } else { (perimeters / sides as f64) as f32 };
-        let cover = primitives.max(buckets);
+        let cover = primitives.max(buckets).max(cloth_slots);
         let width_groups = ClothKernels::workgroups(device, cover)?.0;
         Ok(Self {
             cloths: cloths.iter().map(|(cloth, _)| *cloth).collect(),
@@ -147,6 +171,7 @@ impl ContactPlan {
             buckets,
             blocks,
             entry_capacity,
+            cloth_slots,
             mean_edge,
             uniform,
             points,
@@ -164,7 +189,7 @@ impl ContactPlan {
     /// decides only which triangles a point examines, not which touch it). Clears the
     /// statistics.
     pub fn write_frame(&mut self, device: &Device, queue: &Queue, particle_slots: u32, thickest: f32) {
-        let cover = particle_slots.max(self.triangles + self.edges).max(self.buckets);
+        let cover = particle_slots.max(self.triangles + self.edges).max(self.buckets).max(self.cloth_slots);
         self.width_groups = ClothKernels::workgroups(device, cover).map_or(self.width_groups, |(x, _)| x);
         self.slots = particle_slots;
         let cell = 2.0 * (thickest + self.mean_edge);
@@ -178,9 +203,9 @@ impl ContactPlan {
             dispatch_width: self.width_groups * WORKGROUP_SIZE,
             particle_slots,
             edge_count: self.edges,
-            pad0: 0,
-            pad1: 0,
-            pad2: 0,
+            cloth_slots: self.cloth_slots,
+            pad_a: 0,
+            pad_b: 0,
         };
         queue.write_buffer(&self.uniform, 0, bytemuck::bytes_of(&frame));
         queue.write_buffer(&self.grid, 0, bytemuck::cast_slice(&[0u32; GRID_HEADER as usize]));
@@ -218,9 +243,10 @@ impl ContactPlan {
             }
         };
         let descriptors = ClothKernels::descriptors();
-        let contact: Vec<_> = descriptors.iter().filter(|d| d.file == "self_contact.wgsl").collect();
+        let contact = EntryPoint::CONTACT.map(|entry| descriptors.iter().find(|d| d.entry == entry));
         core::array::from_fn(|k| {
             let entries: Vec<wgpu::BindGroupEntry<'_>> = contact[k]
+                .expect("every entry point has a descriptor")
                 .layout
                 .iter()
                 .map(|e| wgpu::BindGroupEntry { binding: e.binding, resource: resource(e.binding).as_entire_binding() })
@@ -244,7 +270,7 @@ impl ContactPlan {
         groups: &[BindGroup; EntryPoint::CONTACT.len()],
         each: &mut impl FnMut(Kernel, &dyn Fn(&mut ComputePass<'_>)),
     ) {
-        let size = (self.width_groups, self.rows(self.slots.max(self.buckets)));
+        let size = (self.width_groups, self.rows(self.slots.max(self.buckets).max(self.cloth_slots)));
         each(Kernel::ContactBegin, &|pass| {
             pass.set_pipeline(kernels.pipeline(EntryPoint::ContactBegin));
             pass.set_bind_group(0, &groups[0], &[]);
@@ -263,6 +289,7 @@ impl ContactPlan {
         let primitives = (self.width_groups, self.rows(self.triangles + self.edges));
         let particles = (self.width_groups, self.rows(self.slots));
         let edges = (self.width_groups, self.rows(self.edges));
+        let triangles = (self.width_groups, self.rows(self.triangles));
         // Each dispatch: its kernel's place in EntryPoint::CONTACT, its size and its name.
         let dispatches = [
             (1, primitives, Kernel::ContactCount),
@@ -270,6 +297,18 @@ impl ContactPlan {
             (3, (1, 1), Kernel::ContactScan),
             (4, (self.blocks, 1), Kernel::ContactScan),
             (5, primitives, Kernel::ContactScatter),
+            (9, triangles, Kernel::Untangle),
+            (10, triangles, Kernel::Untangle),
+            (11, triangles, Kernel::Untangle),
+            (12, triangles, Kernel::Untangle),
+            (13, triangles, Kernel::Untangle),
+            (14, triangles, Kernel::Untangle),
+            (15, triangles, Kernel::Untangle),
+            (16, triangles, Kernel::Untangle),
+            (17, particles, Kernel::Untangle),
+            (18, triangles, Kernel::Untangle),
+            (19, particles, Kernel::Untangle),
+            (20, triangles, Kernel::Untangle),
             (6, particles, Kernel::ContactFind),
             (7, particles, Kernel::ContactApply),
             (8, edges, Kernel::ContactFindEdges),

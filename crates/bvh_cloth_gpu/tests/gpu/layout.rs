@@ -73,6 +73,18 @@ fn wgsl_is_valid() {
             "contact_find",
             "contact_apply",
             "contact_find_edges",
+            "untangle_find",
+            "untangle_join",
+            "untangle_size",
+            "untangle_largest",
+            "untangle_first",
+            "untangle_corners",
+            "untangle_outside",
+            "untangle_enclose",
+            "untangle_rings",
+            "untangle_link",
+            "untangle_mark",
+            "untangle_sheets",
             "air_sample",
             "air_forces",
             "air_kick",
@@ -236,9 +248,9 @@ fn wgsl_structs_match_the_rust_layouts() {
             dispatch_width,
             particle_slots,
             edge_count,
-            pad0,
-            pad1,
-            pad2
+            cloth_slots,
+            pad_a,
+            pad_b
         ]
     );
     assert_layout!(&module, "WritebackGroup", GpuWritebackGroup, [first_owner, vertex_count, dispatch_width, pad]);

@@ -1757,6 +1757,120 @@ fn self_contact_on_the_gpu_keeps_two_cloths_apart() {
     assert!(above > 0.0, "the upper cloth is not above the lower one");
 }
 
+/// Two 32 x 32 cloths of 0.8 m that start crossed along a line (one flat, the other turned 10
+/// degrees about the line across both middles) fall onto a ball together on the GPU, as the
+/// core's `two_cloths_started_crossed_come_apart` on the CPU (184, 0 and 0 pairs of their
+/// triangles intersecting at 0, 0.5 and 1 s there): within 1 s no triangle of one intersects
+/// one of the other, and no particle of one lies within half the thickness of the other's.
+/// The untangling kernels found the crossing pairs in the first half second (the grid's
+/// statistics word).
+#[test]
+fn two_cloths_started_crossed_come_apart_on_the_gpu() {
+    let Some(rig) = rig() else { return };
+    let thickness = 0.01;
+    let ball = Collider::primitive(Primitive::Sphere { radius: 0.25 }).unwrap().with_friction(0.5);
+    let colliders = [ball];
+    let params = ClothParams {
+        self_contact: Some(bvh_cloth_core::SelfContact { thickness, friction: 0.3 }),
+        ..ClothParams::default()
+    };
+    let middle = Vec3::Y * 0.45;
+    let turned = Affine3A::from_rotation_translation(Quat::from_rotation_z(10f32.to_radians()), middle);
+    let cloths = [
+        ("flat", grid_cloth(square(0.8, 32), params.clone(), Affine3A::from_translation(middle), &[])),
+        ("turned", grid_cloth(square(0.8, 32), params, turned, &[])),
+    ];
+    let tris = cloths[0].1.topology().triangles();
+    let between = |x: &[Vec<Vec3>]| crossing_pairs(tris, &x[0], Some((tris, &x[1])));
+    let start = between(&[cloths[0].1.positions(), cloths[1].1.positions()]);
+    assert!(start > 50, "the cloths start crossed at only {start} pairs of triangles");
+    let gpu_colliders = GpuColliders::new(&rig.device, &colliders);
+    let (mut batch, ids) = rig.batch(&cloths, 1.0 / 60.0);
+    let (mut pairs, mut found) = (vec![start], 0);
+    for half in 0..2 {
+        rig.run(&mut batch, &gpu_colliders, 30);
+        if half == 0 {
+            found = headless::read::<u32>(&rig.device, &rig.queue, batch.contact_stats().expect("contact buffers"))[3];
+        }
+        pairs.push(between(&rig.batch_positions(&batch, &ids)));
+    }
+    let x = rig.batch_positions(&batch, &ids);
+    let close: usize = x[0].iter().map(|p| x[1].iter().filter(|q| p.distance(**q) < 0.5 * thickness).count()).sum();
+    eprintln!(
+        "GPU, two cloths started crossed: {pairs:?} intersecting pairs at 0, 0.5 and 1 s; {close} close pairs at 1 s; \
+         {found} crossing pairs found by the substeps' analyses in the first 0.5 s"
+    );
+    assert!(x.iter().flatten().all(|p| p.is_finite()));
+    assert!(found > 0, "the untangling kernels found no crossing pair");
+    assert_eq!(pairs[2], 0, "triangles of the two cloths still intersect at 1 s");
+    assert_eq!(close, 0, "particles of the two cloths closer than half the thickness at 1 s");
+}
+
+/// The core's `a_cloth_poked_through_itself_comes_apart` on the GPU: a cloth folded over itself
+/// on the ground (32 x 66 particles, 0.8 m wide, its halves 5 cm apart, joined by a round fold),
+/// a bump of its lower half poked up through its upper half (a closed curve of intersection on
+/// each half; 103, 0 and 0 pairs of its triangles intersecting at 0, 0.5 and 1 s on the CPU).
+/// Within 1 s no two of its triangles intersect, and no two particles that share no spring and
+/// lie farther apart than the thickness at rest are closer than half of it.
+#[test]
+fn a_cloth_poked_through_itself_comes_apart_on_the_gpu() {
+    let Some(rig) = rig() else { return };
+    let thickness = 0.01;
+    let params = ClothParams {
+        self_contact: Some(bvh_cloth_core::SelfContact { thickness, friction: 0.3 }),
+        ..ClothParams::default()
+    };
+    let (cols, rows) = (32u32, 66u32);
+    let spacing = 0.8 / (cols - 1) as f32;
+    let grid = ClothGrid::new(Vec2::new(0.8, spacing * (rows - 1) as f32), UVec2::new(cols, rows));
+    let mut cloth = grid_cloth(grid, params, Affine3A::IDENTITY, &[]);
+    let (floor, radius, width, bump) = (0.02, 3.0 * spacing / core::f32::consts::PI, 0.06, 0.15);
+    for r in 0..rows {
+        for c in 0..cols {
+            let x = -0.4 + c as f32 * spacing;
+            let position = match r {
+                0..=31 => {
+                    let z = -0.4 + r as f32 * spacing;
+                    Vec3::new(x, floor + bump * (-(x * x + z * z) / (2.0 * width * width)).exp(), z)
+                }
+                32..=33 => {
+                    let angle = (r - 31) as f32 * core::f32::consts::PI / 3.0;
+                    Vec3::new(x, floor + radius * (1.0 - angle.cos()), 0.4 + radius * angle.sin())
+                }
+                _ => Vec3::new(x, floor + 2.0 * radius, 0.4 - (r - 34) as f32 * spacing),
+            };
+            cloth.set_position((r * cols + c) as usize, position);
+        }
+    }
+    let topology = Arc::clone(cloth.topology());
+    let start = crossing_pairs(topology.triangles(), &cloth.positions(), None);
+    assert!(start > 20, "the bump crosses the upper half at only {start} pairs of triangles");
+    let ground = [Collider::primitive(Primitive::HalfSpace { normal: Vec3::Y }).unwrap().with_friction(0.5)];
+    let gpu_colliders = GpuColliders::new(&rig.device, &ground);
+    let (mut batch, ids) = rig.batch(&[("folded", cloth)], 1.0 / 60.0);
+    let mut pairs = vec![start];
+    for _ in 0..2 {
+        rig.run(&mut batch, &gpu_colliders, 30);
+        pairs.push(crossing_pairs(topology.triangles(), &rig.batch_positions(&batch, &ids)[0], None));
+    }
+    let x = rig.batch_positions(&batch, &ids).remove(0);
+    let rest = topology.rest_positions();
+    let close = (0..x.len())
+        .flat_map(|i| (i + 1..x.len()).map(move |j| (i, j)))
+        .filter(|&(i, j)| {
+            x[i].distance(x[j]) < 0.5 * thickness
+                && rest[i].distance(rest[j]) >= thickness
+                && !topology.springs_of(i).iter().any(|e| e.other as usize == j)
+        })
+        .count();
+    eprintln!(
+        "GPU, a cloth poked through itself: {pairs:?} intersecting pairs at 0, 0.5 and 1 s; {close} close pairs at 1 s"
+    );
+    assert!(x.iter().all(|p| p.is_finite()));
+    assert_eq!(pairs[2], 0, "triangles of the cloth still intersect each other at 1 s");
+    assert_eq!(close, 0, "particles of the cloth closer than half the thickness at 1 s");
+}
+
 /// Collision layers on the GPU as on the CPU: two cloths in one batch over a table on its own
 /// layer, one that filters for the table (block descent) and one that does not (RK4), each tick
 /// from the CPU's state. The first comes to rest on the table, the second falls past it as if it
