@@ -537,8 +537,9 @@ impl ClothBatch {
 
     /// The self-contact statistics buffer (`COPY_SRC`) when a cloth has self-contact: its first
     /// two `u32` words count the contacts (one per free particle taking part in one) and the
-    /// bounds met ([`bvh_cloth_core::backend::MAX_CANDIDATES`] and the grid's room) over
-    /// the ticks encoded since the last [`Self::prepare`].
+    /// bounds met ([`bvh_cloth_core::backend::MAX_CANDIDATES`] and the grid's room), its
+    /// fourth the pairs of triangles the untangling found crossing, over the ticks encoded
+    /// since the last [`Self::prepare`].
     pub fn contact_stats(&self) -> Option<&Buffer> {
         self.contact.as_ref().map(ContactPlan::stats)
     }

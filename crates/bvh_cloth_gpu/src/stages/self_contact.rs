@@ -6,7 +6,8 @@
 //! triangles and edges, rebuilt each substep with a counting sort (counts by atomics, a prefix
 //! sum, a scatter), and take the largest substep count among them. Per substep
 //! `contact_begin` runs before the integrator and the others after it: the grid's build,
-//! untangling's analysis (`untangle.wgsl`: which particles lie through another cloth), the
+//! untangling's analysis (`untangle.wgsl`: which particles lie through another cloth or
+//! another sheet of their own), the
 //! points' contacts found and applied, then the edges' found and applied.
 //!
 //! The buffers are written when the set of contact cloths, or where they lie, changes: the
@@ -213,7 +214,8 @@ impl ContactPlan {
 
     /// The grid's statistics words (`COPY_SRC`): the contacts (one per free particle taking
     /// part in one, summed over the substeps), the bounds the points and the triangles met,
-    /// and those the edges met, since the last [`Self::write_frame`].
+    /// those the edges met, and the pairs of triangles the untangling found crossing, since the
+    /// last [`Self::write_frame`].
     pub fn stats(&self) -> &Buffer {
         &self.grid
     }
