@@ -37,8 +37,8 @@
 //! `fidelity`, `step_scaling`, `topology`, `gpu_profile`, `many_cloths`, `build_scaling`,
 //! `far_from_origin`, `solver`, `solver_gpu`, `primitives`, `skinned_refit`, `exact_contact`,
 //! `exact_contact_queries`, `exact_contact_build`, `exact_contact_gpu`, `self_contact`,
-//! `self_contact_events`, `self_contact_gpu`, `wind`, `wind_gpu`, `motion`, `motion_cost`,
-//! `fine_swing`, `cpu_cloths`. The GPU halves of the solver, exact-contact, self-contact and
+//! `self_contact_events`, `self_contact_crossed_gpu`, `self_contact_gpu`, `wind`, `wind_gpu`,
+//! `motion`, `motion_cost`, `fine_swing`, `cpu_cloths`. The GPU halves of the solver, exact-contact, self-contact and
 //! wind tables are sections of their own, so `-- gpu` runs every GPU-only table without their
 //! CPU simulations.
 
@@ -192,6 +192,9 @@ fn main() {
     }
     if run("self_contact_events") {
         crossing_events::self_contact_events(&meshes[0]);
+    }
+    if run("self_contact_crossed_gpu") {
+        started_crossed_on_gpu(&meshes[0], gpu.as_ref());
     }
     if run("self_contact_gpu") {
         self_contact_on_gpu(&meshes[0], gpu.as_ref());

@@ -1,6 +1,6 @@
-//! The sections `self_contact` and `self_contact_gpu`: a cloth folding over a bar, two cloths
-//! on the bunny and two cloths started crossed, checked with an exact triangle-triangle test,
-//! and the cost.
+//! The sections `self_contact`, `self_contact_crossed_gpu` and `self_contact_gpu`: a cloth
+//! folding over a bar, two cloths on the bunny and two cloths started crossed (on the CPU, then
+//! on the GPU), checked with an exact triangle-triangle test, and the cost.
 
 use super::*;
 
@@ -117,26 +117,15 @@ pub(crate) fn self_contact(bunny: &ObjMesh, single: &rayon::ThreadPool, threads:
 /// triangles between them that intersect, and the closest pair of particles, at the start and
 /// every half second for 1 s, with self-contact and without.
 fn started_crossed(surface: &Collider) {
-    const THICKNESS: f32 = SELF_CONTACT.thickness;
     println!("\n### Two cloths started crossed\n");
     println!(
         "Two 32 x 32 cloths (1 m), one flat 0.2 m above the bunny, the other turned 10 degrees about the line across both middles, so that they cross along it; both fall onto the bunny (exact contact) together (`ClothSim::tick_together`). Between them: the intersecting triangle pairs and the closest pair of particles.\n"
     );
     println!("| contact | pairs at 0 s | at 0.5 s | at 1 s | closest pair at 1 s mm | close pairs at 1 s |");
     println!("|---|---|---|---|---|---|");
-    let top = bvh_cloth_bench::top_of(surface);
-    let grid = Arc::new(ClothTopology::grid(ClothGrid::new(Vec2::ONE, UVec2::splat(32))).expect("a valid grid"));
     for on in [true, false] {
-        let params = ClothParams {
-            self_contact: on.then_some(SELF_CONTACT),
-            integrator: Integrator::BLOCK_DESCENT,
-            ..Default::default()
-        };
-        let middle = Vec3::new(-0.1, top + 0.2, 0.0);
-        let flat = Affine3A::from_translation(middle);
-        let turned = Affine3A::from_rotation_translation(Quat::from_rotation_z(10f32.to_radians()), middle);
-        let mut a = ClothSim::new(params.clone(), Arc::clone(&grid), flat, &[]).expect("a valid cloth");
-        let mut b = ClothSim::new(params, Arc::clone(&grid), turned, &[]).expect("a valid cloth");
+        let [mut a, mut b] = crossed_cloths(surface, on);
+        let grid = Arc::clone(a.topology());
         let between =
             |a: &ClothSim, b: &ClothSim| crossing_triangles(&grid, &a.positions(), Some((&grid, &b.positions())));
         let mut pairs = vec![between(&a, &b)];
@@ -147,18 +136,85 @@ fn started_crossed(surface: &Collider) {
             }
             pairs.push(between(&a, &b));
         }
-        let (x, y) = (a.positions(), b.positions());
-        let closest = x.iter().flat_map(|p| y.iter().map(move |q| p.distance(*q))).fold(f32::INFINITY, f32::min);
-        println!(
-            "| {} | {} | {} | {} | {:.2} | {} |",
-            if on { "on" } else { "off" },
-            pairs[0],
-            pairs[1],
-            pairs[2],
-            closest * 1e3,
-            close_pairs(&grid, &x, Some(&y), 0.5 * THICKNESS)
-        );
+        let label = if on { "on" } else { "off" };
+        print_crossed_row(label, &grid, &pairs, &a.positions(), &b.positions());
     }
+}
+
+/// The two 32 x 32 cloths (1 m) of [`started_crossed`] over `surface`, block descent, with
+/// self-contact when `contact`: one flat 0.2 m above the surface's top, the other turned 10
+/// degrees about the line across both middles.
+fn crossed_cloths(surface: &Collider, contact: bool) -> [ClothSim; 2] {
+    let top = bvh_cloth_bench::top_of(surface);
+    let grid = Arc::new(ClothTopology::grid(ClothGrid::new(Vec2::ONE, UVec2::splat(32))).expect("a valid grid"));
+    let params = ClothParams {
+        self_contact: contact.then_some(SELF_CONTACT),
+        integrator: Integrator::BLOCK_DESCENT,
+        ..Default::default()
+    };
+    let middle = Vec3::new(-0.1, top + 0.2, 0.0);
+    let turned = Affine3A::from_rotation_translation(Quat::from_rotation_z(10f32.to_radians()), middle);
+    [Affine3A::from_translation(middle), turned]
+        .map(|pose| ClothSim::new(params.clone(), Arc::clone(&grid), pose, &[]).expect("a valid cloth"))
+}
+
+/// One row of the started-crossed tables: `label`, the pairs at 0, 0.5 and 1 s, and the closest
+/// pair and the close pairs between the cloths at `x` and `y` (each of shape `grid`) at 1 s.
+fn print_crossed_row(label: &str, grid: &ClothTopology, pairs: &[usize], x: &[Vec3], y: &[Vec3]) {
+    let closest = x.iter().flat_map(|p| y.iter().map(move |q| p.distance(*q))).fold(f32::INFINITY, f32::min);
+    println!(
+        "| {label} | {} | {} | {} | {:.2} | {} |",
+        pairs[0],
+        pairs[1],
+        pairs[2],
+        closest * 1e3,
+        close_pairs(grid, x, Some(y), 0.5 * SELF_CONTACT.thickness)
+    );
+}
+
+/// The two cloths started crossed of [`started_crossed`] on the GPU, with contact (the
+/// `self_contact_crossed_gpu` section): the untangling kernels against the CPU's analysis.
+pub(crate) fn started_crossed_on_gpu(bunny: &ObjMesh, gpu: Option<&Gpu>) {
+    println!("\n### Two cloths started crossed, on the GPU\n");
+    let Some(gpu) = gpu else {
+        println!("No GPU adapter.");
+        return;
+    };
+    println!(
+        "The two cloths of the table above, with contact, in one batch on the GPU (`untangle.wgsl` finds what lies through the other); the bunny's exact surface as above.\n"
+    );
+    println!("| adapter | pairs at 0 s | at 0.5 s | at 1 s | closest pair at 1 s mm | close pairs at 1 s |");
+    println!("|---|---|---|---|---|---|");
+    let surface = collider(bunny, 5).with_exact_contact(bunny.as_mesh_ref()).expect("the bunny has area");
+    let cloths = crossed_cloths(&surface, true);
+    let grid = Arc::clone(cloths[0].topology());
+    let gpu_colliders = GpuColliders::new(&gpu.device, std::slice::from_ref(&surface));
+    let mut batch = ClothBatch::new(&gpu.device, &gpu.queue);
+    let ids = cloths.each_ref().map(|cloth| {
+        let id = batch.insert(&gpu.device, &gpu.queue, cloth).expect("the cloth fits the device");
+        batch.set_params(&gpu.queue, id, cloth.params(), TICK);
+        id
+    });
+    let positions = |batch: &ClothBatch| {
+        ids.map(|id| {
+            let (buffer, offset, size) = batch.particles(id).expect("the cloth is in the batch");
+            let all: Vec<GpuParticle> = headless::read(&gpu.device, &gpu.queue, buffer);
+            let first = (offset / size_of::<GpuParticle>() as u64) as usize;
+            let count = (size / size_of::<GpuParticle>() as u64) as usize;
+            all[first..first + count].iter().map(|p| Vec3::from_slice(&p.position[..3])).collect::<Vec<Vec3>>()
+        })
+    };
+    let between = |[x, y]: &[Vec<Vec3>; 2]| crossing_triangles(&grid, x, Some((&grid, y)));
+    let mut pairs = vec![between(&cloths.each_ref().map(|c| c.positions()))];
+    for _ in 0..2 {
+        batch.prepare(&gpu.device, &gpu.queue, &gpu.kernels, &gpu_colliders);
+        let mut encoder = gpu.device.create_command_encoder(&Default::default());
+        batch.encode_ticks(&mut encoder, &gpu.kernels, 30);
+        gpu.queue.submit([encoder.finish()]);
+        pairs.push(between(&positions(&batch)));
+    }
+    let [x, y] = positions(&batch);
+    print_crossed_row(&gpu.info.name, &grid, &pairs, &x, &y);
 }
 
 /// The self-contact cost scene: the bunny at n = 5 with its exact surface, and a 128 x 128
