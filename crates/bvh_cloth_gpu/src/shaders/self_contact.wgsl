@@ -2,8 +2,8 @@
 // the batch with a contact thickness, in the same order of operations as the CPU reference.
 // Per substep:
 // - contact_begin, before the integrator, one thread per particle slot and per bucket: keeps
-//   each contact particle's position at the start of the substep, clears its sums, and empties
-//   the grid's bucket counts;
+//   each contact particle's position at the start of the substep, clears its sums, empties
+//   the grid's bucket counts, and clears untangling's words of the substep;
 // then, after the integrator's last kernel (collision response included):
 // - contact_count, one thread per primitive (every triangle, then every edge): its box over the
 //   substep (where its corners were at the start and are now), grown by the largest thickness,
@@ -13,9 +13,9 @@
 //   counts, in blocks of 256 buckets (one workgroup of 64 threads each), then the blocks' sums
 //   (one workgroup), then the blocks' offsets added back: each bucket's first entry;
 // - contact_scatter, one thread per primitive: the primitive entered in each of its buckets;
-// - untangling's kernels (untangle.wgsl): which particles lie through another cloth at the
-//   substep's start, so that their contacts with it (touch and edge_touch) take them back
-//   through;
+// - untangling's kernels (untangle.wgsl): which particles lie through another cloth, or
+//   through another sheet of their own cloth, at the substep's start, so that their contacts
+//   with it (touch and edge_touch) take them back through;
 // - contact_find, one thread per particle: the buckets of the cells its path over the substep
 //   overlaps (at most MAX_PATH_SPAN along an axis), at most MAX_CANDIDATES triangles of each,
 //   each triangle once, and for each contact (within the thickness at the end, or gone through
