@@ -41,7 +41,8 @@ pub enum Kernel {
     ContactApply,
     /// `contact_find_edges`: each edge's contacts with the edges after it.
     ContactFindEdges,
-    /// `untangle_*`: which particles lie through another cloth at the substep's start.
+    /// `untangle_*`: which particles lie through another cloth, or another sheet of their own,
+    /// at the substep's start.
     Untangle,
     /// `air_sample`: the wind at every particle of the cloths with aerodynamics, once a tick.
     AirSample,

@@ -10,7 +10,7 @@ use bvh_cloth_core::{BvhNode, Sphere, Vec3};
 use bvh_cloth_gpu::layout::{
     GpuAirCloth, GpuBatchCloth, GpuBatchFrame, GpuBatchStep, GpuBatchWriteback, GpuCollider, GpuColourPass,
     GpuContactFrame, GpuMeshWriteback, GpuMultigridCloth, GpuMultigridPass, GpuParticle, GpuRefitParams, GpuSkinVertex,
-    GpuWritebackGroup,
+    GpuWritebackGroup, NO_CLOTH, gpu_triangle_neighbours,
 };
 use bvh_cloth_gpu::{SHADER_FILES, shader_source};
 use naga::valid::{Capabilities, ValidationFlags, Validator};
@@ -442,4 +442,39 @@ fn every_file_declares_what_it_imports() {
             );
         }
     }
+}
+
+/// The triangles' neighbours the untangling's union-find joins across: on a 4 x 3 grid (12
+/// triangles), numbered from 100, each neighbour is mutual and shares the edge it stands for,
+/// an edge on the border has none, and every triangle is reached from the first.
+#[test]
+fn triangle_neighbours_are_mutual_and_join_the_cloth() {
+    let grid = bvh_cloth_core::ClothGrid::new(bvh_cloth_core::Vec2::ONE, bvh_cloth_core::UVec2::new(4, 3));
+    let topology = bvh_cloth_core::ClothTopology::grid(grid).unwrap();
+    let triangles = topology.triangles();
+    let neighbours = gpu_triangle_neighbours(&topology, 100);
+    assert_eq!(neighbours.len(), triangles.len());
+    let mut border = 0;
+    for (t, (c, across)) in triangles.iter().zip(&neighbours).enumerate() {
+        for (k, &u) in across.iter().enumerate() {
+            if u == NO_CLOTH {
+                border += 1;
+                continue;
+            }
+            let u = (u - 100) as usize;
+            let edge = [c[k], c[(k + 1) % 3]];
+            assert!(edge.iter().all(|p| triangles[u].contains(p)), "triangle {t}: {u} does not share edge {k}");
+            assert!(neighbours[u].contains(&(100 + t as u32)), "triangle {t}: {u} does not name it back");
+        }
+    }
+    // The grid's border: 2 x (3 + 2) edges.
+    assert_eq!(border, 10);
+    let mut reached = vec![false; triangles.len()];
+    let mut stack = vec![0usize];
+    while let Some(t) = stack.pop() {
+        if !std::mem::replace(&mut reached[t], true) {
+            stack.extend(neighbours[t].iter().filter(|&&u| u != NO_CLOTH).map(|&u| (u - 100) as usize));
+        }
+    }
+    assert!(reached.iter().all(|&r| r), "the neighbours leave part of the grid unreached");
 }
