@@ -197,6 +197,12 @@ fn sheet(p: u32) -> u32 {
     return atomicLoad(&contact_grid[particle_word(p, TANGLE_PARTICLE_SHEET)]);
 }
 
+// The pairs of crossing triangles this substep's analysis found (untangle.wgsl): while it is 0,
+// no particle lies through anything.
+fn crossings() -> u32 {
+    return atomicLoad(&contact_grid[tangle_at(TANGLE_CROSSINGS)]);
+}
+
 // Whether particle slot a lies through the sheet of one of the particles b (NO_CLOTH for none).
 fn lies_through(a: u32, b: vec4<u32>) -> bool {
     let w = wrong_side(a);
@@ -632,8 +638,10 @@ fn touch(p: u32, pc: u32, me: GpuParticle, t: u32, path_lo: vec3<f32>, path_hi: 
     // A point on the wrong side of the sheet of a corner of the triangle, or a corner on the
     // wrong side of the point's, as untangle.wgsl found them: the side to go back to is the
     // other.
-    let inverted = lies_through(p, vec4(corners.xyz, NO_CLOTH)) || lies_through(corners.x, vec4(p, NO_CLOTH, NO_CLOTH, NO_CLOTH))
-        || lies_through(corners.y, vec4(p, NO_CLOTH, NO_CLOTH, NO_CLOTH)) || lies_through(corners.z, vec4(p, NO_CLOTH, NO_CLOTH, NO_CLOTH));
+    let only_p = vec4(p, NO_CLOTH, NO_CLOTH, NO_CLOTH);
+    let inverted = crossings() != 0u
+        && (lies_through(p, vec4(corners.xyz, NO_CLOTH)) || lies_through(corners.x, only_p)
+            || lies_through(corners.y, only_p) || lies_through(corners.z, only_p));
     if (inverted) {
         side_before = -side_before;
     }
@@ -904,8 +912,9 @@ fn edge_touch(ep: u32, fp: u32) {
     // untangle.wgsl found them: the side to go back to is the other one.
     let theirs = vec4(fa.x, fa.y, NO_CLOTH, NO_CLOTH);
     let ours = vec4(ea.x, ea.y, NO_CLOTH, NO_CLOTH);
-    let inverted = lies_through(ea.x, theirs) || lies_through(ea.y, theirs) || lies_through(fa.x, ours)
-        || lies_through(fa.y, ours);
+    let inverted = crossings() != 0u
+        && (lies_through(ea.x, theirs) || lies_through(ea.y, theirs) || lies_through(fa.x, ours)
+            || lies_through(fa.y, ours));
     if (inverted) {
         side_before = -side_before;
     }

@@ -47,7 +47,7 @@
 #import bvh_cloth::types::{thread_index}
 #import bvh_cloth::springs::{cloths}
 #import bvh_cloth::collision::{segment_hit, layers_meet}
-#import bvh_cloth::self_contact::{contact, contact_points, contact_triangles, contact_grid, contact_cloth, wrong_side, cells_of_box, bucket_of, cursor_at, start_at, entry_at, tangle_at, cloth_word, neighbour_word, triangle_word, particle_word, STAT_CROSSINGS, TANGLE_CROSSINGS, TANGLE_WAIT, TANGLE_CLOTH_SIZE, TANGLE_CLOTH_ROOT, TANGLE_CLOTH_WRONG, TANGLE_CLOTH_PARTNER, TANGLE_CLOTH_SELF, TANGLE_TRIANGLE_PARENT, TANGLE_TRIANGLE_CUT, TANGLE_TRIANGLE_SIZE, TANGLE_TRIANGLE_SELF, TANGLE_TRIANGLE_BESIDE, TANGLE_TRIANGLE_RING_WRONG, TANGLE_TRIANGLE_RING_MOVED, TANGLE_TRIANGLE_RING_SHEET, TANGLE_PARTICLE_ON_LARGEST, TANGLE_PARTICLE_COUNTED, TANGLE_PARTICLE_WRONG, TANGLE_PARTICLE_SHEET, TANGLE_PARTICLE_RING}
+#import bvh_cloth::self_contact::{contact, contact_points, contact_triangles, contact_grid, contact_cloth, crossings, wrong_side, cells_of_box, bucket_of, cursor_at, start_at, entry_at, tangle_at, cloth_word, neighbour_word, triangle_word, particle_word, STAT_CROSSINGS, TANGLE_CROSSINGS, TANGLE_WAIT, TANGLE_CLOTH_SIZE, TANGLE_CLOTH_ROOT, TANGLE_CLOTH_WRONG, TANGLE_CLOTH_PARTNER, TANGLE_CLOTH_SELF, TANGLE_TRIANGLE_PARENT, TANGLE_TRIANGLE_CUT, TANGLE_TRIANGLE_SIZE, TANGLE_TRIANGLE_SELF, TANGLE_TRIANGLE_BESIDE, TANGLE_TRIANGLE_RING_WRONG, TANGLE_TRIANGLE_RING_MOVED, TANGLE_TRIANGLE_RING_SHEET, TANGLE_PARTICLE_ON_LARGEST, TANGLE_PARTICLE_COUNTED, TANGLE_PARTICLE_WRONG, TANGLE_PARTICLE_SHEET, TANGLE_PARTICLE_RING}
 #import bvh_cloth::constants::{NO_CLOTH, MAX_CANDIDATES, MAX_SPAN, CONTACT_TRIANGLE_WORDS, UNTANGLE_EVERY}
 
 // The corners of triangle primitive t where they stood at the substep's start.
@@ -67,10 +67,6 @@ fn triangles_intersect(first: array<vec3<f32>, 3>, second: array<vec3<f32>, 3>) 
         }
     }
     return false;
-}
-
-fn crossings() -> u32 {
-    return atomicLoad(&contact_grid[tangle_at(TANGLE_CROSSINGS)]);
 }
 
 fn triangle_cloth(t: u32) -> u32 {
