@@ -4,7 +4,9 @@
 use bytemuck::Pod;
 use wgpu::{Buffer, BufferUsages, Device, Queue};
 
+use crate::batch::{ClothBatch, ClothId};
 use crate::kernels::ClothKernels;
+use crate::layout::GpuParticle;
 
 /// A device without a window, with the instance and adapter it came from.
 #[derive(Debug)]
@@ -73,7 +75,19 @@ pub fn kernel_rig() -> Option<KernelRig> {
 
 /// Copies `buffer` (which needs `COPY_SRC`) into memory, waiting for the GPU.
 pub fn read<T: Pod>(device: &Device, queue: &Queue, buffer: &Buffer) -> Vec<T> {
-    let size = buffer.size();
+    read_range(device, queue, buffer, 0, buffer.size())
+}
+
+/// Cloth `id`'s particles as the GPU has them in `batch` (its part of the batch's particle
+/// buffer, waiting for the GPU), or `None` for a cloth not in the batch.
+pub fn cloth_particles(device: &Device, queue: &Queue, batch: &ClothBatch, id: ClothId) -> Option<Vec<GpuParticle>> {
+    let (buffer, offset, size) = batch.particles(id)?;
+    Some(read_range(device, queue, buffer, offset, size))
+}
+
+/// Copies `size` bytes of `buffer` (which needs `COPY_SRC`) from `offset` into memory, waiting
+/// for the GPU; both are multiples of [`wgpu::COPY_BUFFER_ALIGNMENT`].
+fn read_range<T: Pod>(device: &Device, queue: &Queue, buffer: &Buffer, offset: u64, size: u64) -> Vec<T> {
     let staging = device.create_buffer(&wgpu::BufferDescriptor {
         label: Some("bvh_cloth_readback"),
         size,
@@ -81,7 +95,7 @@ pub fn read<T: Pod>(device: &Device, queue: &Queue, buffer: &Buffer) -> Vec<T> {
         mapped_at_creation: false,
     });
     let mut encoder = device.create_command_encoder(&Default::default());
-    encoder.copy_buffer_to_buffer(buffer, 0, &staging, 0, size);
+    encoder.copy_buffer_to_buffer(buffer, offset, &staging, 0, size);
     queue.submit([encoder.finish()]);
     staging.slice(..).map_async(wgpu::MapMode::Read, |result| result.expect("mapping a readback buffer"));
     device.poll(wgpu::PollType::Wait { submission_index: None, timeout: None }).expect("waiting for the GPU");

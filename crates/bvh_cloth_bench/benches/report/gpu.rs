@@ -201,3 +201,8 @@ fn timed_ticks(gpu: &Gpu, c: &Collider, cloths: &[ClothSim]) -> Option<Vec<Vec<(
     }
     Some(ticks)
 }
+
+/// Cloth `id`'s particles as the GPU has them (a blocking read).
+pub(crate) fn particles_on_gpu(gpu: &Gpu, batch: &ClothBatch, id: bvh_cloth_gpu::ClothId) -> Vec<GpuParticle> {
+    headless::cloth_particles(&gpu.device, &gpu.queue, batch, id).expect("the cloth is in the batch")
+}

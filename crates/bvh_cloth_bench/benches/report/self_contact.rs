@@ -197,11 +197,8 @@ pub(crate) fn started_crossed_on_gpu(bunny: &ObjMesh, gpu: Option<&Gpu>) {
     });
     let positions = |batch: &ClothBatch| {
         ids.map(|id| {
-            let (buffer, offset, size) = batch.particles(id).expect("the cloth is in the batch");
-            let all: Vec<GpuParticle> = headless::read(&gpu.device, &gpu.queue, buffer);
-            let first = (offset / size_of::<GpuParticle>() as u64) as usize;
-            let count = (size / size_of::<GpuParticle>() as u64) as usize;
-            all[first..first + count].iter().map(|p| Vec3::from_slice(&p.position[..3])).collect::<Vec<Vec3>>()
+            let particles = particles_on_gpu(gpu, batch, id);
+            particles.iter().map(|p| Vec3::from_slice(&p.position[..3])).collect::<Vec<Vec3>>()
         })
     };
     let between = |[x, y]: &[Vec<Vec3>; 2]| crossing_triangles(&grid, x, Some((&grid, y)));

@@ -40,14 +40,6 @@ pub(crate) fn run_on_gpu(gpu: &Gpu, batch: &mut ClothBatch, colliders: &GpuColli
     gpu.queue.submit([encoder.finish()]);
 }
 
-/// Cloth `id`'s particles as the GPU has them (a blocking read).
-pub(crate) fn particles_on_gpu(gpu: &Gpu, batch: &ClothBatch, id: bvh_cloth_gpu::ClothId) -> Vec<GpuParticle> {
-    let (buffer, offset, size) = batch.particles(id).expect("the cloth is in the batch");
-    let all: Vec<GpuParticle> = headless::read(&gpu.device, &gpu.queue, buffer);
-    let first = (offset / size_of::<GpuParticle>() as u64) as usize;
-    all[first..first + (size / size_of::<GpuParticle>() as u64) as usize].to_vec()
-}
-
 /// The solvers of the flutter table: block descent with one sweep, block descent converged
 /// further in each substep (which a flutter needs, being fast motion), and RK4 (the default,
 /// the multigrid integrator, is in the `motion` section's flutter table).

@@ -119,10 +119,7 @@ impl Rig {
 
     /// Cloth `id`'s particles as the GPU has them.
     fn batch_particles(&self, batch: &ClothBatch, id: ClothId) -> Vec<GpuParticle> {
-        let (buffer, offset, size) = batch.particles(id).expect("the cloth is in the batch");
-        let all: Vec<GpuParticle> = headless::read(&self.device, &self.queue, buffer);
-        let first = (offset / size_of::<GpuParticle>() as u64) as usize;
-        all[first..first + (size / size_of::<GpuParticle>() as u64) as usize].to_vec()
+        headless::cloth_particles(&self.device, &self.queue, batch, id).expect("the cloth is in the batch")
     }
 
     /// The positions of each of `ids`'s cloths in `batch`, in order.
