@@ -4,9 +4,7 @@
 use bytemuck::Pod;
 use wgpu::{Buffer, BufferUsages, Device, Queue};
 
-use crate::batch::{ClothBatch, ClothId};
 use crate::kernels::ClothKernels;
-use crate::layout::GpuParticle;
 
 /// A device without a window, with the instance and adapter it came from.
 #[derive(Debug)]
@@ -78,16 +76,9 @@ pub fn read<T: Pod>(device: &Device, queue: &Queue, buffer: &Buffer) -> Vec<T> {
     read_range(device, queue, buffer, 0, buffer.size())
 }
 
-/// Cloth `id`'s particles as the GPU has them in `batch` (its part of the batch's particle
-/// buffer, waiting for the GPU), or `None` for a cloth not in the batch.
-pub fn cloth_particles(device: &Device, queue: &Queue, batch: &ClothBatch, id: ClothId) -> Option<Vec<GpuParticle>> {
-    let (buffer, offset, size) = batch.particles(id)?;
-    Some(read_range(device, queue, buffer, offset, size))
-}
-
 /// Copies `size` bytes of `buffer` (which needs `COPY_SRC`) from `offset` into memory, waiting
 /// for the GPU; both are multiples of [`wgpu::COPY_BUFFER_ALIGNMENT`].
-fn read_range<T: Pod>(device: &Device, queue: &Queue, buffer: &Buffer, offset: u64, size: u64) -> Vec<T> {
+pub fn read_range<T: Pod>(device: &Device, queue: &Queue, buffer: &Buffer, offset: u64, size: u64) -> Vec<T> {
     let staging = device.create_buffer(&wgpu::BufferDescriptor {
         label: Some("bvh_cloth_readback"),
         size,

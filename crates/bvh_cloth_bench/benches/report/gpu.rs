@@ -204,5 +204,5 @@ fn timed_ticks(gpu: &Gpu, c: &Collider, cloths: &[ClothSim]) -> Option<Vec<Vec<(
 
 /// Cloth `id`'s particles as the GPU has them (a blocking read).
 pub(crate) fn particles_on_gpu(gpu: &Gpu, batch: &ClothBatch, id: bvh_cloth_gpu::ClothId) -> Vec<GpuParticle> {
-    headless::cloth_particles(&gpu.device, &gpu.queue, batch, id).expect("the cloth is in the batch")
+    batch.read_particles(&gpu.device, &gpu.queue, id).expect("the cloth is in the batch")
 }

@@ -25,6 +25,7 @@ use bvh_cloth_core::{
 use wgpu::{Buffer, BufferUsages, Device, Queue};
 
 use crate::buffer::UNIFORM_STRIDE;
+use crate::headless;
 use crate::kernels::{ClothKernels, KernelError};
 use crate::stages::air::AirPlan;
 use crate::stages::multigrid::MultigridPlan;
@@ -550,6 +551,14 @@ impl ClothBatch {
         let slot = self.slot(id)?;
         let size = size_of::<GpuParticle>() as u64;
         Some((&self.buffers.base, u64::from(slot.particle_start) * size, slot.topology.len() as u64 * size))
+    }
+
+    /// Cloth `id`'s particles as the GPU has them (its part of the particle buffer, read with
+    /// [`headless::read_range`], waiting for the GPU: for tests and benchmarks, never for a
+    /// frame loop), or `None` for a cloth not in the batch.
+    pub fn read_particles(&self, device: &Device, queue: &Queue, id: ClothId) -> Option<Vec<GpuParticle>> {
+        let (buffer, offset, size) = self.particles(id)?;
+        Some(headless::read_range(device, queue, buffer, offset, size))
     }
 
     /// The buffer holding every cloth's count of quarantined particles (`COPY_SRC | COPY_DST`),

@@ -50,7 +50,7 @@ fn ticked(
     let mut encoder = gpu.device.create_command_encoder(&Default::default());
     batch.encode_ticks(&mut encoder, kernels, ticks);
     gpu.queue.submit([encoder.finish()]);
-    headless::cloth_particles(&gpu.device, &gpu.queue, batch, id).expect("the cloth is in the batch")
+    batch.read_particles(&gpu.device, &gpu.queue, id).expect("the cloth is in the batch")
 }
 
 #[test]

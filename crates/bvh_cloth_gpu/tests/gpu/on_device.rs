@@ -119,7 +119,7 @@ impl Rig {
 
     /// Cloth `id`'s particles as the GPU has them.
     fn batch_particles(&self, batch: &ClothBatch, id: ClothId) -> Vec<GpuParticle> {
-        headless::cloth_particles(&self.device, &self.queue, batch, id).expect("the cloth is in the batch")
+        batch.read_particles(&self.device, &self.queue, id).expect("the cloth is in the batch")
     }
 
     /// The positions of each of `ids`'s cloths in `batch`, in order.
