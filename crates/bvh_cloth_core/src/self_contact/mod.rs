@@ -20,8 +20,10 @@
 //! two), refitted each substep: each triangle's and each node's box over the substep (where its
 //! corners were at the start and are now), grown by half the largest thickness, its extent
 //! along the six diagonals of the axes (`x ± y`, `x ± z`, `y ± z`), grown likewise (by the
-//! diagonals' length, `√2`, times as much), and the box of a node's triangles' normals at the
-//! start and the end. The tree is walked for the pairs of triangles whose boxes meet, each pair
+//! diagonals' length, `√2`, times as much), and a cone holding its triangles' normals at the
+//! start and the end: at a leaf, about their mean direction, its angle the widest of theirs
+//! from it; at an inner node, about the direction halfway between its children's axes, each
+//! child's angle grown by its axis's angle from there. The tree is walked for the pairs of triangles whose boxes meet, each pair
 //! once, and a pair of triangles stands for the contacts of their particles and edges: each
 //! particle and each edge is taken by one of its triangles, a point tested against the other
 //! triangle of each pair its own is in, and an edge against the edges of that triangle (a
@@ -41,24 +43,28 @@
 //! neighbours and never touch them: the walk skips each part of a cloth whose triangles are
 //! joined through shared corners and whose normals at the substep's start and end all lie
 //! within 45° of one direction ([`FLAT_COS`]), and each two such parts (or triangles) that
-//! share a corner and are flat together. A connected surface whose normals lie within less
+//! share a corner and are flat together: two cones of angles `a` and `b` whose axes lie `φ`
+//! apart lie within the cone of angle `(a + b + φ) / 2` between them, within 45° when both
+//! are and `cos φ >= sin(a + b)`. A connected surface whose normals lie within less
 //! than 90° of one direction does not meet itself (Volino and Magnenat-Thalmann 1994,
 //! "Efficient self-collision detection on smoothly discretized surface animations using
 //! geometrical shape regularity"). Within 45° it is a height field no steeper than 45° over
 //! the plane across that direction, so two of its particles lie at least 0.71 times as far
 //! apart as along the sheet: only particles less than 1.41 times the thickness apart along it
 //! can come within the thickness, and those are held apart by the cloth's springs, not by
-//! contact, until the part bends further. (Within 60°, more is skipped and the cost falls
-//! further, but a fold of the core's `fast_folds_keep_off_themselves_with_block_descent`, onto
+//! contact, until the part bends further. (Within 60°, with the normals bounded by a box,
+//! more is skipped and the cost falls further, but a fold of the core's `fast_folds_keep_off_themselves_with_block_descent`, onto
 //! the bunny at 15 m/s, ended with 42 pairs of its triangles intersecting.)
 //! Each node keeps its box in the rest shape and its particles that also belong to triangles
 //! outside it, sorted, for the test of a shared corner. On the report's cloth of 128 x 128
-//! draped on the bunny, the walk tests about 164,000 pairs of nodes a substep and hands about
-//! 30,000 pairs of its 32,258 triangles to the tests below (with the boxes alone, 230,000 and
-//! 34,000; without the line between centroids as well, 80,000 pairs: three in five of those
-//! lay one row apart on the cloth, and none of them made a contact), where the hashed grid
-//! that follows hands them about 200,000 point–triangle and 580,000 edge–edge candidates
-//! (counts of that scene in a scratch build).
+//! draped on the bunny, the walk tests about 87,000 pairs of nodes a substep and hands about
+//! 8,700 pairs of its 32,258 triangles to the tests below. With the normals bounded by a box
+//! rather than a cone (the least cosine between the box's corners and its middle's direction),
+//! 167,000 and 30,000: a box of unit normals reaches far off the sphere of directions, and of
+//! the node pairs whose box was wider than 45°, seven in ten had every normal within 45° of
+//! their mean. (With that box and the nodes' boxes alone, 230,000 and 34,000; without the line
+//! between centroids as well, 80,000 pairs: three in five of those lay one row apart on the
+//! cloth, and none of them made a contact. Counts of that scene in scratch builds.)
 //!
 //! The GPU backend finds its pairs in a hashed grid of the primitives (the triangles, then the
 //! edges), rebuilt each substep (Teschner et al. 2003, "Optimized spatial hashing for
