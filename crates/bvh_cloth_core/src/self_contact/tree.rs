@@ -278,9 +278,9 @@ impl SurfaceTree {
 
     /// Each triangle's and each node's box and span over the substep (its triangles' corners
     /// at the substep's start, `prev`, and end, `x`), grown by `grow` (the spans by `grow`
-    /// times the diagonals' length, `√2`), and a cone holding a node's triangles' normals then and
-    /// now. A triangle with a corner that is not finite has an empty box (it meets nothing);
-    /// one without area, a box of every normal (never flat). The particles and the triangles
+    /// times the diagonals' length, `√2`), and a cone holding a node's triangles' normals then
+    /// and now. A triangle with a corner that is not finite has an empty box (it meets
+    /// nothing); one without area makes its node's cone hold every direction (never flat). The particles and the triangles
     /// are taken in parallel, then the nodes from the leaves up.
     pub(super) fn refit(&mut self, prev: &[Vec3], x: &[Vec3], grow: f32) {
         self.grow = grow;
