@@ -8,7 +8,7 @@ use glam::{Vec3, Vec3A};
 use rayon::prelude::*;
 
 use crate::cloth::topology::ClothTopology;
-use crate::mesh::triangles::{face_normal, share_a_corner};
+use crate::mesh::triangles::share_a_corner;
 
 /// Most node pairs the walk tests, per triangle of the bodies: a walk that reaches it stops
 /// (everything at one point would otherwise cost the square of the triangle count).
@@ -30,6 +30,14 @@ const TASKS: usize = 256;
 /// the core's `fast_folds_keep_off_themselves` ended with 7 pairs of its triangles
 /// intersecting.)
 const LEAF_SIZE: usize = 2;
+
+/// A thread's part of the walk: the pairs of triangles its tasks found, in order, its stack,
+/// and the node pairs it left unwalked.
+type Walked = (Vec<(u32, u32)>, Vec<(u32, u32)>, usize);
+
+/// Fewest nodes in a subtree whose two subtrees the refit hands to the rayon pool side by
+/// side; a smaller one is refitted on its own thread from its leaves up.
+const SUBTREE_MIN: usize = 2048;
 
 /// A box that meets nothing.
 const EMPTY: [Vec3A; 2] = [Vec3A::INFINITY, Vec3A::NEG_INFINITY];
@@ -57,16 +65,16 @@ impl Cone {
     /// The cone of the unit `normals` about their mean direction, exactly; [`Self::WIDE`] when
     /// one is 0 (a triangle without area), or when they span a right angle or more.
     #[inline]
-    fn of(normals: impl Iterator<Item = Vec3A> + Clone) -> Self {
+    fn of(normals: &[Vec3A]) -> Self {
         let mut sum = Vec3A::ZERO;
-        for n in normals.clone() {
+        for &n in normals {
             if n == Vec3A::ZERO {
                 return Self::WIDE;
             }
             sum += n;
         }
         let axis = sum.normalize_or_zero();
-        let cos = normals.fold(1.0f32, |least, n| least.min(n.dot(axis)));
+        let cos = normals.iter().fold(1.0f32, |least, n| least.min(n.dot(axis)));
         Self::about(axis, cos)
     }
 
@@ -105,6 +113,40 @@ impl Cone {
         self.cos >= FLAT_COS
             && other.cos >= FLAT_COS
             && self.axis.dot(other.axis) >= self.sin * other.cos + self.cos * other.sin
+    }
+}
+
+/// A node's bounds over the substep: its box, grown by half the largest thickness (two boxes
+/// meet where their triangles come within the thickness), its span, grown likewise (by the
+/// diagonals' length times as much), and a cone holding its triangles' normals at the
+/// substep's start and end. Kept together, a node's bounds fill two cache lines.
+#[derive(Clone, Copy, Debug)]
+#[repr(align(64))]
+struct Fit {
+    bounds: [Vec3A; 2],
+    span: Span,
+    cone: Cone,
+}
+
+impl Fit {
+    /// Bounds that meet nothing, of every direction.
+    const EMPTY: Self = Self { bounds: EMPTY, span: NO_SPAN, cone: Cone::WIDE };
+
+    /// The bounds of a node whose children's bounds are `self` and `other`.
+    #[inline]
+    fn join(&self, other: &Self) -> Self {
+        Self {
+            bounds: [self.bounds[0].min(other.bounds[0]), self.bounds[1].max(other.bounds[1])],
+            span: join_spans(self.span, other.span),
+            cone: self.cone.join(other.cone),
+        }
+    }
+
+    /// Whether the boxes and spans of `self` and `other` meet.
+    #[inline(always)]
+    fn meets(&self, other: &Self) -> bool {
+        let ([a_lo, a_hi], [b_lo, b_hi]) = (self.bounds, other.bounds);
+        a_lo.cmple(b_hi).all() && a_hi.cmpge(b_lo).all() && spans_meet(&self.span, &other.span)
     }
 }
 
@@ -153,13 +195,8 @@ pub(super) struct SurfaceTree {
     rests: Vec<[Vec3A; 2]>,
     /// Each body's root ([`LEAF`] for a body without triangles).
     roots: Vec<u32>,
-    /// Each node's box over the substep, grown by half the largest thickness (two boxes meet
-    /// where their triangles come within the thickness), its span over the substep, grown
-    /// likewise (by the diagonals' length times as much), and a cone holding its triangles'
-    /// normals at the substep's start and end.
-    boxes: Vec<[Vec3A; 2]>,
-    spans: Vec<Span>,
-    cones: Vec<Cone>,
+    /// Each node's bounds over the substep, side by side for the walk.
+    fits: Vec<Fit>,
     /// What the boxes were grown by.
     grow: f32,
     /// Every body's triangles (their indices among every body's), leaf after leaf in the
@@ -176,7 +213,7 @@ pub(super) struct SurfaceTree {
     particle_spans: Vec<Span>,
     /// The corners now of the triangle at each place of `order`, and the farthest any of them
     /// moved over the substep.
-    now: Vec<([Vec3; 3], f32)>,
+    now: Vec<([Vec3A; 3], f32)>,
     /// The unit normal of the triangle at each place of `order` at the substep's start and
     /// end (0 for a triangle without area then): the point–triangle tests take them rather
     /// than work them out per pair.
@@ -280,8 +317,10 @@ impl SurfaceTree {
     /// at the substep's start, `prev`, and end, `x`), grown by `grow` (the spans by `grow`
     /// times the diagonals' length, `√2`), and a cone holding a node's triangles' normals then
     /// and now. A triangle with a corner that is not finite has an empty box (it meets
-    /// nothing); one without area makes its node's cone hold every direction (never flat). The particles and the triangles
-    /// are taken in parallel, then the nodes from the leaves up.
+    /// nothing); one without area makes its node's cone hold every direction (never flat). The
+    /// particles and the triangles are taken in parallel, then the nodes from the leaves up,
+    /// the subtrees side by side ([`Self::fit_nodes`]). A triangle whose corners start the
+    /// substep where the last refit left them keeps the normal it had then.
     pub(super) fn refit(&mut self, prev: &[Vec3], x: &[Vec3], grow: f32) {
         self.grow = grow;
         let places = self.order.len();
@@ -294,12 +333,14 @@ impl SurfaceTree {
         }
         self.triangle_boxes.resize(places, [Vec3A::ZERO; 2]);
         self.triangle_spans.resize(places, NO_SPAN);
-        self.now.resize(places, ([Vec3::ZERO; 3], 0.0));
+        self.now.resize(places, ([Vec3A::ZERO; 3], 0.0));
         self.faces.resize(places, [Vec3::ZERO; 2]);
         let spans = &self.particle_spans;
-        let fit = |corners: [u32; 3]| {
+        let fit = |corners: [u32; 3], own: &mut [Vec3A; 2], now: &mut ([Vec3A; 3], f32), faces: &mut [Vec3; 2]| {
             let [a, b, c] = corners.map(|k| spans[k as usize]);
-            (fit_triangle(corners, prev, x, grow), widen_span(join_spans(join_spans(a, b), c), grow))
+            let last = (now.0, faces[1]);
+            (*own, *now, *faces) = fit_triangle(corners, prev, x, grow, last);
+            widen_span(join_spans(join_spans(a, b), c), grow)
         };
         let (boxes, now, faces, triangle_spans) =
             (&mut self.triangle_boxes, &mut self.now, &mut self.faces, &mut self.triangle_spans);
@@ -309,37 +350,65 @@ impl SurfaceTree {
                 .zip(now.par_iter_mut())
                 .zip(faces.par_iter_mut().zip(triangle_spans.par_iter_mut()));
             self.corners.par_iter().zip(each).for_each(|(corners, ((own, now), (faces, span)))| {
-                ((*own, *now, *faces), *span) = fit(*corners);
+                *span = fit(*corners, own, now, faces);
             });
         } else {
             let each = boxes.iter_mut().zip(now.iter_mut()).zip(faces.iter_mut().zip(triangle_spans.iter_mut()));
             self.corners.iter().zip(each).for_each(|(corners, ((own, now), (faces, span)))| {
-                ((*own, *now, *faces), *span) = fit(*corners);
+                *span = fit(*corners, own, now, faces);
             });
         }
-        let count = self.nodes.len();
-        self.boxes.resize(count, [Vec3A::ZERO; 2]);
-        self.spans.resize(count, NO_SPAN);
-        self.cones.resize(count, Cone::WIDE);
-        for i in (0..count).rev() {
-            let node = self.nodes[i];
-            if node.right == LEAF {
-                let (mut bounds, mut span) = (EMPTY, NO_SPAN);
-                let range = node.start as usize..(node.start + node.count) as usize;
-                for at in range.clone() {
-                    let own = self.triangle_boxes[at];
-                    bounds = [bounds[0].min(own[0]), bounds[1].max(own[1])];
-                    span = join_spans(span, self.triangle_spans[at]);
-                }
-                let normals = self.faces[range].iter().flatten().map(|&f| Vec3A::from(f));
-                (self.boxes[i], self.spans[i], self.cones[i]) = (bounds, span, Cone::of(normals));
-            } else {
-                let (l, r) = (i + 1, node.right as usize);
-                self.spans[i] = join_spans(self.spans[l], self.spans[r]);
-                self.boxes[i] = [self.boxes[l][0].min(self.boxes[r][0]), self.boxes[l][1].max(self.boxes[r][1])];
-                self.cones[i] = self.cones[l].join(self.cones[r]);
-            }
+        let mut fits = core::mem::take(&mut self.fits);
+        fits.resize(self.nodes.len(), Fit::EMPTY);
+        let mut rest = &mut fits[..];
+        // Each body's nodes follow its root, up to the next body's root.
+        for &root in self.roots.iter().filter(|&&r| r != LEAF) {
+            let next = self.roots.iter().copied().filter(|&r| r != LEAF && r > root).min();
+            let len = next.unwrap_or(self.nodes.len() as u32) - root;
+            let (body, after) = core::mem::take(&mut rest).split_at_mut(len as usize);
+            self.fit_nodes(body, root as usize);
+            rest = after;
         }
+        self.fits = fits;
+    }
+
+    /// The bounds of the subtree whose root is node `root`, written to `fits` (its nodes,
+    /// `root` first): its two subtrees side by side on the rayon pool while they are large,
+    /// then each from its leaves up.
+    fn fit_nodes(&self, fits: &mut [Fit], root: usize) {
+        if fits.len() < SUBTREE_MIN {
+            for k in (0..fits.len()).rev() {
+                let node = self.nodes[root + k];
+                fits[k] = if node.right == LEAF {
+                    self.fit_leaf(node)
+                } else {
+                    fits[k + 1].join(&fits[node.right as usize - root])
+                };
+            }
+            return;
+        }
+        let node = self.nodes[root];
+        let (own, below) = fits.split_first_mut().expect("a subtree holds its root");
+        let (left, right) = below.split_at_mut(node.right as usize - root - 1);
+        rayon::join(|| self.fit_nodes(left, root + 1), || self.fit_nodes(right, node.right as usize));
+        *own = left[0].join(&right[0]);
+    }
+
+    /// The bounds of the leaf `node`: its triangles' boxes and spans, and the cone of their
+    /// normals.
+    #[inline]
+    fn fit_leaf(&self, node: Node) -> Fit {
+        let (mut bounds, mut span) = (EMPTY, NO_SPAN);
+        let mut normals = [Vec3A::ZERO; 2 * LEAF_SIZE];
+        let range = node.start as usize..(node.start + node.count) as usize;
+        for (k, at) in range.clone().enumerate() {
+            let own = self.triangle_boxes[at];
+            bounds = [bounds[0].min(own[0]), bounds[1].max(own[1])];
+            span = join_spans(span, self.triangle_spans[at]);
+            let [then, now] = self.faces[at];
+            normals[2 * k..2 * k + 2].copy_from_slice(&[then.into(), now.into()]);
+        }
+        Fit { bounds, span, cone: Cone::of(&normals[..2 * range.len()]) }
     }
 
     /// The boxes of the edges each triangle stands for over the substep ([`Self::edge_boxes`]),
@@ -405,8 +474,8 @@ impl SurfaceTree {
     /// substep ([`Self::meet`]), each pair once, in an order that depends on the positions
     /// alone, whatever the threads: within each body, less those in a part of it that is flat
     /// within 45° ([`FLAT_COS`]); and between every two bodies for which `meet(a, b)` holds.
-    /// Writes them to `pairs`; returns how many node pairs were left untested when the walk reached its
-    /// bound ([`MAX_TESTS_PER_TRIANGLE`] a triangle), 0 when none.
+    /// Writes them to `pairs`; returns how many node pairs were left unwalked when the walk
+    /// reached its bound ([`MAX_TESTS_PER_TRIANGLE`] tests a triangle), 0 when none.
     ///
     /// The walk's first steps make node pairs of at most a [`TASKS`]th of the triangles, which
     /// are walked on the rayon pool, each with a share of the bound by its count of triangles,
@@ -423,6 +492,7 @@ impl SurfaceTree {
                 }
             }
         }
+        tasks.retain(|&task| !self.apart(task));
         let triangles = self.points.len();
         let size = |(a, b): (u32, u32)| self.size(a) + if a == b { 0 } else { self.size(b) };
         if triangles >= super::PARALLEL_MIN {
@@ -437,50 +507,92 @@ impl SurfaceTree {
                 if size(task) <= limit {
                     tasks.push(task);
                 } else {
-                    self.step(task, &mut |child| stack.push(child), pairs);
+                    self.step(
+                        task,
+                        &mut |child| {
+                            if !self.apart(child) {
+                                stack.push(child)
+                            }
+                        },
+                        pairs,
+                    );
                 }
             }
         }
         let total: usize = tasks.iter().map(|&t| size(t)).sum();
         let bound = MAX_TESTS_PER_TRIANGLE * triangles;
         let budget = |task| (bound as u128 * size(task) as u128 / total.max(1) as u128) as usize;
-        let walked: Vec<(Vec<(u32, u32)>, usize)> = if tasks.len() > 1 {
-            tasks.par_iter().map(|&task| self.walk(task, budget(task))).collect()
+        // Each thread's tasks in order, into one list of pairs and with one stack.
+        let walk = |(mut found, mut stack, left): Walked, &task: &(u32, u32)| {
+            let untested = self.walk(task, budget(task), &mut stack, &mut found);
+            (found, stack, left + untested)
+        };
+        let walked: Vec<Walked> = if tasks.len() > 1 {
+            tasks.par_iter().fold(Walked::default, walk).collect()
         } else {
-            tasks.iter().map(|&task| self.walk(task, budget(task))).collect()
+            vec![tasks.iter().fold(Walked::default(), walk)]
         };
         let mut left = 0;
-        for (found, untested) in walked {
+        for (found, _, untested) in walked {
             pairs.extend(found);
             left += untested;
         }
         left
     }
 
-    /// The pairs of triangles under the node pair `task`, depth first, at most `budget` node
-    /// pairs tested; and how many were left untested when it ran out.
-    fn walk(&self, task: (u32, u32), mut budget: usize) -> (Vec<(u32, u32)>, usize) {
-        let (mut pairs, mut stack) = (Vec::new(), vec![task]);
+    /// The pairs of triangles under the node pair `task` (one that meets), depth first, added
+    /// to `pairs`, with at most `budget` node pairs tested; returns how many were left
+    /// unwalked when it ran out. `stack` is scratch.
+    fn walk(
+        &self,
+        task: (u32, u32),
+        mut budget: usize,
+        stack: &mut Vec<(u32, u32)>,
+        pairs: &mut Vec<(u32, u32)>,
+    ) -> usize {
+        stack.clear();
+        stack.push(task);
+        let mut untested = 0;
         while let Some(task) = stack.pop() {
-            if budget == 0 {
-                return (pairs, stack.len() + 1);
-            }
-            budget -= 1;
-            self.step(task, &mut |child| stack.push(child), &mut pairs);
+            self.step(
+                task,
+                &mut |child| {
+                    if budget == 0 {
+                        untested += 1;
+                    } else {
+                        budget -= 1;
+                        if !self.apart(child) {
+                            stack.push(child);
+                        }
+                    }
+                },
+                pairs,
+            );
         }
-        (pairs, 0)
+        untested
     }
 
-    /// One step of the walk at the node pair `(a, b)` (a node against itself when `a == b`):
-    /// the pairs of their triangles that may touch added to `pairs` when both are leaves
-    /// ([`Self::meet`]), or the node pairs to walk instead handed to `split`.
+    /// Whether the node pair `(a, b)` (a node against itself when `a == b`) holds no pair of
+    /// triangles that may touch: a node that is a flat part, or two nodes whose boxes or spans
+    /// lie apart or that are flat together.
+    #[inline(always)]
+    fn apart(&self, (a, b): (u32, u32)) -> bool {
+        let (na, nb) = (self.nodes[a as usize], self.nodes[b as usize]);
+        let (fa, fb) = (&self.fits[a as usize], &self.fits[b as usize]);
+        if a == b {
+            return na.connected && fa.cone.cos >= FLAT_COS;
+        }
+        !fa.meets(fb) || self.flat_together(na, nb, fa, fb, a, b)
+    }
+
+    /// One step of the walk at the node pair `(a, b)` (a node against itself when `a == b`),
+    /// one not [`Self::apart`]: the pairs of their triangles that may touch added to `pairs`
+    /// when both are leaves ([`Self::meet`]), or the node pairs to walk instead handed to
+    /// `split`.
     #[inline]
     fn step(&self, (a, b): (u32, u32), split: &mut impl FnMut((u32, u32)), pairs: &mut Vec<(u32, u32)>) {
         let (na, nb) = (self.nodes[a as usize], self.nodes[b as usize]);
         if a == b {
-            if na.connected && self.cones[a as usize].cos >= FLAT_COS {
-                return;
-            }
             if na.right == LEAF {
                 let range = na.start as usize..(na.start + na.count) as usize;
                 for i in range.clone() {
@@ -494,15 +606,9 @@ impl SurfaceTree {
             }
             return;
         }
-        let ([a_lo, a_hi], [b_lo, b_hi]) = (self.boxes[a as usize], self.boxes[b as usize]);
-        let meet = a_lo.cmple(b_hi).all()
-            && a_hi.cmpge(b_lo).all()
-            && spans_meet(&self.spans[a as usize], &self.spans[b as usize]);
-        if !meet || self.flat_together(na, nb, a, b) {
-            return;
-        }
         let (a_leaf, b_leaf) = (na.right == LEAF, nb.right == LEAF);
         if a_leaf && b_leaf {
+            let [b_lo, b_hi] = self.fits[b as usize].bounds;
             for i in na.start as usize..(na.start + na.count) as usize {
                 let [lo, hi] = self.triangle_boxes[i];
                 if lo.cmple(b_hi).all() && hi.cmpge(b_lo).all() {
@@ -536,7 +642,7 @@ impl SurfaceTree {
         // A shared corner (flat indices: of one body) leaves them no gap along any line.
         if share_a_corner(self.corners[i], self.corners[j]) {
             let ([a0, a1], [b0, b1]) = (self.faces[i].map(Vec3A::from), self.faces[j].map(Vec3A::from));
-            if Cone::of([a0, a1, b0, b1].into_iter()).cos >= FLAT_COS {
+            if Cone::of(&[a0, a1, b0, b1]).cos >= FLAT_COS {
                 return;
             }
         } else if self.separated(i, j) {
@@ -563,32 +669,43 @@ impl SurfaceTree {
         self.nodes[i as usize].count as usize
     }
 
-    /// Whether the nodes `na` and `nb` (numbered `a` and `b`) form a connected part of one
-    /// body whose normals lie within 45° of one direction: each connected, their boxes in the
-    /// rest shape touching and sharing a corner.
+    /// Whether the nodes `na` and `nb` (numbered `a` and `b`, their bounds `fa` and `fb`) form
+    /// a connected part of one body whose normals lie within 45° of one direction: each
+    /// connected, their boxes in the rest shape touching and sharing a corner.
     #[inline(always)]
-    fn flat_together(&self, na: Node, nb: Node, a: u32, b: u32) -> bool {
+    fn flat_together(&self, na: Node, nb: Node, fa: &Fit, fb: &Fit, a: u32, b: u32) -> bool {
         na.body == nb.body
             && na.connected
             && nb.connected
+            && fa.cone.flat_with(fb.cone)
             && self.rests[a as usize][0].cmple(self.rests[b as usize][1]).all()
             && self.rests[b as usize][0].cmple(self.rests[a as usize][1]).all()
-            && self.cones[a as usize].flat_with(self.cones[b as usize])
             && shares_corner(&self.border, na.border, nb.border)
     }
 }
 
 /// The box over the substep of the triangle of `corners` (flat indices) from `prev` to `x`,
 /// grown by `grow` (empty when a corner is not finite); its corners now and the farthest one
-/// moved; its unit normals then and now (0 for none: without area).
+/// moved; its unit normals then and now (0 for none: without area). `last` is its corners and
+/// normal when it was last fitted: where its corners start the substep there, that normal is
+/// the one they had, not worked out again.
 #[inline]
-fn fit_triangle(corners: [u32; 3], prev: &[Vec3], x: &[Vec3], grow: f32) -> ([Vec3A; 2], ([Vec3; 3], f32), [Vec3; 2]) {
-    let (before, now) = (corners.map(|k| prev[k as usize]), corners.map(|k| x[k as usize]));
+fn fit_triangle(
+    corners: [u32; 3],
+    prev: &[Vec3],
+    x: &[Vec3],
+    grow: f32,
+    last: ([Vec3A; 3], Vec3),
+) -> ([Vec3A; 2], ([Vec3A; 3], f32), [Vec3; 2]) {
+    let (before, now) = (corners.map(|k| Vec3A::from(prev[k as usize])), corners.map(|k| Vec3A::from(x[k as usize])));
     let lo = before[0].min(before[1]).min(before[2]).min(now[0].min(now[1]).min(now[2]));
     let hi = before[0].max(before[1]).max(before[2]).max(now[0].max(now[1]).max(now[2]));
-    let own = if lo.is_finite() && hi.is_finite() { [Vec3A::from(lo - grow), Vec3A::from(hi + grow)] } else { EMPTY };
+    let own = if lo.is_finite() && hi.is_finite() { [lo - grow, hi + grow] } else { EMPTY };
     let moved = (0..3).fold(0.0f32, |m, k| m.max(before[k].distance_squared(now[k]))).sqrt();
-    (own, (now, moved), [face_normal(before).unwrap_or(Vec3::ZERO), face_normal(now).unwrap_or(Vec3::ZERO)])
+    let normal = |[a, b, c]: [Vec3A; 3]| Vec3::from((b - a).cross(c - a).try_normalize().unwrap_or(Vec3A::ZERO));
+    // Equal corners (NaN never is) give the same normal.
+    let then = if before == last.0 { last.1 } else { normal(before) };
+    (own, (now, moved), [then, normal(now)])
 }
 
 /// The span of a particle's path from `a` to `b` ([`NO_SPAN`] for one that is not finite).
@@ -803,8 +920,7 @@ mod tests {
             let towards = directions(Vec3A::Y, 1.0, 1, &mut seed)[0];
             let spread = 0.05 + 0.6 * (case % 10) as f32 / 10.0;
             let leaves: Vec<Vec<Vec3A>> = (0..8).map(|_| directions(towards, spread, 4, &mut seed)).collect();
-            let mut cones: Vec<(Cone, Vec<Vec3A>)> =
-                leaves.iter().map(|l| (Cone::of(l.iter().copied()), l.clone())).collect();
+            let mut cones: Vec<(Cone, Vec<Vec3A>)> = leaves.iter().map(|l| (Cone::of(l), l.clone())).collect();
             for (cone, normals) in &cones {
                 assert!(cone.cos <= 0.0 || least_cos(normals, cone.axis) >= cone.cos - 1e-5, "case {case}: a leaf");
             }
