@@ -63,7 +63,7 @@ impl Cone {
     const WIDE: Self = Self { axis: Vec3A::Z, cos: -1.0, sin: 0.0 };
 
     /// The cone of the unit `normals` about their mean direction, exactly; [`Self::WIDE`] when
-    /// one is 0 (a triangle without area), or when they span a right angle or more.
+    /// one is 0 (a triangle without area), or when it is wider than 45° ([`Self::about`]).
     #[inline]
     fn of(normals: &[Vec3A]) -> Self {
         let mut sum = Vec3A::ZERO;
@@ -78,11 +78,13 @@ impl Cone {
         Self::about(axis, cos)
     }
 
-    /// The cone about `axis` of half-angle `acos(cos)`: [`Self::WIDE`] unless `cos` is above 0
-    /// (NaN too).
+    /// The cone about `axis` of half-angle `acos(cos)`: [`Self::WIDE`] when wider than 45°
+    /// ([`FLAT_COS`]; NaN too). The walk skips parts within 45° alone, and a join only widens,
+    /// so a wider cone is of no use above it: taken as every direction, the joins above it cost
+    /// nothing.
     #[inline]
     fn about(axis: Vec3A, cos: f32) -> Self {
-        if cos > 0.0 && axis != Vec3A::ZERO {
+        if cos >= FLAT_COS && axis != Vec3A::ZERO {
             Self { axis, cos: cos.min(1.0), sin: (1.0 - cos * cos).max(0.0).sqrt() }
         } else {
             Self::WIDE
@@ -93,7 +95,7 @@ impl Cone {
     /// cone's angle grown by the angle between its axis and that direction.
     #[inline]
     fn join(self, other: Self) -> Self {
-        if self.cos <= 0.0 || other.cos <= 0.0 {
+        if self.cos < FLAT_COS || other.cos < FLAT_COS {
             return Self::WIDE;
         }
         let axis = (self.axis + other.axis).normalize_or_zero();
@@ -680,7 +682,18 @@ impl SurfaceTree {
             && fa.cone.flat_with(fb.cone)
             && self.rests[a as usize][0].cmple(self.rests[b as usize][1]).all()
             && self.rests[b as usize][0].cmple(self.rests[a as usize][1]).all()
-            && shares_corner(&self.border, na.border, nb.border)
+            && self.share_a_corner(na, nb, a, b)
+    }
+
+    /// Whether the nodes `na` and `nb` (numbered `a` and `b`), both connected, share a corner.
+    /// Two children of one node do when their parent is connected, as the build found it.
+    #[inline(always)]
+    fn share_a_corner(&self, na: Node, nb: Node, a: u32, b: u32) -> bool {
+        // A left child follows its parent.
+        match a.checked_sub(1).map(|p| self.nodes[p as usize]) {
+            Some(parent) if parent.right == b => parent.connected,
+            _ => shares_corner(&self.border, na.border, nb.border),
+        }
     }
 }
 
