@@ -23,11 +23,13 @@
 //! diagonals' length, `√2`, times as much), and a cone holding its triangles' normals at the
 //! start and the end: at a leaf, about their mean direction, its angle the widest of theirs
 //! from it; at an inner node, about the direction halfway between its children's axes, each
-//! child's angle grown by its axis's angle from there. The tree is walked for the pairs of triangles whose boxes meet, each pair
-//! once, and a pair of triangles stands for the contacts of their particles and edges: each
-//! particle and each edge is taken by one of its triangles, a point tested against the other
-//! triangle of each pair its own is in, and an edge against the edges of that triangle (a
-//! particle of no triangle takes part in no contact). A path that came within the thickness of
+//! child's angle grown by its axis's angle from there (a cone wider than 45° is taken as every
+//! direction: the walk skips nothing for it, and no join above it narrows it). The tree is
+//! walked for the pairs of triangles whose boxes meet, each pair once, and a pair of triangles
+//! stands for the contacts of their particles and edges: each particle and each edge is taken
+//! by one of its triangles, a point tested against the other triangle of each pair its own is
+//! in, and an edge against the edges of that triangle (a particle of no triangle takes part in
+//! no contact). A path that came within the thickness of
 //! a triangle, or went through it, at any speed, lies in boxes and extents that meet. Two nodes
 //! whose boxes meet are passed over too when their extents along a diagonal lie apart: with its
 //! box, a node is bounded by 18 planes (a k-DOP, Klosowski et al. 1998, "Efficient collision
