@@ -209,13 +209,12 @@ pub(super) struct SurfaceTree {
     /// the substep, grown like the nodes'.
     corners: Vec<[u32; 3]>,
     triangle_boxes: Vec<[Vec3A; 2]>,
-    /// The span over the substep of the triangle at each place of `order`, grown like the
-    /// nodes', and of each particle (flat indices; the scratch those are joined from).
-    triangle_spans: Vec<Span>,
+    /// The span over the substep of each particle (flat indices), grown like the nodes': the
+    /// leaves' spans are joined from their corners'.
     particle_spans: Vec<Span>,
     /// The corners now of the triangle at each place of `order`, and the farthest any of them
     /// moved over the substep.
-    now: Vec<([Vec3A; 3], f32)>,
+    now: Vec<([Vec3; 3], f32)>,
     /// The unit normal of the triangle at each place of `order` at the substep's start and
     /// end (0 for a triangle without area then): the point–triangle tests take them rather
     /// than work them out per pair.
@@ -315,50 +314,46 @@ impl SurfaceTree {
         self.edges = self.order.iter().map(|&t| self.edges[t as usize]).collect();
     }
 
-    /// Each triangle's and each node's box and span over the substep (its triangles' corners
-    /// at the substep's start, `prev`, and end, `x`), grown by `grow` (the spans by `grow`
-    /// times the diagonals' length, `√2`), and a cone holding a node's triangles' normals then
-    /// and now. A triangle with a corner that is not finite has an empty box (it meets
-    /// nothing); one without area makes its node's cone hold every direction (never flat). The
-    /// particles and the triangles are taken in parallel, then the nodes from the leaves up,
-    /// the subtrees side by side ([`Self::fit_nodes`]). A triangle whose corners start the
-    /// substep where the last refit left them keeps the normal it had then.
+    /// Each particle's span, each triangle's box and each node's box and span over the substep
+    /// (from the particles at the substep's start, `prev`, and end, `x`), grown by `grow` (the
+    /// spans by `grow` times the diagonals' length, `√2`), and a cone holding a node's
+    /// triangles' normals then and now; a leaf's span is joined from its corners'. A triangle
+    /// with a corner that is not finite has an empty box (it meets nothing); one without area
+    /// makes its node's cone hold every direction (never flat). The particles and the triangles
+    /// are taken in parallel, then the nodes from the leaves up, the subtrees side by side
+    /// ([`Self::fit_nodes`]). A triangle whose corners start the substep where the last refit
+    /// left them keeps the normal it had then.
     pub(super) fn refit(&mut self, prev: &[Vec3], x: &[Vec3], grow: f32) {
         self.grow = grow;
         let places = self.order.len();
         let parallel = places >= super::PARALLEL_MIN;
+        // Grown here, once a particle: a span joined from grown ones is the same as one grown
+        // after the join (the rounding keeps the order).
+        let span = |(&a, &b): (&Vec3, &Vec3)| widen_span(path_span(a, b), grow);
         self.particle_spans.clear();
         if parallel {
-            self.particle_spans.par_extend(prev.par_iter().zip(x).map(|(&a, &b)| path_span(a, b)));
+            self.particle_spans.par_extend(prev.par_iter().zip(x).map(span));
         } else {
-            self.particle_spans.extend(prev.iter().zip(x).map(|(&a, &b)| path_span(a, b)));
+            self.particle_spans.extend(prev.iter().zip(x).map(span));
         }
         self.triangle_boxes.resize(places, [Vec3A::ZERO; 2]);
-        self.triangle_spans.resize(places, NO_SPAN);
-        self.now.resize(places, ([Vec3A::ZERO; 3], 0.0));
+        self.now.resize(places, ([Vec3::ZERO; 3], 0.0));
         self.faces.resize(places, [Vec3::ZERO; 2]);
-        let spans = &self.particle_spans;
-        let fit = |corners: [u32; 3], own: &mut [Vec3A; 2], now: &mut ([Vec3A; 3], f32), faces: &mut [Vec3; 2]| {
-            let [a, b, c] = corners.map(|k| spans[k as usize]);
+        let fit = |(corners, ((own, now), faces)): (
+            &[u32; 3],
+            ((&mut [Vec3A; 2], &mut ([Vec3; 3], f32)), &mut [Vec3; 2]),
+        )| {
             let last = (now.0, faces[1]);
-            (*own, *now, *faces) = fit_triangle(corners, prev, x, grow, last);
-            widen_span(join_spans(join_spans(a, b), c), grow)
+            (*own, *now, *faces) = fit_triangle(*corners, prev, x, grow, last);
         };
-        let (boxes, now, faces, triangle_spans) =
-            (&mut self.triangle_boxes, &mut self.now, &mut self.faces, &mut self.triangle_spans);
+        let (boxes, now, faces) = (&mut self.triangle_boxes, &mut self.now, &mut self.faces);
         if parallel {
-            let each = boxes
-                .par_iter_mut()
-                .zip(now.par_iter_mut())
-                .zip(faces.par_iter_mut().zip(triangle_spans.par_iter_mut()));
-            self.corners.par_iter().zip(each).for_each(|(corners, ((own, now), (faces, span)))| {
-                *span = fit(*corners, own, now, faces);
-            });
+            self.corners
+                .par_iter()
+                .zip(boxes.par_iter_mut().zip(now.par_iter_mut()).zip(faces.par_iter_mut()))
+                .for_each(fit);
         } else {
-            let each = boxes.iter_mut().zip(now.iter_mut()).zip(faces.iter_mut().zip(triangle_spans.iter_mut()));
-            self.corners.iter().zip(each).for_each(|(corners, ((own, now), (faces, span)))| {
-                *span = fit(*corners, own, now, faces);
-            });
+            self.corners.iter().zip(boxes.iter_mut().zip(now.iter_mut()).zip(faces.iter_mut())).for_each(fit);
         }
         let mut fits = core::mem::take(&mut self.fits);
         fits.resize(self.nodes.len(), Fit::EMPTY);
@@ -406,7 +401,9 @@ impl SurfaceTree {
         for (k, at) in range.clone().enumerate() {
             let own = self.triangle_boxes[at];
             bounds = [bounds[0].min(own[0]), bounds[1].max(own[1])];
-            span = join_spans(span, self.triangle_spans[at]);
+            for k in self.corners[at] {
+                span = join_spans(span, self.particle_spans[k as usize]);
+            }
             let [then, now] = self.faces[at];
             normals[2 * k..2 * k + 2].copy_from_slice(&[then.into(), now.into()]);
         }
@@ -658,6 +655,7 @@ impl SurfaceTree {
     #[inline]
     fn separated(&self, i: usize, j: usize) -> bool {
         let ((a, a_moved), (b, b_moved)) = (self.now[i], self.now[j]);
+        let (a, b) = (a.map(Vec3A::from), b.map(Vec3A::from));
         let axis = (b[0] + b[1] + b[2]) - (a[0] + a[1] + a[2]);
         let a_hi = a[0].dot(axis).max(a[1].dot(axis)).max(a[2].dot(axis));
         let b_lo = b[0].dot(axis).min(b[1].dot(axis)).min(b[2].dot(axis));
@@ -708,8 +706,8 @@ fn fit_triangle(
     prev: &[Vec3],
     x: &[Vec3],
     grow: f32,
-    last: ([Vec3A; 3], Vec3),
-) -> ([Vec3A; 2], ([Vec3A; 3], f32), [Vec3; 2]) {
+    last: ([Vec3; 3], Vec3),
+) -> ([Vec3A; 2], ([Vec3; 3], f32), [Vec3; 2]) {
     let (before, now) = (corners.map(|k| Vec3A::from(prev[k as usize])), corners.map(|k| Vec3A::from(x[k as usize])));
     let lo = before[0].min(before[1]).min(before[2]).min(now[0].min(now[1]).min(now[2]));
     let hi = before[0].max(before[1]).max(before[2]).max(now[0].max(now[1]).max(now[2]));
@@ -717,8 +715,8 @@ fn fit_triangle(
     let moved = (0..3).fold(0.0f32, |m, k| m.max(before[k].distance_squared(now[k]))).sqrt();
     let normal = |[a, b, c]: [Vec3A; 3]| Vec3::from((b - a).cross(c - a).try_normalize().unwrap_or(Vec3A::ZERO));
     // Equal corners (NaN never is) give the same normal.
-    let then = if before == last.0 { last.1 } else { normal(before) };
-    (own, (now, moved), [then, normal(now)])
+    let then = if before == last.0.map(Vec3A::from) { last.1 } else { normal(before) };
+    (own, (now.map(Vec3::from), moved), [then, normal(now)])
 }
 
 /// The span of a particle's path from `a` to `b` ([`NO_SPAN`] for one that is not finite).
