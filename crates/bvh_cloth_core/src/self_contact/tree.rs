@@ -339,21 +339,17 @@ impl SurfaceTree {
         self.triangle_boxes.resize(places, [Vec3A::ZERO; 2]);
         self.now.resize(places, ([Vec3::ZERO; 3], 0.0));
         self.faces.resize(places, [Vec3::ZERO; 2]);
-        let fit = |(corners, ((own, now), faces)): (
-            &[u32; 3],
-            ((&mut [Vec3A; 2], &mut ([Vec3; 3], f32)), &mut [Vec3; 2]),
-        )| {
+        let fit = |corners: &[u32; 3], own: &mut [Vec3A; 2], now: &mut ([Vec3; 3], f32), faces: &mut [Vec3; 2]| {
             let last = (now.0, faces[1]);
             (*own, *now, *faces) = fit_triangle(*corners, prev, x, grow, last);
         };
         let (boxes, now, faces) = (&mut self.triangle_boxes, &mut self.now, &mut self.faces);
         if parallel {
-            self.corners
-                .par_iter()
-                .zip(boxes.par_iter_mut().zip(now.par_iter_mut()).zip(faces.par_iter_mut()))
-                .for_each(fit);
+            let each = boxes.par_iter_mut().zip(now.par_iter_mut()).zip(faces.par_iter_mut());
+            self.corners.par_iter().zip(each).for_each(|(corners, ((own, now), faces))| fit(corners, own, now, faces));
         } else {
-            self.corners.iter().zip(boxes.iter_mut().zip(now.iter_mut()).zip(faces.iter_mut())).for_each(fit);
+            let each = boxes.iter_mut().zip(now.iter_mut()).zip(faces.iter_mut());
+            self.corners.iter().zip(each).for_each(|(corners, ((own, now), faces))| fit(corners, own, now, faces));
         }
         let mut fits = core::mem::take(&mut self.fits);
         fits.resize(self.nodes.len(), Fit::EMPTY);
@@ -401,8 +397,8 @@ impl SurfaceTree {
         for (k, at) in range.clone().enumerate() {
             let own = self.triangle_boxes[at];
             bounds = [bounds[0].min(own[0]), bounds[1].max(own[1])];
-            for k in self.corners[at] {
-                span = join_spans(span, self.particle_spans[k as usize]);
+            for corner in self.corners[at] {
+                span = join_spans(span, self.particle_spans[corner as usize]);
             }
             let [then, now] = self.faces[at];
             normals[2 * k..2 * k + 2].copy_from_slice(&[then.into(), now.into()]);
