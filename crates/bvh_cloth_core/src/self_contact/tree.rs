@@ -563,8 +563,12 @@ impl SurfaceTree {
                 },
                 pairs,
             );
+            // The bound is spent: the walk stops, and the pairs it stacked are left too.
+            if untested > 0 {
+                return untested + stack.len();
+            }
         }
-        untested
+        0
     }
 
     /// Whether the node pair `(a, b)` (a node against itself when `a == b`) holds no pair of
