@@ -72,6 +72,27 @@ pub struct ClothTopology {
     stiffness_bound: [f32; 3],
     rest_area: f32,
     colouring: Result<ParticleColouring, ClothError>,
+    serial: Serial,
+}
+
+/// A number that no other topology built in the process has, which says what a cache was made
+/// for without comparing the shapes: a clone keeps it, holding the same shape (which never
+/// changes). It takes no part in `==`, which compares the shapes.
+#[derive(Clone, Copy, Debug)]
+struct Serial(u64);
+
+impl Serial {
+    /// The next number.
+    fn next() -> Self {
+        static NEXT: core::sync::atomic::AtomicU64 = core::sync::atomic::AtomicU64::new(0);
+        Self(NEXT.fetch_add(1, core::sync::atomic::Ordering::Relaxed))
+    }
+}
+
+impl PartialEq for Serial {
+    fn eq(&self, _: &Self) -> bool {
+        true
+    }
 }
 
 impl ClothTopology {
@@ -284,7 +305,14 @@ impl ClothTopology {
             stiffness_bound,
             rest_area,
             colouring,
+            serial: Serial::next(),
         }
+    }
+
+    /// A number that no other topology built in the process has (a clone keeps it): two
+    /// topologies with the same serial hold the same shape.
+    pub(crate) fn serial(&self) -> u64 {
+        self.serial.0
     }
 
     /// Number of particles.

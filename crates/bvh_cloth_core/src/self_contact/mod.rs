@@ -364,6 +364,9 @@ pub struct ContactSolver {
     free: Vec<f32>,
     /// 1 for a particle a collider touched in the substep.
     held: Vec<f32>,
+    /// The serial of each body's topology ([`ClothTopology::serial`]) that `owner`,
+    /// `triangles` and `edges` were gathered for.
+    gathered_for: Vec<u64>,
     /// For each particle, its body and its index in it.
     owner: Vec<(u32, u32)>,
     /// Every body's triangles: its body and its corners' flat indices.
@@ -385,10 +388,12 @@ pub struct ContactSolver {
     tangled: bool,
     /// Resolutions left before the next test for crossing bodies (`untangle`).
     untangle_wait: u32,
-    /// Each particle's summed corrections and the number of contacts it took part in.
+    /// Each particle's summed corrections and the number of contacts it took part in, zero
+    /// outside [`Self::apply`], and the particles they moved there.
     dx: Vec<Vec3>,
     dv: Vec<Vec3>,
     count: Vec<u32>,
+    moved: Vec<u32>,
 }
 
 /// One contact of four particles (a point and a triangle's corners, or two edges' ends): the
@@ -471,18 +476,20 @@ impl ContactSolver {
         found: &[Vec<Contact>],
         contacts: &mut usize,
     ) {
+        // Zero between calls: each particle a contact moved is cleared after its move.
         let n = self.x.len();
-        self.dx.clear();
         self.dx.resize(n, Vec3::ZERO);
-        self.dv.clear();
         self.dv.resize(n, Vec3::ZERO);
-        self.count.clear();
         self.count.resize(n, 0);
+        self.moved.clear();
         for found in found {
             for c in found {
                 for ((&k, &coef), &w) in c.ids.iter().zip(&c.coef).zip(&c.w) {
                     let k = k as usize;
                     if w > 0.0 {
+                        if self.count[k] == 0 {
+                            self.moved.push(k as u32);
+                        }
                         self.dx[k] += w * coef * c.lambda * c.n;
                         self.dv[k] += w * coef * c.impulse;
                         self.count[k] += 1;
@@ -490,14 +497,14 @@ impl ContactSolver {
                 }
             }
         }
-        for k in 0..n {
-            let count = self.count[k];
-            if count == 0 {
-                continue;
-            }
+        let moved = core::mem::take(&mut self.moved);
+        for &k in &moved {
+            let k = k as usize;
+            let count = core::mem::take(&mut self.count[k]);
+            let (dx, dv) = (core::mem::take(&mut self.dx[k]), core::mem::take(&mut self.dv[k]));
             *contacts += count as usize;
             let mean = 1.0 / count as f32;
-            let (mut p, mut vel) = (self.x[k] + self.dx[k] * mean, self.v[k] + self.dv[k] * mean);
+            let (mut p, mut vel) = (self.x[k] + dx * mean, self.v[k] + dv * mean);
             let (body, local) = self.owner[k];
             let body = &mut bodies[body as usize];
             for frame in frames.iter().filter(|f| body.layers.interacts_with(f.layers)) {
@@ -506,6 +513,7 @@ impl ContactSolver {
             (body.x[local as usize], body.v[local as usize]) = (p, vel);
             (self.x[k], self.v[k]) = (p, vel);
         }
+        self.moved = moved;
     }
 
     /// The contact of the particles `ids` whose constraint is `Σ coef_k x_k · n >= h`, short
@@ -545,32 +553,44 @@ impl ContactSolver {
         Some(Contact { ids, coef, n, lambda: depth / denom * scale, impulse, w })
     }
 
-    /// Copies every body's particles, triangles and edges into the flat arrays.
+    /// Copies every body's particles into the flat arrays, and its triangles and edges when
+    /// the bodies' topologies changed.
     fn gather(&mut self, bodies: &[ContactBody<'_>]) {
         self.prev.clear();
         self.x.clear();
         self.v.clear();
         self.free.clear();
         self.held.clear();
-        self.owner.clear();
-        self.triangles.clear();
-        self.edges.clear();
-        for (b, body) in bodies.iter().enumerate() {
+        for body in bodies {
             let n = body.topology.len();
             assert!(
                 body.x.len() >= n && body.v.len() >= n && body.free.len() >= n && body.prev.len() >= n,
                 "a contact body holds fewer particles than its topology"
             );
-            let first = self.x.len() as u32;
             self.prev.extend_from_slice(&body.prev[..n]);
             self.x.extend_from_slice(&body.x[..n]);
             self.v.extend_from_slice(&body.v[..n]);
             self.free.extend_from_slice(&body.free[..n]);
-            self.held.extend((0..n).map(|i| body.held.get(i).copied().unwrap_or(0.0)));
-            self.owner.extend((0..n as u32).map(|i| (b as u32, i)));
+            match body.held.get(..n) {
+                Some(held) => self.held.extend_from_slice(held),
+                None => self.held.extend((0..n).map(|i| body.held.get(i).copied().unwrap_or(0.0))),
+            }
+        }
+        if self.gathered_for.iter().copied().eq(bodies.iter().map(|b| b.topology.serial())) {
+            return;
+        }
+        self.gathered_for = bodies.iter().map(|b| b.topology.serial()).collect();
+        self.owner.clear();
+        self.triangles.clear();
+        self.edges.clear();
+        let mut first = 0;
+        for (b, body) in bodies.iter().enumerate() {
+            let n = body.topology.len() as u32;
+            self.owner.extend((0..n).map(|i| (b as u32, i)));
             for t in body.topology.triangles() {
                 self.triangles.push((b as u32, t.map(|k| first + k)));
             }
+            first += n;
         }
         // The edges after every triangle, body by body.
         let mut first = 0;

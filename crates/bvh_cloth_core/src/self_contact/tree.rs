@@ -182,10 +182,9 @@ struct Node {
 /// The tree of every body's triangles, and what each triangle stands for in the pairs.
 #[derive(Clone, Debug, Default)]
 pub(super) struct SurfaceTree {
-    /// Each body's rest shape and triangles the tree was built for: a body whose particles or
-    /// triangles differ gets its tree built again (the particles' and edges' flat indices
-    /// follow from the counts, the boxes in the rest shape from the positions).
-    built_for: Vec<(Vec<Vec3>, Vec<[u32; 3]>)>,
+    /// The serial of each body's topology the tree was built for
+    /// ([`ClothTopology::serial`]): a body of another topology gets its tree built again.
+    built_for: Vec<u64>,
     /// Each primitive's box in the rest shape: every body's triangles, then every body's edges
     /// (primitive `triangles + e` is edge `e`), in their flat order.
     pub(super) rest_boxes: Vec<[Vec3A; 2]>,
@@ -233,19 +232,14 @@ pub(super) struct SurfaceTree {
 }
 
 impl SurfaceTree {
-    /// Builds the tree again when the bodies' rest shapes or triangles changed (`topologies`, in
-    /// body order; their triangles come first to last in the flat triangle order, and their
-    /// particles and edges likewise).
+    /// Builds the tree again when the bodies' topologies changed (`topologies`, in body order;
+    /// their triangles come first to last in the flat triangle order, and their particles and
+    /// edges likewise).
     pub(super) fn prepare(&mut self, topologies: &[&ClothTopology]) {
-        let same =
-            self.built_for.len() == topologies.len()
-                && self.built_for.iter().zip(topologies).all(|((rest, t), topology)| {
-                    rest[..] == *topology.rest_positions() && t[..] == *topology.triangles()
-                });
-        if same {
+        if self.built_for.iter().copied().eq(topologies.iter().map(|t| t.serial())) {
             return;
         }
-        self.built_for = topologies.iter().map(|t| (t.rest_positions().to_vec(), t.triangles().to_vec())).collect();
+        self.built_for = topologies.iter().map(|t| t.serial()).collect();
         self.rest_boxes.clear();
         for topology in topologies {
             let rest = topology.rest_positions();
