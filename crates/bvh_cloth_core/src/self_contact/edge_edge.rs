@@ -15,11 +15,14 @@ impl ContactSolver {
         let tree = &self.tree;
         let (i, j) = (tree.place(t), tree.place(u));
         let reach = 2.0 * tree.grow();
-        for (&e, e_box) in tree.edges[i].iter().zip(&tree.edge_boxes[i]) {
+        // An edge's box joined from its ends' (none for no edge).
+        let boxed = |e: u32| self.edges.get(e as usize).map(|&(_, ends)| (e, tree.edge_box(ends)));
+        let theirs = tree.edges[j].map(boxed);
+        for (e, e_box) in tree.edges[i].into_iter().filter_map(boxed) {
             let (lo, hi) = (e_box[0] - reach, e_box[1] + reach);
-            for (&f, f_box) in tree.edges[j].iter().zip(&tree.edge_boxes[j]) {
+            for &(f, f_box) in theirs.iter().flatten() {
                 if lo.cmple(f_box[1]).all() && hi.cmpge(f_box[0]).all() {
-                    found.extend(self.edge_contact(bodies, e as usize, f as usize, e_box, f_box));
+                    found.extend(self.edge_contact(bodies, e as usize, f as usize, &e_box, &f_box));
                 }
             }
         }

@@ -440,7 +440,7 @@ impl ContactSolver {
         // edges, from where those left the particles.
         let found = self.find(bodies, &pairs, |solver, pair, bodies, found| solver.point_contacts(pair, bodies, found));
         self.apply(bodies, frames, &found, &mut stats.contacts);
-        self.tree.sweep_edges(&self.edges, &self.prev, &self.x);
+        self.tree.sweep_particles(&self.prev, &self.x);
         let found = self.find(bodies, &pairs, |solver, pair, bodies, found| solver.edge_contacts(pair, bodies, found));
         self.apply(bodies, frames, &found, &mut stats.contacts);
         self.pairs = pairs;

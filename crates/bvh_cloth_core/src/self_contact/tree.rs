@@ -223,11 +223,8 @@ pub(super) struct SurfaceTree {
     /// exactly one of its triangles; `u32::MAX` for none.
     pub(super) points: Vec<[u32; 3]>,
     pub(super) edges: Vec<[u32; 3]>,
-    /// The boxes of those edges over the substep, not grown (empty for none): the pairs' tests
-    /// look at them first, side by side.
-    pub(super) edge_boxes: Vec<[[Vec3A; 2]; 3]>,
     /// Each particle's box over the substep (flat indices; empty for one that is not finite):
-    /// the scratch the edges' boxes are joined from.
+    /// what the edges' boxes are joined from ([`Self::edge_box`]).
     paths: Vec<[Vec3A; 2]>,
 }
 
@@ -400,37 +397,26 @@ impl SurfaceTree {
         Fit { bounds, span, cone: Cone::of(&normals[..2 * range.len()]) }
     }
 
-    /// The boxes of the edges each triangle stands for over the substep ([`Self::edge_boxes`]),
-    /// from `edges` (every body's, their ends' flat indices) at the substep's start, `prev`,
-    /// and now, `x`: each particle's path boxed once, each edge's box joined from its ends', in
-    /// parallel.
-    pub(super) fn sweep_edges(&mut self, edges: &[(u32, [u32; 2])], prev: &[Vec3], x: &[Vec3]) {
+    /// Each particle's box over the substep, from its position at the substep's start, `prev`,
+    /// and now, `x`, in parallel: what [`Self::edge_box`] joins.
+    pub(super) fn sweep_particles(&mut self, prev: &[Vec3], x: &[Vec3]) {
         let path = |(&a, &b): (&Vec3, &Vec3)| {
             if a.is_finite() && b.is_finite() { [a.min(b).into(), a.max(b).into()] } else { EMPTY }
         };
         self.paths.clear();
-        self.edge_boxes.clear();
-        let parallel = self.edges.len() >= super::PARALLEL_MIN;
-        if parallel {
+        if x.len() >= super::PARALLEL_MIN {
             self.paths.par_extend(prev.par_iter().zip(x).map(path));
         } else {
             self.paths.extend(prev.iter().zip(x).map(path));
         }
-        let paths = &self.paths;
-        let boxes = |ours: &[u32; 3]| {
-            ours.map(|e| match edges.get(e as usize) {
-                Some(&(_, [p, q])) => {
-                    let ([p_lo, p_hi], [q_lo, q_hi]) = (paths[p as usize], paths[q as usize]);
-                    [p_lo.min(q_lo), p_hi.max(q_hi)]
-                }
-                None => EMPTY,
-            })
-        };
-        if parallel {
-            self.edge_boxes.par_extend(self.edges.par_iter().map(boxes));
-        } else {
-            self.edge_boxes.extend(self.edges.iter().map(boxes));
-        }
+    }
+
+    /// The box over the substep of the edge whose ends are the particles `ends` (flat indices),
+    /// not grown: its ends' boxes joined ([`Self::sweep_particles`]).
+    #[inline]
+    pub(super) fn edge_box(&self, [p, q]: [u32; 2]) -> [Vec3A; 2] {
+        let ([p_lo, p_hi], [q_lo, q_hi]) = (self.paths[p as usize], self.paths[q as usize]);
+        [p_lo.min(q_lo), p_hi.max(q_hi)]
     }
 
     /// Where triangle `t` lies in the tree's order: the place its tests' data are kept at.
