@@ -365,7 +365,7 @@ pub struct ContactSolver {
     /// 1 for a particle a collider touched in the substep.
     held: Vec<f32>,
     /// The serial of each body's topology ([`ClothTopology::serial`]) that `owner`,
-    /// `triangles` and `edges` were gathered for.
+    /// `triangles`, `edges` and `tree` were made for.
     gathered_for: Vec<u64>,
     /// For each particle, its body and its index in it.
     owner: Vec<(u32, u32)>,
@@ -429,8 +429,6 @@ impl ContactSolver {
         if n < 2 || self.triangles.is_empty() || !(thickest.is_finite() && thickest > 0.0) {
             return ContactStats::default();
         }
-        let topologies: Vec<&ClothTopology> = bodies.iter().map(|b| b.topology).collect();
-        self.tree.prepare(&topologies);
         self.tree.refit(&self.prev, &self.x, 0.5 * thickest);
         let mut pairs = core::mem::take(&mut self.pairs);
         let meet = |a: usize, b: usize| bodies[a].layers.interacts_with(bodies[b].layers);
@@ -553,8 +551,8 @@ impl ContactSolver {
         Some(Contact { ids, coef, n, lambda: depth / denom * scale, impulse, w })
     }
 
-    /// Copies every body's particles into the flat arrays, and its triangles and edges when
-    /// the bodies' topologies changed.
+    /// Copies every body's particles into the flat arrays, and, when the bodies' topologies
+    /// changed, their triangles and edges, and builds their tree again.
     fn gather(&mut self, bodies: &[ContactBody<'_>]) {
         self.prev.clear();
         self.x.clear();
@@ -600,6 +598,8 @@ impl ContactSolver {
             }
             first += body.topology.len() as u32;
         }
+        let topologies: Vec<&ClothTopology> = bodies.iter().map(|b| b.topology).collect();
+        self.tree.build(&topologies);
     }
 }
 

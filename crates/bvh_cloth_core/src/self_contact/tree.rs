@@ -182,9 +182,6 @@ struct Node {
 /// The tree of every body's triangles, and what each triangle stands for in the pairs.
 #[derive(Clone, Debug, Default)]
 pub(super) struct SurfaceTree {
-    /// The serial of each body's topology the tree was built for
-    /// ([`ClothTopology::serial`]): a body of another topology gets its tree built again.
-    built_for: Vec<u64>,
     /// Each primitive's box in the rest shape: every body's triangles, then every body's edges
     /// (primitive `triangles + e` is edge `e`), in their flat order.
     pub(super) rest_boxes: Vec<[Vec3A; 2]>,
@@ -229,14 +226,9 @@ pub(super) struct SurfaceTree {
 }
 
 impl SurfaceTree {
-    /// Builds the tree again when the bodies' topologies changed (`topologies`, in body order;
-    /// their triangles come first to last in the flat triangle order, and their particles and
-    /// edges likewise).
-    pub(super) fn prepare(&mut self, topologies: &[&ClothTopology]) {
-        if self.built_for.iter().copied().eq(topologies.iter().map(|t| t.serial())) {
-            return;
-        }
-        self.built_for = topologies.iter().map(|t| t.serial()).collect();
+    /// Builds the tree of the bodies' triangles (`topologies`, in body order; their triangles
+    /// come first to last in the flat triangle order, and their particles and edges likewise).
+    pub(super) fn build(&mut self, topologies: &[&ClothTopology]) {
         self.rest_boxes.clear();
         for topology in topologies {
             let rest = topology.rest_positions();
